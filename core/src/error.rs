@@ -1,0 +1,137 @@
+//! Errors: invalid parameters (rejected when a controller is built) and rejected
+//! measurements (answered with the safe command).
+
+use core::fmt;
+
+/// The rule a parameter breaks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rule {
+    /// The value is NaN or infinite.
+    NonFinite,
+    /// The value must be strictly positive.
+    NotPositive,
+    /// The value must be positive or zero.
+    Negative,
+    /// The value must lie in [0, 1].
+    NotInUnitInterval,
+    /// A lower joint limit must be strictly below the upper one (`q⁻ < q⁺`).
+    EmptyInterval,
+    /// The margins of the joint-limit penalty (21) must leave a free band:
+    /// `δ > 0` and `2δ < q⁺ − q⁻`.
+    PenaltyMarginTooWide,
+    /// Eq. (52) needs `0 < δ⁻⁻ < δ⁻` and `0 < δ⁺⁺ < δ⁺` (the ramp has a width), and the two
+    /// bands must not overlap: `δ⁻ + δ⁺ < q⁺ − q⁻`.
+    WeightMarginOrder,
+    /// Lemma 2's transversality condition `6 η₂ η₃ > 8 η₃ + η₁ η₂` does not hold.
+    Transversality,
+    /// Decomposition (51) is exact only for `h_s = h_s1`: it needs the constant weight `Ψ = 1`.
+    Decomposition51NeedsPsiOne,
+    /// The arm geometry is not usable (e.g. a non-positive link length).
+    Geometry,
+}
+
+/// An invalid parameter: which one, which joint (if per joint), and the rule it breaks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ParamError {
+    /// The parameter's name, as in the paper where it has one (e.g. `"epsilon_1"`).
+    pub param: &'static str,
+    /// The joint index (from 0) for per-joint parameters.
+    pub joint: Option<u8>,
+    /// The rule broken.
+    pub rule: Rule,
+}
+
+impl ParamError {
+    /// An error for a scalar parameter.
+    pub const fn new(param: &'static str, rule: Rule) -> Self {
+        Self { param, joint: None, rule }
+    }
+
+    /// An error for joint `joint` (from 0) of a per-joint parameter.
+    #[allow(clippy::cast_possible_truncation)]
+    pub const fn joint(param: &'static str, joint: usize, rule: Rule) -> Self {
+        Self { param, joint: Some(joint as u8), rule }
+    }
+}
+
+impl fmt::Display for Rule {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Rule::NonFinite => "must be finite",
+            Rule::NotPositive => "must be > 0",
+            Rule::Negative => "must be >= 0",
+            Rule::NotInUnitInterval => "must lie in [0, 1]",
+            Rule::EmptyInterval => "lower limit must be < upper limit",
+            Rule::PenaltyMarginTooWide => "penalty margin delta must satisfy 0 < 2*delta < q+ - q-",
+            Rule::WeightMarginOrder => {
+                "weight margins must satisfy 0 < delta-- < delta-, 0 < delta++ < delta+, delta- + delta+ < q+ - q- (eq. 52)"
+            }
+            Rule::Transversality => "Lemma 2 needs 6*eta2*eta3 > 8*eta3 + eta1*eta2",
+            Rule::Decomposition51NeedsPsiOne => {
+                "decomposition (51) is exact only for h_s = h_s1: use the constant weight psi = 1"
+            }
+            Rule::Geometry => "arm geometry is not usable",
+        })
+    }
+}
+
+impl fmt::Display for ParamError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.joint {
+            Some(j) => write!(f, "parameter `{}` (joint {}): {}", self.param, j + 1, self.rule),
+            None => write!(f, "parameter `{}`: {}", self.param, self.rule),
+        }
+    }
+}
+
+impl core::error::Error for ParamError {}
+
+/// A field of a [`Measurement`](crate::Measurement), to say which one was bad.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Field {
+    /// The time `t`.
+    Time,
+    /// The platform pose `r_b`.
+    BasePose,
+    /// The steering state `ξ` (car-like platform).
+    Steering,
+    /// The joint positions `q`.
+    Joints,
+    /// The target pose `r_d`.
+    TargetPose,
+    /// The target body velocity `u_d`.
+    TargetVelocity,
+}
+
+/// Why a step was rejected. The controller answered with the safe command (all
+/// velocities zero) and left its state as it was.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StepError {
+    /// A measured value is NaN or infinite (or the time is negative).
+    NonFinite(Field),
+    /// The time step is not finite, `≤ 0`, or above the configured maximum.
+    BadTimeStep,
+    /// Joint `0` (index from 0) is at or beyond one of its limits.
+    JointAtLimit(u8),
+    /// The arm is at a singular configuration (for the RPR arm: `q₂ ≤ 0`).
+    SingularArm,
+    /// `∂e_m/∂q` (eq. 24) cannot be inverted.
+    SingularTaskJacobian,
+    /// The law produced a non-finite value (an overflow on extreme input).
+    NumericalFailure,
+}
+
+impl fmt::Display for StepError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            StepError::NonFinite(field) => write!(f, "measurement {field:?} is not finite"),
+            StepError::BadTimeStep => f.write_str("time step is not finite, <= 0 or above the maximum"),
+            StepError::JointAtLimit(j) => write!(f, "joint {} is at or beyond its limit", j + 1),
+            StepError::SingularArm => f.write_str("arm configuration is singular"),
+            StepError::SingularTaskJacobian => f.write_str("task Jacobian de_m/dq is singular"),
+            StepError::NumericalFailure => f.write_str("the law produced a non-finite value"),
+        }
+    }
+}
+
+impl core::error::Error for StepError {}

@@ -1,0 +1,82 @@
+//! # companion-core
+//!
+//! The feedback law of *"A Framework for the Control of Nonholonomic Mobile
+//! Manipulators"* as a `no_std`, allocation-free library: a manipulator arm on a wheeled
+//! platform — omnidirectional, unicycle-like or car-like — tracks a moving target with its
+//! end effector while its joints stay inside their limits, and the platform follows
+//! through a *companion omnidirectional frame* built from a transverse function.
+//!
+//! Why a crate of its own: the law must run unchanged on a microcontroller (Cortex-M4F,
+//! f32) and on a host (f64), with the same bits from the same inputs. So it has no heap, no
+//! `std`, no panics reachable from its API, fixed-size matrices (`nalgebra`), and all
+//! elementary functions from one pinned `libm`.
+//!
+//! ## Map of the paper
+//!
+//! | paper | here |
+//! |---|---|
+//! | SE(2), eqs. (1)–(10) | [`se2`] |
+//! | transverse functions, companion frame, (11)–(16), (55)–(60) | [`platform`] |
+//! | arm kinematics `r_eb(q)`, (45) | [`arm`] |
+//! | primary task `e_p`, `h_ℓ`, `h_r`, `e_m`, (20)–(26), (42), (48) | [`primary`] |
+//! | secondary cost, weight `Ψ`, (27)–(29), (49)–(54) | [`secondary`] |
+//! | platform law (37) with Choices 1–3, arm law (30), saturation | [`ControlLaw::step`] |
+//! | §4.3 parameters | [`Params::paper`] |
+//!
+//! ## Example
+//!
+//! ```
+//! use companion_core::{Controller, Measurement, PaperRun, Params, Pose, Rpr, Unicycle};
+//! use nalgebra::{Vector3, SVector};
+//!
+//! let mut ctrl = Controller::new(Params::<f64, 3>::paper(PaperRun::A), Unicycle::paper(), Rpr::paper())?;
+//! let meas = Measurement {
+//!     t: 0.0,
+//!     base: Pose::new(0.0, 0.0, 0.0),
+//!     steering: 0.0,
+//!     joints: SVector::<f64, 3>::new(0.0, 0.35, 0.0),
+//!     target: Pose::new(2.6, 1.0, 0.0),
+//!     target_velocity: Vector3::new(0.0, -0.157, 0.0),
+//! };
+//! let out = ctrl.step(&meas, 1e-3).expect("a valid measurement");
+//! assert!(out.command.is_finite());
+//! // A joint at its limit is rejected with the safe command.
+//! let bad = Measurement { joints: SVector::<f64, 3>::new(0.0, 0.0, 0.0), ..meas };
+//! let rejected = ctrl.step(&bad, 1e-3).unwrap_err();
+//! assert_eq!(rejected.command, companion_core::Command::zero());
+//! # Ok::<(), companion_core::ParamError>(())
+//! ```
+#![no_std]
+#![forbid(unsafe_code)]
+#![deny(missing_docs)]
+#![warn(clippy::std_instead_of_core, clippy::alloc_instead_of_core)]
+#![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used, clippy::panic))]
+
+#[cfg(test)]
+extern crate std;
+
+pub mod arm;
+pub mod error;
+pub mod law;
+pub mod params;
+pub mod platform;
+pub mod primary;
+pub mod scalar;
+pub mod se2;
+pub mod secondary;
+
+pub use arm::{Arm, ArmKinematics, Rpr};
+pub use error::{Field, ParamError, Rule, StepError};
+pub use law::{Command, ControlLaw, Controller, Diagnostics, Measurement, Output, Rejected, State};
+pub use params::{
+    JointLimits, PaperRun, Params, Precompensation, PrimaryTask, SecondaryTask, Warning, Weight,
+    WeightMargins,
+};
+pub use platform::{
+    CarLike, CompanionFrame, Omnidirectional, Platform, PlatformCommand, PlatformKind, Unicycle,
+    VelocityLimits,
+};
+pub use scalar::{wrap_angle, Real};
+pub use se2::Pose;
+
+pub use nalgebra;

@@ -1,0 +1,139 @@
+//! The scalar types the controller runs in: `f64` and `f32`.
+//!
+//! Every elementary function the law needs goes through [`Real`], so that the host and the
+//! firmware call exactly the same implementation (libm, pinned in the workspace) and give
+//! the same bits, and so that a faster implementation can be swapped in per type.
+
+use nalgebra::RealField;
+
+/// A floating-point scalar the controller can run in (`f64` or `f32`).
+///
+/// The methods are named apart from nalgebra's `ComplexField` ones on purpose: the law
+/// calls these, never the platform's, so the arithmetic is the same on every target.
+pub trait Real: RealField + Copy + Default + core::fmt::Debug {
+    /// Sine and cosine of `self` (radians).
+    fn sincos(self) -> (Self, Self);
+    /// Arc tangent of `self`, in (−π/2, π/2).
+    fn arctan(self) -> Self;
+    /// Four-quadrant arc tangent of `self / x`, in (−π, π].
+    fn arctan2(self, x: Self) -> Self;
+    /// `e^self`.
+    fn exponential(self) -> Self;
+    /// Square root of `self` (NaN for negative input).
+    fn square_root(self) -> Self;
+    /// `self` rounded to the nearest integer, halfway cases away from zero.
+    fn round_nearest(self) -> Self;
+    /// Whether `self` is neither infinite nor NaN.
+    fn finite(self) -> bool;
+    /// Whether `self` is NaN.
+    fn nan(self) -> bool;
+    /// Converts an `f64` constant (rounding to nearest for `f32`).
+    fn of(x: f64) -> Self;
+    /// Converts to `f64` (exact for both types).
+    fn as_f64(self) -> f64;
+}
+
+impl Real for f64 {
+    #[inline]
+    fn sincos(self) -> (Self, Self) {
+        libm::sincos(self)
+    }
+    #[inline]
+    fn arctan(self) -> Self {
+        libm::atan(self)
+    }
+    #[inline]
+    fn arctan2(self, x: Self) -> Self {
+        libm::atan2(self, x)
+    }
+    #[inline]
+    fn exponential(self) -> Self {
+        libm::exp(self)
+    }
+    #[inline]
+    fn square_root(self) -> Self {
+        libm::sqrt(self)
+    }
+    #[inline]
+    fn round_nearest(self) -> Self {
+        libm::round(self)
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+    #[inline]
+    fn nan(self) -> bool {
+        self.is_nan()
+    }
+    #[inline]
+    fn of(x: f64) -> Self {
+        x
+    }
+    #[inline]
+    fn as_f64(self) -> f64 {
+        self
+    }
+}
+
+impl Real for f32 {
+    #[inline]
+    fn sincos(self) -> (Self, Self) {
+        libm::sincosf(self)
+    }
+    #[inline]
+    fn arctan(self) -> Self {
+        libm::atanf(self)
+    }
+    #[inline]
+    fn arctan2(self, x: Self) -> Self {
+        libm::atan2f(self, x)
+    }
+    #[inline]
+    fn exponential(self) -> Self {
+        libm::expf(self)
+    }
+    #[inline]
+    fn square_root(self) -> Self {
+        libm::sqrtf(self)
+    }
+    #[inline]
+    fn round_nearest(self) -> Self {
+        libm::roundf(self)
+    }
+    #[inline]
+    fn finite(self) -> bool {
+        self.is_finite()
+    }
+    #[inline]
+    fn nan(self) -> bool {
+        self.is_nan()
+    }
+    #[inline]
+    #[allow(clippy::cast_possible_truncation)]
+    fn of(x: f64) -> Self {
+        x as f32
+    }
+    #[inline]
+    fn as_f64(self) -> f64 {
+        f64::from(self)
+    }
+}
+
+/// Wraps an angle (radians) to (−π, π].
+#[inline]
+pub fn wrap_angle<T: Real>(a: T) -> T {
+    let two_pi = T::two_pi();
+    let pi = T::pi();
+    if a > -pi && a <= pi {
+        return a;
+    }
+    let mut w = a - two_pi * (a / two_pi).round_nearest();
+    // Rounding can leave the result on the excluded end of the interval.
+    if w <= -pi {
+        w += two_pi;
+    } else if w > pi {
+        w -= two_pi;
+    }
+    w
+}
