@@ -1,0 +1,177 @@
+//! One controller of any platform × scalar type behind one concrete type, and the report of
+//! one step that both the simulation and the HIL loop record.
+
+use companion_core::nalgebra::{SVector, Vector3};
+use companion_core::{
+    CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformCommand, PlatformKind,
+    Pose, Real, Rpr, StepError, Unicycle,
+};
+
+use crate::scenario::{ControllerSpec, Scalar};
+
+/// The number of joints of the paper's arm (the wire and the logs carry this many).
+pub const JOINTS: usize = 3;
+
+/// What one controller step gives the plant and the log: the command (zero when the step was
+/// rejected) and the diagnostics that are logged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StepReport {
+    /// The command to apply (the safe zero command when `error` is set).
+    pub command: Command<f64, JOINTS>,
+    /// `‖e_p‖` (NaN when rejected).
+    pub ep_norm: f64,
+    /// `h_s` (NaN when rejected).
+    pub h_s: f64,
+    /// `Ψ` (NaN when rejected).
+    pub psi: f64,
+    /// The common saturation factor (NaN when rejected).
+    pub saturation: f64,
+    /// `α̇` (NaN when rejected).
+    pub alpha_rate: [f64; 2],
+    /// Why the step was rejected, if it was.
+    pub error: Option<StepError>,
+}
+
+impl StepReport {
+    /// The report of a rejected step: the safe command and no diagnostics.
+    pub fn rejected(error: StepError) -> Self {
+        Self {
+            command: Command::zero(),
+            ep_norm: f64::NAN,
+            h_s: f64::NAN,
+            psi: f64::NAN,
+            saturation: f64::NAN,
+            alpha_rate: [f64::NAN; 2],
+            error: Some(error),
+        }
+    }
+}
+
+type Uni<T> = Controller<T, Unicycle<T>, Rpr<T>, JOINTS>;
+type Car<T> = Controller<T, CarLike<T>, Rpr<T>, JOINTS>;
+type Omni<T> = Controller<T, Omnidirectional, Rpr<T>, JOINTS>;
+
+/// A controller for one of the three platforms in f64 or f32.
+#[derive(Clone, Debug)]
+pub enum AnyController {
+    /// Unicycle, f64.
+    UnicycleF64(Box<Uni<f64>>),
+    /// Unicycle, f32.
+    UnicycleF32(Box<Uni<f32>>),
+    /// Car-like, f64.
+    CarF64(Box<Car<f64>>),
+    /// Car-like, f32.
+    CarF32(Box<Car<f32>>),
+    /// Omnidirectional, f64.
+    OmniF64(Box<Omni<f64>>),
+    /// Omnidirectional, f32.
+    OmniF32(Box<Omni<f32>>),
+}
+
+impl AnyController {
+    /// Builds and validates the controller a spec describes.
+    ///
+    /// # Errors
+    /// An invalid parameter.
+    pub fn new(spec: &ControllerSpec) -> Result<Self, ParamError> {
+        Ok(match (spec.kind(), spec.scalar) {
+            (PlatformKind::Unicycle, Scalar::F64) => {
+                Self::UnicycleF64(Box::new(Controller::new(spec.params(), spec.unicycle(), spec.arm())?))
+            }
+            (PlatformKind::Unicycle, Scalar::F32) => {
+                Self::UnicycleF32(Box::new(Controller::new(spec.params(), spec.unicycle(), spec.arm())?))
+            }
+            (PlatformKind::Car, Scalar::F64) => {
+                Self::CarF64(Box::new(Controller::new(spec.params(), spec.car(), spec.arm())?))
+            }
+            (PlatformKind::Car, Scalar::F32) => {
+                Self::CarF32(Box::new(Controller::new(spec.params(), spec.car(), spec.arm())?))
+            }
+            (PlatformKind::Omni, Scalar::F64) => {
+                Self::OmniF64(Box::new(Controller::new(spec.params(), Omnidirectional, spec.arm())?))
+            }
+            (PlatformKind::Omni, Scalar::F32) => {
+                Self::OmniF32(Box::new(Controller::new(spec.params(), Omnidirectional, spec.arm())?))
+            }
+        })
+    }
+
+    /// One step on an f64 measurement (converted to f32 for the f32 controllers).
+    #[inline]
+    pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, dt: f64) -> StepReport {
+        match self {
+            Self::UnicycleF64(c) => report(c.step(meas, dt)),
+            Self::UnicycleF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+            Self::CarF64(c) => report(c.step(meas, dt)),
+            Self::CarF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+            Self::OmniF64(c) => report(c.step(meas, dt)),
+            Self::OmniF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+        }
+    }
+
+    /// Warnings about accepted parameters (SPEC §3), as text.
+    pub fn warnings(&self) -> Vec<String> {
+        let w = match self {
+            Self::UnicycleF64(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+            Self::UnicycleF32(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+            Self::CarF64(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+            Self::CarF32(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+            Self::OmniF64(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+            Self::OmniF32(c) => c.law.warnings().iter().map(ToString::to_string).collect(),
+        };
+        w
+    }
+}
+
+#[allow(clippy::cast_possible_truncation)]
+fn pose_f32(p: &Pose<f64>) -> Pose<f32> {
+    Pose::new(p.x as f32, p.y as f32, p.theta as f32)
+}
+
+/// The measurement in f32 (rounding to nearest).
+#[allow(clippy::cast_possible_truncation)]
+pub fn to_f32(m: &Measurement<f64, JOINTS>) -> Measurement<f32, JOINTS> {
+    Measurement {
+        t: m.t as f32,
+        base: pose_f32(&m.base),
+        steering: m.steering as f32,
+        joints: m.joints.map(|x| x as f32),
+        target: pose_f32(&m.target),
+        target_velocity: m.target_velocity.map(|x| x as f32),
+    }
+}
+
+fn report<T: Real>(
+    r: Result<companion_core::Output<T, JOINTS>, companion_core::Rejected<T, JOINTS>>,
+) -> StepReport {
+    match r {
+        Ok(out) => {
+            let c = &out.command;
+            let d = &out.diagnostics;
+            let p = &c.platform;
+            StepReport {
+                command: Command {
+                    platform: PlatformCommand {
+                        v: p.v.as_f64(),
+                        v_lat: p.v_lat.as_f64(),
+                        omega: p.omega.as_f64(),
+                        v_xi: p.v_xi.as_f64(),
+                    },
+                    joints: SVector::<f64, JOINTS>::from_fn(|i, _| c.joints[i].as_f64()),
+                },
+                ep_norm: norm(&d.e_p),
+                h_s: d.h_s.as_f64(),
+                psi: d.psi.as_f64(),
+                saturation: d.saturation.as_f64(),
+                alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
+                error: None,
+            }
+        }
+        Err(rej) => StepReport::rejected(rej.error),
+    }
+}
+
+fn norm<T: Real>(v: &Vector3<T>) -> f64 {
+    let (a, b, c) = (v[0].as_f64(), v[1].as_f64(), v[2].as_f64());
+    (a * a + b * b + c * c).sqrt()
+}

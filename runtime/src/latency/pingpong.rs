@@ -1,0 +1,366 @@
+//! Bare ping-pong between two processes with the HIL's message sizes: the transport's floor.
+//!
+//! The parent sends a [`MeasurementMsg`] (216 bytes) and waits for the [`CommandMsg`] (200
+//! bytes) the peer — a hidden `latency-peer` subcommand of the same binary — sends back at
+//! once; the round trip is timed on the parent's clock. Three transports:
+//!
+//! - iceoryx2 publish–subscribe, both sides busy-polling `receive()` (`iox-spin`);
+//! - the same with the event service: `notify` after each send, `timed_wait` before each
+//!   receive (`iox-event`);
+//! - a Unix-domain datagram socket with blocking `recv` (`uds`), the messages encoded with
+//!   [`MeasurementMsg::to_bytes`] and decoded on arrival: what a user would otherwise write.
+
+use std::os::unix::net::UnixDatagram;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command as Process, Stdio};
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::{Args, ValueEnum};
+use companion_core::Command;
+
+use super::stats::LatencyHistogram;
+use crate::ipc::{ControlEndpoint, PeerState, PlantEndpoint};
+use crate::rt;
+use crate::wire::{
+    flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg, COMMAND_SIZE, MEASUREMENT_SIZE,
+};
+
+/// A ping-pong transport.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Transport {
+    /// iceoryx2, both sides busy-poll.
+    IoxSpin,
+    /// iceoryx2 with the event service (`timed_wait`).
+    IoxEvent,
+    /// Unix-domain datagram socket, blocking.
+    Uds,
+}
+
+impl Transport {
+    /// The command-line spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::IoxSpin => "iox-spin",
+            Self::IoxEvent => "iox-event",
+            Self::Uds => "uds",
+        }
+    }
+}
+
+/// Flags of the hidden `latency-peer` subcommand (the echoing side).
+#[derive(Args, Clone, Debug)]
+pub struct PeerArgs {
+    /// The transport.
+    #[arg(long, value_enum)]
+    pub transport: Transport,
+    /// The iceoryx2 demo name.
+    #[arg(long, default_value = "latency")]
+    pub name: String,
+    /// The folder of the sockets (uds).
+    #[arg(long)]
+    pub socket_dir: Option<PathBuf>,
+    /// Real-time setup, pinned to this CPU.
+    #[arg(long)]
+    pub rt_cpu: Option<usize>,
+}
+
+fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
+    let diag = LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
+    CommandMsg::answer::<3>(m, &Command::zero(), None, &diag, received_ns, 0)
+}
+
+fn ping(seq: u64, last: bool) -> MeasurementMsg {
+    let m = companion_core::Measurement::<f64, 3> {
+        t: 0.0,
+        base: companion_core::Pose::new(0.0, 0.0, 0.0),
+        steering: 0.0,
+        joints: companion_core::nalgebra::SVector::<f64, 3>::new(0.0, 0.35, 0.0),
+        target: companion_core::Pose::new(2.6, 1.0, 0.0),
+        target_velocity: companion_core::nalgebra::Vector3::zeros(),
+    };
+    let header = MeasurementHeader {
+        seq,
+        flags: if last { flags::END_OF_RUN } else { 0 },
+        session: 1,
+        plant_time_ns: rt::monotonic_ns(),
+        dt: 1e-3,
+        ..MeasurementHeader::default()
+    };
+    MeasurementMsg::new(header, &m)
+}
+
+/// The hidden `latency-peer` subcommand: echoes until the end-of-run flag (or until the parent
+/// is gone).
+///
+/// # Errors
+/// A transport failure.
+pub fn run_peer(a: &PeerArgs) -> Result<()> {
+    crate::ipc::quiet_logs();
+    if let Some(cpu) = a.rt_cpu {
+        for w in rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warnings {
+            eprintln!("warning: {w}");
+        }
+    }
+    match a.transport {
+        Transport::IoxSpin | Transport::IoxEvent => peer_iox(&a.name, a.transport == Transport::IoxEvent),
+        Transport::Uds => {
+            let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
+            peer_uds(dir)
+        }
+    }
+}
+
+fn peer_iox(name: &str, events: bool) -> Result<()> {
+    let ep = ControlEndpoint::control(name, events)?;
+    ep.wait_for_peer(Duration::from_secs(10), || None)?;
+    let mut silent_since = rt::monotonic_ns();
+    loop {
+        if let Some(m) = ep.try_receive()? {
+            let t = rt::monotonic_ns();
+            ep.send(&echo(&m, t))?;
+            silent_since = t;
+            if m.has(flags::END_OF_RUN) {
+                return Ok(());
+            }
+            continue;
+        }
+        if events {
+            ep.wait_event(Duration::from_millis(100))?;
+        } else {
+            core::hint::spin_loop();
+        }
+        let now = rt::monotonic_ns();
+        if now - silent_since > 2_000_000_000 {
+            if matches!(ep.peer_state()?, PeerState::Dead(_) | PeerState::Absent) {
+                bail!("the benchmark process is gone");
+            }
+            silent_since = now;
+        }
+    }
+}
+
+fn peer_uds(dir: &Path) -> Result<()> {
+    let me = dir.join("peer.sock");
+    let sock = UnixDatagram::bind(&me).with_context(|| format!("binding {}", me.display()))?;
+    sock.connect(dir.join("bench.sock")).context("connecting to the benchmark's socket")?;
+    sock.set_read_timeout(Some(Duration::from_secs(5)))?;
+    sock.send(b"hello")?;
+    let mut buf = [0u8; MEASUREMENT_SIZE];
+    loop {
+        let n = sock.recv(&mut buf).context("peer recv")?;
+        if n != MEASUREMENT_SIZE {
+            bail!("peer received {n} bytes");
+        }
+        let m = MeasurementMsg::from_bytes(&buf);
+        let reply = echo(&m, rt::monotonic_ns()).to_bytes();
+        sock.send(&reply).context("peer send")?;
+        if m.has(flags::END_OF_RUN) {
+            return Ok(());
+        }
+    }
+}
+
+/// Kills and reaps a child on drop (a benchmark that fails half-way leaves no process).
+#[derive(Debug)]
+pub struct ChildGuard(pub Option<Child>);
+
+impl ChildGuard {
+    /// Waits for the child to exit (up to `timeout`), then kills it if it has not.
+    ///
+    /// # Errors
+    /// Waiting failed.
+    pub fn finish(&mut self, timeout: Duration) -> Result<Option<std::process::ExitStatus>> {
+        if let Some(c) = self.0.as_mut() {
+            let start = std::time::Instant::now();
+            loop {
+                if let Some(s) = c.try_wait()? {
+                    self.0 = None;
+                    return Ok(Some(s));
+                }
+                if start.elapsed() > timeout {
+                    let _ = c.kill();
+                    let s = c.wait()?;
+                    self.0 = None;
+                    return Ok(Some(s));
+                }
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        }
+        Ok(None)
+    }
+}
+
+impl Drop for ChildGuard {
+    fn drop(&mut self) {
+        if let Some(c) = self.0.as_mut() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
+    let child = Process::new(exe)
+        .arg("latency-peer")
+        .args(args)
+        .stdin(Stdio::null())
+        .spawn()
+        .with_context(|| format!("starting {} latency-peer", exe.display()))?;
+    Ok(ChildGuard(Some(child)))
+}
+
+/// Where each process runs with `--rt` on this machine: `(benchmark, peer)`.
+pub fn rt_cpus() -> (usize, usize) {
+    if rt::online_cpus() >= 2 {
+        (1, 0)
+    } else {
+        (0, 0)
+    }
+}
+
+/// Round trips over iceoryx2 (`events`: with the event service), `warmup` unrecorded first.
+///
+/// # Errors
+/// The peer could not be started or stopped answering.
+pub fn iceoryx(
+    exe: &Path,
+    iterations: u64,
+    warmup: u64,
+    events: bool,
+    use_rt: bool,
+) -> Result<LatencyHistogram> {
+    let name = format!("latency-{}-{}", std::process::id(), if events { "event" } else { "spin" });
+    let (own_cpu, peer_cpu) = rt_cpus();
+    let mut args = vec![
+        "--transport".to_string(),
+        if events { Transport::IoxEvent } else { Transport::IoxSpin }.as_str().to_string(),
+        "--name".to_string(),
+        name.clone(),
+    ];
+    if use_rt {
+        args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
+    }
+    let mut child = spawn_peer(exe, &args)?;
+    let ep = PlantEndpoint::plant(&name, events)?;
+    ep.wait_for_peer(Duration::from_secs(10), || None)?;
+    let _rt = use_rt.then(|| RtScope::enter(own_cpu));
+    let mut hist = LatencyHistogram::new();
+    let total = warmup + iterations;
+    for i in 0..total {
+        let msg = ping(i, i + 1 == total);
+        let t0 = msg.plant_time_ns;
+        ep.send(&msg)?;
+        let mut spins = 0u32;
+        loop {
+            if let Some(c) = ep.try_receive()? {
+                if c.seq == i {
+                    break;
+                }
+                continue;
+            }
+            if events {
+                ep.wait_event(Duration::from_millis(100))?;
+            } else {
+                core::hint::spin_loop();
+            }
+            spins = spins.wrapping_add(1);
+            if spins % 4096 == 0 && rt::monotonic_ns() - t0 > 5_000_000_000 {
+                bail!("the iceoryx2 ping-pong peer stopped answering at iteration {i}");
+            }
+        }
+        let t1 = rt::monotonic_ns();
+        if i >= warmup {
+            hist.record(t1 - t0);
+        }
+    }
+    drop(_rt);
+    child.finish(Duration::from_secs(5))?;
+    Ok(hist)
+}
+
+/// Round trips over a Unix-domain datagram socket (blocking receive on both sides).
+///
+/// # Errors
+/// The sockets or the peer failed.
+pub fn unix_socket(exe: &Path, iterations: u64, warmup: u64, use_rt: bool) -> Result<LatencyHistogram> {
+    let dir = std::env::temp_dir().join(format!("companion-latency-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir)?;
+    let result = unix_socket_in(exe, &dir, iterations, warmup, use_rt);
+    let _ = std::fs::remove_dir_all(&dir);
+    result
+}
+
+fn unix_socket_in(
+    exe: &Path,
+    dir: &Path,
+    iterations: u64,
+    warmup: u64,
+    use_rt: bool,
+) -> Result<LatencyHistogram> {
+    let sock = UnixDatagram::bind(dir.join("bench.sock")).context("binding the benchmark's socket")?;
+    sock.set_read_timeout(Some(Duration::from_secs(10)))?;
+    let (own_cpu, peer_cpu) = rt_cpus();
+    let mut args = vec![
+        "--transport".to_string(),
+        "uds".to_string(),
+        "--socket-dir".to_string(),
+        dir.display().to_string(),
+    ];
+    if use_rt {
+        args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
+    }
+    let mut child = spawn_peer(exe, &args)?;
+    let mut buf = [0u8; COMMAND_SIZE];
+    let n = sock.recv(&mut buf).context("waiting for the socket peer")?;
+    if &buf[..n] != b"hello" {
+        bail!("unexpected greeting from the socket peer");
+    }
+    sock.connect(dir.join("peer.sock"))?;
+    let _rt = use_rt.then(|| RtScope::enter(own_cpu));
+    let mut hist = LatencyHistogram::new();
+    let total = warmup + iterations;
+    for i in 0..total {
+        let msg = ping(i, i + 1 == total);
+        let t0 = msg.plant_time_ns;
+        sock.send(&msg.to_bytes())?;
+        loop {
+            let n = sock.recv(&mut buf).context("socket ping-pong")?;
+            if n != COMMAND_SIZE {
+                bail!("received {n} bytes");
+            }
+            if CommandMsg::from_bytes(&buf).seq == i {
+                break;
+            }
+        }
+        let t1 = rt::monotonic_ns();
+        if i >= warmup {
+            hist.record(t1 - t0);
+        }
+    }
+    drop(_rt);
+    child.finish(Duration::from_secs(5))?;
+    Ok(hist)
+}
+
+/// Real-time setup of the calling thread for a scope; back to the normal scheduler and all
+/// CPUs at the end (so that processes and threads started later do not inherit the pinning).
+#[derive(Debug)]
+pub struct RtScope;
+
+impl RtScope {
+    /// Applies `--rt` pinned to `cpu` (warnings printed once).
+    pub fn enter(cpu: usize) -> Self {
+        for w in rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warnings {
+            eprintln!("warning: {w}");
+        }
+        Self
+    }
+}
+
+impl Drop for RtScope {
+    fn drop(&mut self) {
+        rt::reset_thread();
+    }
+}

@@ -1,0 +1,435 @@
+//! The simulated robot: configuration, state, and the [`Plant`] that owns them.
+
+use companion_core::nalgebra::{SVector, Vector3};
+use companion_core::{Arm, Command, Measurement, ParamError, PlatformKind, Pose};
+use rand::distr::{OpenClosed01, StandardUniform};
+use rand::rngs::ChaCha12Rng;
+use rand::{RngExt, SeedableRng};
+
+use crate::dynamics::{Continuous, Model};
+use crate::imperfections::{Imperfections, Noise};
+use crate::trajectory::Trajectory;
+
+/// The rule a plant parameter breaks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rule {
+    /// The value is NaN or infinite.
+    NonFinite,
+    /// The value must be `> 0`.
+    NotPositive,
+    /// The value must be `≥ 0`.
+    Negative,
+    /// The value must be `> −1` (a wheel-speed scale `1 + e` must stay positive).
+    NotAboveMinusOne,
+    /// The initial steering state must lie within the steering limit.
+    BeyondSteeringLimit,
+}
+
+impl core::fmt::Display for Rule {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Rule::NonFinite => "must be finite",
+            Rule::NotPositive => "must be > 0",
+            Rule::Negative => "must be >= 0",
+            Rule::NotAboveMinusOne => "must be > -1",
+            Rule::BeyondSteeringLimit => "must lie within the steering limit",
+        })
+    }
+}
+
+/// Why a plant could not be built.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum PlantError {
+    /// A plant parameter or initial value breaks a rule.
+    #[error("plant parameter `{param}` {rule} (got {value})")]
+    Invalid {
+        /// The parameter, e.g. `"actuator_lag"` or `"initial.joints"`.
+        param: &'static str,
+        /// The rule broken.
+        rule: Rule,
+        /// The value given.
+        value: f64,
+    },
+    /// The arm's geometry is invalid.
+    #[error("arm: {0}")]
+    Arm(ParamError),
+}
+
+impl PlantError {
+    pub(crate) fn check_finite(param: &'static str, value: f64) -> Result<(), PlantError> {
+        if value.is_finite() {
+            Ok(())
+        } else {
+            Err(PlantError::Invalid { param, rule: Rule::NonFinite, value })
+        }
+    }
+}
+
+/// Why a step was refused; the plant's state is left as it was.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum AdvanceError {
+    /// The time step is NaN, infinite, zero or negative.
+    #[error("time step {dt} s must be finite and > 0")]
+    BadTimeStep {
+        /// The time step given (s).
+        dt: f64,
+    },
+    /// The time step differs from the one of the first step (the plant runs at one fixed
+    /// step so that the time of step `n` is exactly `n·dt`).
+    #[error("time step {dt} s differs from the plant's fixed step {fixed} s")]
+    TimeStepChanged {
+        /// The plant's step (s), set by the first step.
+        fixed: f64,
+        /// The time step given (s).
+        dt: f64,
+    },
+    /// A commanded velocity is NaN or infinite.
+    #[error("the command has a non-finite velocity")]
+    NonFiniteCommand,
+}
+
+/// What the plant simulates: which platform, how imperfect, and the car's end stops.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantConfig {
+    /// The wheeled platform's kinematics.
+    pub platform: PlatformKind,
+    /// Lag, noise, scale error (default: none).
+    pub imperfections: Imperfections,
+    /// Car-like platform only: the largest `|ξ|` (1/m), `ξ = tan φ / ℓ`, where the steered
+    /// wheels reach their end stops; `ξ̇` is held at 0 there while `v_ξ` pushes outward.
+    /// `None` (default, the paper's model): no limit. See
+    /// [`realistic_steering_limit`](crate::realistic_steering_limit).
+    pub steering_limit: Option<f64>,
+}
+
+impl PlantConfig {
+    /// The perfect plant of the paper for `platform`: no imperfections, no steering limit.
+    pub fn new(platform: PlatformKind) -> Self {
+        Self { platform, imperfections: Imperfections::default(), steering_limit: None }
+    }
+
+    /// The same configuration with `imperfections`.
+    pub fn with_imperfections(self, imperfections: Imperfections) -> Self {
+        Self { imperfections, ..self }
+    }
+
+    /// The same configuration with a steering limit (1/m).
+    pub fn with_steering_limit(self, limit: f64) -> Self {
+        Self { steering_limit: Some(limit), ..self }
+    }
+
+    /// Checks every parameter.
+    ///
+    /// # Errors
+    /// The first parameter that breaks a rule.
+    pub fn validate(&self) -> Result<(), PlantError> {
+        self.imperfections.validate()?;
+        if let Some(l) = self.steering_limit {
+            PlantError::check_finite("steering_limit", l)?;
+            if l <= 0.0 {
+                return Err(PlantError::Invalid {
+                    param: "steering_limit",
+                    rule: Rule::NotPositive,
+                    value: l,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The state at `t = 0`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct InitialConditions<const N: usize> {
+    /// Platform pose `r_b` in the fixed frame (m, m, rad).
+    pub base: Pose<f64>,
+    /// Car-like platform: steering state `ξ = tan φ / ℓ` (1/m), 0 for straight wheels.
+    /// Other platforms keep it constant (it means nothing for them).
+    pub steering: f64,
+    /// Joint positions `q` (rad or m).
+    pub joints: SVector<f64, N>,
+    /// Target pose `r_d` in the fixed frame (m, m, rad).
+    pub target: Pose<f64>,
+}
+
+impl<const N: usize> InitialConditions<N> {
+    /// Initial conditions with the target given relative to the platform: `r_d = r_b · r_bd`
+    /// (poses in m, m, rad; joints in rad or m); steering straight.
+    pub fn with_relative_target(base: Pose<f64>, r_bd: Pose<f64>, joints: SVector<f64, N>) -> Self {
+        Self { base, steering: 0.0, joints, target: base.compose(&r_bd) }
+    }
+
+    fn validate(&self) -> Result<(), PlantError> {
+        let base = self.base.to_vector();
+        let target = self.target.to_vector();
+        for v in base.iter() {
+            PlantError::check_finite("initial.base", *v)?;
+        }
+        PlantError::check_finite("initial.steering", self.steering)?;
+        for v in self.joints.iter() {
+            PlantError::check_finite("initial.joints", *v)?;
+        }
+        for v in target.iter() {
+            PlantError::check_finite("initial.target", *v)?;
+        }
+        Ok(())
+    }
+}
+
+/// The true state of the simulated robot at one step.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlantState<const N: usize> {
+    /// Time `t = step · dt` (s).
+    pub t: f64,
+    /// Step index `n` (0 before the first step).
+    pub step: u64,
+    /// Platform pose `r_b` (m, m, rad); `θ` continuous, never wrapped.
+    pub base: Pose<f64>,
+    /// Car-like platform: steering state `ξ` (1/m).
+    pub steering: f64,
+    /// Joint positions `q` (rad or m).
+    pub joints: SVector<f64, N>,
+    /// Target pose `r_d` (m, m, rad); `θ` continuous, never wrapped.
+    pub target: Pose<f64>,
+    /// Target body velocity `u_d(t)` (m/s, m/s, rad/s). At a jump of `u_d` this is the
+    /// value after the jump, the one the target follows over the next step.
+    pub target_velocity: Vector3<f64>,
+    /// The velocities the robot actually has at `t`, after lag and scale error: the
+    /// platform's body velocity `(v, v_lat, ω)` (for the car `ω = v ξ`), the steering rate
+    /// `v_ξ` (car) and `u_q`. Fields a platform does not have are zero. Zero before the
+    /// first step.
+    pub applied: Command<f64, N>,
+    /// The command held over the last step (zero before the first step).
+    pub command: Command<f64, N>,
+}
+
+/// The simulated mobile manipulator and its target.
+///
+/// Fixed-step RK4 under a zero-order-hold command; the time of step `n` is `n·dt` exactly
+/// (no accumulated rounding); angles stay continuous. Deterministic: the same
+/// configuration, initial conditions and commands give the same bits (elementary
+/// functions from the pinned `libm`, noise from a seeded ChaCha generator).
+#[derive(Clone, Debug)]
+pub struct Plant<A: Arm<f64, N>, const N: usize> {
+    config: PlantConfig,
+    arm: A,
+    trajectory: Trajectory,
+    state: PlantState<N>,
+    x: Continuous<N>,
+    dt: Option<f64>,
+}
+
+impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
+    /// A plant at its initial conditions (`t = 0`, step 0, at rest).
+    ///
+    /// # Errors
+    /// A parameter or initial value that breaks a rule, or an invalid arm geometry.
+    pub fn new(
+        config: PlantConfig,
+        arm: A,
+        initial: InitialConditions<N>,
+        trajectory: Trajectory,
+    ) -> Result<Self, PlantError> {
+        config.validate()?;
+        arm.validate().map_err(PlantError::Arm)?;
+        initial.validate()?;
+        if let (PlatformKind::Car, Some(l)) = (config.platform, config.steering_limit) {
+            if initial.steering.abs() > l {
+                return Err(PlantError::Invalid {
+                    param: "initial.steering",
+                    rule: Rule::BeyondSteeringLimit,
+                    value: initial.steering,
+                });
+            }
+        }
+        let x = Continuous {
+            base: initial.base.to_vector(),
+            steering: initial.steering,
+            joints: initial.joints,
+            target: initial.target.to_vector(),
+            platform_lag: SVector::zeros(),
+            joint_lag: SVector::zeros(),
+        };
+        let state = PlantState {
+            t: 0.0,
+            step: 0,
+            base: initial.base,
+            steering: initial.steering,
+            joints: initial.joints,
+            target: initial.target,
+            target_velocity: trajectory.velocity(0.0),
+            applied: Command::zero(),
+            command: Command::zero(),
+        };
+        Ok(Self { config, arm, trajectory, state, x, dt: None })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &PlantConfig {
+        &self.config
+    }
+
+    /// The arm.
+    pub fn arm(&self) -> &A {
+        &self.arm
+    }
+
+    /// The target's trajectory.
+    pub fn trajectory(&self) -> &Trajectory {
+        &self.trajectory
+    }
+
+    /// The fixed time step (s), known from the first step on.
+    pub fn dt(&self) -> Option<f64> {
+        self.dt
+    }
+
+    /// The step index `n`: how many steps have been taken.
+    pub fn step_index(&self) -> u64 {
+        self.state.step
+    }
+
+    /// The time `t = n·dt` (s).
+    pub fn time(&self) -> f64 {
+        self.state.t
+    }
+
+    /// The exact state (never noisy).
+    pub fn truth(&self) -> &PlantState<N> {
+        &self.state
+    }
+
+    /// The true world pose of the end effector, `r_b · r_eb(q)⁻¹` (m, m, rad).
+    pub fn end_effector(&self) -> Pose<f64> {
+        let r_eb = self.arm.kinematics(&self.state.joints).r_eb;
+        self.state.base.compose(&r_eb.inverse())
+    }
+
+    /// What the controller sees at the current step: time, platform pose, steering,
+    /// joints, target pose and target velocity `u_d(t)`.
+    ///
+    /// Without noise this is the true state, bit for bit. With noise, independent Gaussian
+    /// samples are added to the platform's and the target's poses, the steering state and
+    /// the joints (`t` and `u_d`, which the controller knows, are exact); the samples depend
+    /// only on the seed and the step index, so a second call in the same step returns the
+    /// same measurement.
+    pub fn measure(&self) -> Measurement<f64, N> {
+        let s = &self.state;
+        let mut m = Measurement {
+            t: s.t,
+            base: s.base,
+            steering: s.steering,
+            joints: s.joints,
+            target: s.target,
+            target_velocity: s.target_velocity,
+        };
+        if let Some(noise) = self.config.imperfections.noise {
+            // A generator per measurement: the noise of step n is ChaCha stream n of the
+            // seed (see the `imperfections` module), whatever was measured before.
+            let mut rng = ChaCha12Rng::seed_from_u64(self.config.imperfections.seed);
+            rng.set_stream(s.step);
+            add_noise(&mut Gaussian { rng, spare: None }, &noise, &mut m);
+        }
+        m
+    }
+
+    /// One RK4 step of `dt` seconds with `command` held (zero-order hold).
+    ///
+    /// Which command fields act: unicycle `v`, `omega`; car `v`, `v_xi` (`omega` is only a
+    /// report of `v ξ` and is ignored); omnidirectional `v`, `v_lat`, `omega`; and `joints`.
+    ///
+    /// # Panics
+    /// On what [`try_advance`](Self::try_advance) refuses: a time step that is not finite
+    /// and `> 0` or differs from the first one, or a non-finite command.
+    pub fn advance(&mut self, command: &Command<f64, N>, dt: f64) {
+        if let Err(e) = self.try_advance(command, dt) {
+            panic!("Plant::advance: {e}");
+        }
+    }
+
+    /// One RK4 step of `dt` seconds with `command` held, as [`advance`](Self::advance).
+    ///
+    /// # Errors
+    /// A time step that is not finite and `> 0`, or differs from the plant's fixed step
+    /// (set by the first step), or a non-finite command; the state is left as it was.
+    pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(AdvanceError::BadTimeStep { dt });
+        }
+        if let Some(fixed) = self.dt {
+            if fixed.to_bits() != dt.to_bits() {
+                return Err(AdvanceError::TimeStepChanged { fixed, dt });
+            }
+        }
+        if !command.is_finite() {
+            return Err(AdvanceError::NonFiniteCommand);
+        }
+        self.dt = Some(dt);
+        let model = self.model();
+        let n = self.state.step;
+        let t0 = n as f64 * dt;
+        let t1 = (n + 1) as f64 * dt;
+        let x = model.rk4(t0, t1, dt, &self.x, command);
+        let applied = model.applied(&x, command);
+        self.x = x;
+        self.state = PlantState {
+            t: t1,
+            step: n + 1,
+            base: Pose::from_vector(&self.x.base),
+            steering: self.x.steering,
+            joints: self.x.joints,
+            target: Pose::from_vector(&self.x.target),
+            // u_d(t₁⁺): the piece the target follows over the next step.
+            target_velocity: self.trajectory.piece(t1 + 0.5 * dt).velocity(t1),
+            applied,
+            command: *command,
+        };
+        Ok(())
+    }
+
+    fn model(&self) -> Model<'_> {
+        Model {
+            kind: self.config.platform,
+            wheel_scale: 1.0 + self.config.imperfections.wheel_scale_error,
+            lag: self.config.imperfections.actuator_lag,
+            steering_limit: self.config.steering_limit,
+            trajectory: &self.trajectory,
+        }
+    }
+}
+
+/// Adds noise in a fixed order: platform `x, y, θ`, steering, joints, target `x, y, θ`.
+fn add_noise<const N: usize>(gaussian: &mut Gaussian, noise: &Noise, m: &mut Measurement<f64, N>) {
+    let mut draw = |sigma: f64| sigma * gaussian.sample();
+    m.base.x += draw(noise.position);
+    m.base.y += draw(noise.position);
+    m.base.theta += draw(noise.angle);
+    m.steering += draw(noise.steering);
+    for q in m.joints.iter_mut() {
+        *q += draw(noise.joints);
+    }
+    m.target.x += draw(noise.position);
+    m.target.y += draw(noise.position);
+    m.target.theta += draw(noise.angle);
+}
+
+/// Standard normal samples by the Box–Muller transform, two per pair of uniforms, with
+/// every elementary function from `libm` (see [`Imperfections`]).
+struct Gaussian {
+    rng: ChaCha12Rng,
+    spare: Option<f64>,
+}
+
+impl Gaussian {
+    fn sample(&mut self) -> f64 {
+        if let Some(z) = self.spare.take() {
+            return z;
+        }
+        let u1: f64 = self.rng.sample(OpenClosed01); // (0, 1]: ln u1 is finite
+        let u2: f64 = self.rng.sample(StandardUniform); // [0, 1)
+        let r = libm::sqrt(-2.0 * libm::log(u1));
+        let (s, c) = libm::sincos(core::f64::consts::TAU * u2);
+        self.spare = Some(r * s);
+        r * c
+    }
+}
