@@ -89,6 +89,12 @@ pub struct Summary {
     /// Sign changes of the commanded forward speed `v` (maneuvers), counting only speeds
     /// above 1 mm/s so that numerical dithering around zero does not count.
     pub v_sign_changes: u64,
+    /// Maneuvers: reversals of the platform's driving direction, counted as turning points of
+    /// the signed odometer `∫ v dt` with 1 cm of hysteresis (chattering of `v` around zero
+    /// does not count).
+    pub maneuvers: u64,
+    /// The last time `‖e_p‖ ≥ 1e−3` (s): after it, the target is tracked to 1 mm. 0 if never.
+    pub ep_settling_time_s: f64,
     /// The largest `|v|` commanded (m/s).
     pub max_abs_v: f64,
     /// The largest `|ω|` commanded (rad/s).
@@ -97,6 +103,8 @@ pub struct Summary {
     pub max_abs_alpha_rate: f64,
     /// The largest saturation factor.
     pub max_saturation: f64,
+    /// `h_s` at the first step.
+    pub initial_h_s: f64,
     /// `h_s` at the last step.
     pub final_h_s: f64,
     /// Controller steps.
@@ -107,8 +115,12 @@ pub struct Summary {
     pub wall_time_s: f64,
 }
 
-/// The speed below which `v` has no sign for counting maneuvers (m/s).
-pub const MANEUVER_SPEED: f64 = 1e-3;
+/// The speed below which `v` has no sign for counting sign changes (m/s).
+pub const SIGN_SPEED: f64 = 1e-3;
+
+/// The distance a platform must cover in one direction for a reversal to count as a
+/// maneuver (m).
+pub const MANEUVER_DISTANCE: f64 = 0.01;
 
 /// Accumulates the summary over every step.
 #[derive(Clone, Debug)]
@@ -118,6 +130,12 @@ pub struct SummaryAccumulator {
     below: u64,
     last_sign: i8,
     last_pos: Option<(f64, f64)>,
+    /// The signed odometer, the previous command's `v`, the current direction of travel
+    /// (0 before the first leg) and the odometer's extremum in that direction.
+    odometer: f64,
+    prev_v: f64,
+    direction: i8,
+    extremum: f64,
     lower: [f64; JOINTS],
     upper: [f64; JOINTS],
 }
@@ -131,7 +149,19 @@ impl SummaryAccumulator {
             max_saturation: 1.0,
             ..Summary::default()
         };
-        Self { s, after20: 0, below: 0, last_sign: 0, last_pos: None, lower, upper }
+        Self {
+            s,
+            after20: 0,
+            below: 0,
+            last_sign: 0,
+            last_pos: None,
+            odometer: 0.0,
+            prev_v: 0.0,
+            direction: 0,
+            extremum: 0.0,
+            lower,
+            upper,
+        }
     }
 
     /// Adds one step.
@@ -143,16 +173,23 @@ impl SummaryAccumulator {
         if r.error.is_some() {
             s.rejected_steps += 1;
         }
+        let mut moved = 0.0;
         if let Some((x, y)) = self.last_pos {
-            let d = (p.base.x - x).hypot(p.base.y - y);
-            s.path_length += d;
+            moved = (p.base.x - x).hypot(p.base.y - y);
+            s.path_length += moved;
             if p.t >= 20.0 {
-                s.path_length_after_20s += d;
+                s.path_length_after_20s += moved;
             }
         }
         self.last_pos = Some((p.base.x, p.base.y));
+        if s.steps == 1 {
+            s.initial_h_s = r.h_s;
+        }
         if r.ep_norm.is_finite() {
             s.final_ep_norm = r.ep_norm;
+            if r.ep_norm >= 1e-3 {
+                s.ep_settling_time_s = p.t;
+            }
             if p.t >= 20.0 {
                 self.after20 += 1;
                 s.max_ep_norm_after_20s = s.max_ep_norm_after_20s.max(r.ep_norm);
@@ -169,12 +206,34 @@ impl SummaryAccumulator {
             s.min_joint_margin[i] = s.min_joint_margin[i].min(m);
         }
         let v = r.command.platform.v;
-        if v.abs() > MANEUVER_SPEED {
+        if v.abs() > SIGN_SPEED {
             let sign = if v > 0.0 { 1 } else { -1 };
             if self.last_sign != 0 && sign != self.last_sign {
                 s.v_sign_changes += 1;
             }
             self.last_sign = sign;
+        }
+        // Maneuvers: turning points of the signed odometer `∫ v dt` (the distance moved
+        // since the last step was driven by the previous step's command), with 1 cm of
+        // hysteresis.
+        self.odometer += moved * self.prev_v.signum();
+        self.prev_v = v;
+        if self.direction >= 0 && self.odometer < self.extremum - MANEUVER_DISTANCE {
+            if self.direction > 0 {
+                s.maneuvers += 1;
+            }
+            self.direction = -1;
+            self.extremum = self.odometer;
+        } else if self.direction <= 0 && self.odometer > self.extremum + MANEUVER_DISTANCE {
+            if self.direction < 0 {
+                s.maneuvers += 1;
+            }
+            self.direction = 1;
+            self.extremum = self.odometer;
+        } else if (self.direction > 0 && self.odometer > self.extremum)
+            || (self.direction < 0 && self.odometer < self.extremum)
+        {
+            self.extremum = self.odometer;
         }
         s.max_abs_v = s.max_abs_v.max(v.abs());
         s.max_abs_omega = s.max_abs_omega.max(r.command.platform.omega.abs());

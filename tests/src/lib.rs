@@ -1,1 +1,63 @@
-//! placeholder
+//! # companion-tests
+//!
+//! Cross-crate tests: the paper's claims on the eight reproduced runs, the car-like and
+//! omnidirectional platforms, f32 against f64, determinism, the firmware check against the
+//! host, and (in the runtime's own tests) the HIL loop end to end. This library holds the
+//! helpers those tests share.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use companion_runtime::record::Summary;
+use companion_runtime::scenario::{Scenario, ScenarioArgs};
+use companion_runtime::sim::{run_one, RunOutcome};
+use indicatif::ProgressBar;
+
+#[derive(Parser, Debug)]
+struct Flags {
+    #[command(flatten)]
+    scenario: ScenarioArgs,
+}
+
+/// A scenario from `companion sim`-style flags, e.g. `["--trajectory", "2", "--choice", "b"]`.
+///
+/// # Panics
+/// If the flags do not parse or describe an invalid scenario (a test bug).
+pub fn scenario(flags: &[&str]) -> Scenario {
+    let parsed = Flags::try_parse_from(std::iter::once("test").chain(flags.iter().copied()))
+        .unwrap_or_else(|e| panic!("bad test flags {flags:?}: {e}"));
+    Scenario::from_args(&parsed.scenario).unwrap_or_else(|e| panic!("bad scenario {flags:?}: {e:#}"))
+}
+
+/// A fresh folder for a test's outputs, under the system's temporary folder.
+pub fn out_dir(tag: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("companion-test-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("temporary folder");
+    dir
+}
+
+/// Runs a scenario in process, writing into a fresh folder named `tag`.
+///
+/// # Panics
+/// If the run fails (a test failure).
+pub fn run(s: &Scenario, tag: &str) -> RunOutcome {
+    run_in(s, tag).0
+}
+
+/// Runs a scenario in process, writing into a fresh folder named `tag`, which is returned.
+///
+/// # Panics
+/// If the run fails (a test failure).
+pub fn run_in(s: &Scenario, tag: &str) -> (RunOutcome, PathBuf) {
+    let dir = out_dir(tag);
+    let outcome =
+        run_one(s, &dir, &ProgressBar::hidden()).unwrap_or_else(|e| panic!("run {tag} failed: {e:#}"));
+    (outcome, dir)
+}
+
+/// Runs scenarios in parallel and returns their summaries in the same order.
+pub fn summaries(list: &[(&str, Scenario)]) -> Vec<Summary> {
+    use rayon::prelude::*;
+    list.par_iter().map(|(tag, s)| run(s, tag).summary).collect()
+}
