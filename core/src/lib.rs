@@ -57,6 +57,7 @@ extern crate std;
 
 pub mod arm;
 pub mod error;
+mod fastmath;
 pub mod law;
 pub mod params;
 pub mod platform;

@@ -76,30 +76,34 @@ impl Real for f64 {
     }
 }
 
+/// `f32` uses the f32-native functions of `fastmath` (libm's `sincosf` computes in `f64`,
+/// in software on a Cortex-M4F); their accuracy is stated and tested there.
 impl Real for f32 {
     #[inline]
     fn sincos(self) -> (Self, Self) {
-        libm::sincosf(self)
+        crate::fastmath::sin_cos(self)
     }
     #[inline]
     fn arctan(self) -> Self {
-        libm::atanf(self)
+        crate::fastmath::atan(self)
     }
     #[inline]
     fn arctan2(self, x: Self) -> Self {
-        libm::atan2f(self, x)
+        crate::fastmath::atan2(self, x)
     }
     #[inline]
     fn exponential(self) -> Self {
-        libm::expf(self)
+        crate::fastmath::exp(self)
     }
     #[inline]
     fn square_root(self) -> Self {
+        // libm's sqrtf is f32 integer code, correctly rounded, and cheaper on the M4F than
+        // an f32 Newton iteration with exact rounding (see `fastmath`).
         libm::sqrtf(self)
     }
     #[inline]
     fn round_nearest(self) -> Self {
-        libm::roundf(self)
+        crate::fastmath::round(self)
     }
     #[inline]
     fn finite(self) -> bool {

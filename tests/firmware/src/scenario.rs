@@ -1,0 +1,302 @@
+//! The firmware check's scenario: one source file that the firmware binary (`mod scenario`)
+//! and the host test `tests/tests/firmware_host.rs` (`#[path] mod scenario`) both compile,
+//! so that both run the same operations and their outputs can be compared bit for bit.
+//!
+//! It closes the loop of the controller around a minimal plant on the first 3 s of the
+//! paper's trajectory 1 (SPEC §4): target velocity `u_d(t) = −(π/20)(sin(πt/2),
+//! cos(πt/2), 0)`, platform at the origin, target at `(2.6, 1, 0)`, `q(0) = (0, 0.35, 0)`,
+//! step 1 ms, for runs (a) and (c) on the unicycle, car-like and omnidirectional platforms,
+//! in `f32` and `f64`. It prints a digest of the commands (FNV-1a of their bits) every
+//! [`REPORT_EVERY`] steps and a final line per case.
+//!
+//! Output lines (space separated, floats as the hex bits of their `f64` value):
+//!
+//! ```text
+//! D <case> <step> <digest> <v> <v_lat> <omega> <v_xi> <u_q1> <u_q2> <u_q3>
+//! F <case> <steps> <rejected> <digest> <|e_p|> <|e_p| decimal>
+//! ```
+#![allow(dead_code)] // each includer uses a different part
+
+use core::fmt::Write;
+use core::hint::black_box;
+
+use companion_core::nalgebra::{SVector, Vector3};
+use companion_core::{
+    CarLike, Command, Controller, Measurement, Omnidirectional, PaperRun, Params, Platform, PlatformKind,
+    Pose, Real, Rpr, Unicycle, VelocityLimits,
+};
+
+/// Control period (s).
+pub const DT: f64 = 1e-3;
+/// Steps per case: 3 s.
+pub const STEPS: u32 = 3000;
+/// A `D` line every this many steps (and after the last).
+pub const REPORT_EVERY: u32 = 250;
+
+/// Which platform a case runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plat {
+    /// Unicycle, the paper's `(ε₁, ε₂) = (0.2, 0.4)`.
+    Uni,
+    /// Car-like, `ε = 0.3, η = (1, 2, 1), k = 5`, with velocity limits.
+    Car,
+    /// Omnidirectional.
+    Omni,
+}
+
+/// One closed-loop run.
+#[derive(Clone, Copy, Debug)]
+pub struct Case {
+    /// Short name used in the output.
+    pub name: &'static str,
+    /// The platform.
+    pub plat: Plat,
+    /// The paper's run (a) or (c).
+    pub run: PaperRun,
+    /// `f64` (else `f32`).
+    pub double: bool,
+}
+
+const fn case(name: &'static str, plat: Plat, run: PaperRun, double: bool) -> Case {
+    Case { name, plat, run, double }
+}
+
+/// Every case, in output order.
+pub const CASES: [Case; 12] = [
+    case("uni-a-f32", Plat::Uni, PaperRun::A, false),
+    case("uni-c-f32", Plat::Uni, PaperRun::C, false),
+    case("car-a-f32", Plat::Car, PaperRun::A, false),
+    case("car-c-f32", Plat::Car, PaperRun::C, false),
+    case("omni-a-f32", Plat::Omni, PaperRun::A, false),
+    case("omni-c-f32", Plat::Omni, PaperRun::C, false),
+    case("uni-a-f64", Plat::Uni, PaperRun::A, true),
+    case("uni-c-f64", Plat::Uni, PaperRun::C, true),
+    case("car-a-f64", Plat::Car, PaperRun::A, true),
+    case("car-c-f64", Plat::Car, PaperRun::C, true),
+    case("omni-a-f64", Plat::Omni, PaperRun::A, true),
+    case("omni-c-f64", Plat::Omni, PaperRun::C, true),
+];
+
+/// Hooks around each controller step (the firmware counts instructions there).
+pub trait Probe {
+    /// Just before `step`.
+    fn enter(&mut self);
+    /// Just after `step`.
+    fn leave(&mut self);
+}
+
+/// No measurement (the host).
+#[derive(Debug)]
+pub struct NoProbe;
+
+impl Probe for NoProbe {
+    #[inline(always)]
+    fn enter(&mut self) {}
+    #[inline(always)]
+    fn leave(&mut self) {}
+}
+
+/// What a case ends with.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// Steps run.
+    pub steps: u32,
+    /// Steps the controller rejected (the safe command was applied).
+    pub rejected: u32,
+    /// FNV-1a over the bits of every command.
+    pub digest: u64,
+    /// `|e_p|` of the last accepted step.
+    pub e_p: f64,
+}
+
+/// The car-like platform of the scenario: Lemma 2 holds (6·2·1 = 12 > 8·1 + 1·2 = 10).
+pub fn car<T: Real>() -> CarLike<T> {
+    CarLike::new(T::of(0.3), [T::one(), T::of(2.0), T::one()], T::of(5.0))
+}
+
+/// The car's velocity limits: `det H̄` is ~1e−3 for this function, so unsaturated gains
+/// are huge (SPEC §3); these keep the run bounded.
+pub fn car_limits<T: Real>() -> VelocityLimits<T> {
+    let mut l = VelocityLimits::unlimited();
+    l.forward = T::of(1.0);
+    l.alpha_rate = T::of(20.0);
+    l.steering_rate = T::of(20.0);
+    l
+}
+
+/// Runs one case, writing its `D` and `F` lines to `out`.
+pub fn run_case<W: Write, Q: Probe>(c: &Case, out: &mut W, probe: &mut Q) -> Outcome {
+    match (c.plat, c.double) {
+        (Plat::Uni, false) => run::<f32, _, _, _>(c, Unicycle::paper(), out, probe),
+        (Plat::Uni, true) => run::<f64, _, _, _>(c, Unicycle::paper(), out, probe),
+        (Plat::Car, false) => run::<f32, _, _, _>(c, car(), out, probe),
+        (Plat::Car, true) => run::<f64, _, _, _>(c, car(), out, probe),
+        (Plat::Omni, false) => run::<f32, _, _, _>(c, Omnidirectional, out, probe),
+        (Plat::Omni, true) => run::<f64, _, _, _>(c, Omnidirectional, out, probe),
+    }
+}
+
+/// The plant: platform pose, steering `ξ`, joints; the target is in closed form.
+#[derive(Clone, Copy, Debug)]
+struct Plant<T> {
+    base: Pose<T>,
+    xi: T,
+    q: SVector<T, 3>,
+}
+
+/// `(r_d(t), u_d(t))` of trajectory 1 with `r_d(0) = (2.6, 1, 0)`:
+/// `x_d = 2.6 + (cos(πt/2) − 1)/10`, `y_d = 1 − sin(πt/2)/10`, `θ_d = 0`.
+fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
+    let (s, c) = (T::pi() * T::of(0.5) * t).sincos();
+    let tenth = T::of(0.1);
+    let speed = T::pi() / T::of(20.0);
+    let pose = Pose::new(T::of(2.6) + tenth * (c - T::one()), T::one() - tenth * s, T::zero());
+    (pose, Vector3::new(-speed * s, -speed * c, T::zero()))
+}
+
+/// `d(x, y, θ, ξ)/dt` of the platform under a held command.
+fn platform_rate<T: Real>(kind: PlatformKind, s: [T; 4], cmd: &Command<T, 3>) -> [T; 4] {
+    let p = &cmd.platform;
+    let (sn, cs) = s[2].sincos();
+    let (v, v_lat, omega, xi_rate) = match kind {
+        PlatformKind::Unicycle => (p.v, T::zero(), p.omega, T::zero()),
+        PlatformKind::Car => (p.v, T::zero(), p.v * s[3], p.v_xi),
+        PlatformKind::Omni => (p.v, p.v_lat, p.omega, T::zero()),
+    };
+    [v * cs - v_lat * sn, v * sn + v_lat * cs, omega, xi_rate]
+}
+
+/// One RK4 step of the platform (zero-order hold), exact Euler for the joints.
+fn advance<T: Real>(kind: PlatformKind, plant: &mut Plant<T>, cmd: &Command<T, 3>, dt: T) {
+    let s0 = [plant.base.x, plant.base.y, plant.base.theta, plant.xi];
+    let add =
+        |a: [T; 4], k: [T; 4], h: T| [a[0] + k[0] * h, a[1] + k[1] * h, a[2] + k[2] * h, a[3] + k[3] * h];
+    let half = dt * T::of(0.5);
+    let k1 = platform_rate(kind, s0, cmd);
+    let k2 = platform_rate(kind, add(s0, k1, half), cmd);
+    let k3 = platform_rate(kind, add(s0, k2, half), cmd);
+    let k4 = platform_rate(kind, add(s0, k3, dt), cmd);
+    let sixth = dt / T::of(6.0);
+    let two = T::of(2.0);
+    let mut s = s0;
+    for i in 0..4 {
+        s[i] += sixth * (k1[i] + two * k2[i] + two * k3[i] + k4[i]);
+    }
+    plant.base = Pose::new(s[0], s[1], s[2]);
+    plant.xi = s[3];
+    plant.q += cmd.joints * dt;
+}
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+const FNV_PRIME: u64 = 0x0000_0100_0000_01b3;
+
+fn fnv(mut h: u64, word: u64) -> u64 {
+    for b in word.to_le_bytes() {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(FNV_PRIME);
+    }
+    h
+}
+
+fn command_words<T: Real>(c: &Command<T, 3>) -> [u64; 7] {
+    let p = &c.platform;
+    let b = |x: T| x.as_f64().to_bits();
+    [b(p.v), b(p.v_lat), b(p.omega), b(p.v_xi), b(c.joints[0]), b(c.joints[1]), b(c.joints[2])]
+}
+
+fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
+    c: &Case,
+    platform: P,
+    out: &mut W,
+    probe: &mut Q,
+) -> Outcome {
+    let mut params = Params::<T, 3>::paper(c.run);
+    if P::KIND == PlatformKind::Car {
+        params.velocity_limits = car_limits();
+    }
+    let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) else {
+        let _ = writeln!(out, "E {} invalid parameters", c.name);
+        return Outcome { steps: 0, rejected: 0, digest: 0, e_p: f64::NAN };
+    };
+    let dt = T::of(DT);
+    let mut plant = Plant {
+        base: Pose::new(T::zero(), T::zero(), T::zero()),
+        xi: T::zero(),
+        q: SVector::<T, 3>::new(T::zero(), T::of(0.35), T::zero()),
+    };
+    let mut digest = FNV_OFFSET;
+    let mut rejected = 0;
+    let mut e_p = f64::NAN;
+    for n in 0..STEPS {
+        let t = T::of(f64::from(n)) * dt;
+        let (target, target_velocity) = target(t);
+        let meas =
+            Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
+        probe.enter();
+        // Everything the step reads goes through black_box after `enter`, so no part of
+        // it can be scheduled before the probe's first reading (nor after its second).
+        let result = black_box(&mut ctrl).step(black_box(&meas), black_box(dt));
+        black_box(&result);
+        probe.leave();
+        let cmd = match result {
+            Ok(o) => {
+                e_p = o.diagnostics.e_p.norm().as_f64();
+                o.command
+            }
+            Err(r) => {
+                rejected += 1;
+                r.command
+            }
+        };
+        let words = command_words(&cmd);
+        for w in words {
+            digest = fnv(digest, w);
+        }
+        if (n + 1) % REPORT_EVERY == 0 || n + 1 == STEPS {
+            let _ = write!(out, "D {} {} {:016x}", c.name, n + 1, digest);
+            for w in words {
+                let _ = write!(out, " {w:016x}");
+            }
+            let _ = writeln!(out);
+        }
+        advance(P::KIND, &mut plant, &cmd, dt);
+    }
+    let _ =
+        writeln!(out, "F {} {} {} {:016x} {:016x} {:e}", c.name, STEPS, rejected, digest, e_p.to_bits(), e_p);
+    Outcome { steps: STEPS, rejected, digest, e_p }
+}
+
+/// One controller step from the initial state of case `c` (for the stack measurement).
+pub fn first_step(c: &Case) {
+    match (c.plat, c.double) {
+        (Plat::Uni, false) => one::<f32, _>(c, Unicycle::paper()),
+        (Plat::Uni, true) => one::<f64, _>(c, Unicycle::paper()),
+        (Plat::Car, false) => one::<f32, _>(c, car()),
+        (Plat::Car, true) => one::<f64, _>(c, car()),
+        (Plat::Omni, false) => one::<f32, _>(c, Omnidirectional),
+        (Plat::Omni, true) => one::<f64, _>(c, Omnidirectional),
+    }
+}
+
+/// Builds the controller and takes two steps (the first initialises the state).
+fn one<T: Real, P: Platform<T>>(c: &Case, platform: P) {
+    let mut params = Params::<T, 3>::paper(c.run);
+    if P::KIND == PlatformKind::Car {
+        params.velocity_limits = car_limits();
+    }
+    if let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) {
+        let (target, target_velocity) = target(T::zero());
+        let meas = Measurement {
+            t: T::zero(),
+            base: Pose::new(T::zero(), T::zero(), T::zero()),
+            steering: T::zero(),
+            joints: SVector::<T, 3>::new(T::zero(), T::of(0.35), T::zero()),
+            target,
+            target_velocity,
+        };
+        for _ in 0..2 {
+            let r = ctrl.step(black_box(&meas), T::of(DT));
+            black_box(&r);
+        }
+    }
+}
