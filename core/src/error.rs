@@ -107,7 +107,8 @@ pub enum Field {
 /// velocities zero) and left its state as it was.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum StepError {
-    /// A measured value is NaN or infinite (or the time is negative).
+    /// A measured value is NaN or infinite. (A negative or backward time is accepted:
+    /// `Γ(t)` counts from the first step and never before it.)
     NonFinite(Field),
     /// The time step is not finite, `≤ 0`, or above the configured maximum.
     BadTimeStep,

@@ -8,8 +8,9 @@
 //!
 //! Why a crate of its own: the law must run unchanged on a microcontroller (Cortex-M4F,
 //! f32) and on a host (f64), with the same bits from the same inputs. So it has no heap, no
-//! `std`, no panics reachable from its API, fixed-size matrices (`nalgebra`), and all
-//! elementary functions from one pinned `libm`.
+//! `std`, no panics reachable from its API, fixed-size matrices (`nalgebra`), and its
+//! elementary functions from code it controls: the pinned `libm` for f64, f32-native
+//! functions of its own for f32 (see [`Real`]).
 //!
 //! ## Map of the paper
 //!

@@ -1,8 +1,11 @@
 //! The scalar types the controller runs in: `f64` and `f32`.
 //!
 //! Every elementary function the law needs goes through [`Real`], so that the host and the
-//! firmware call exactly the same implementation (libm, pinned in the workspace) and give
-//! the same bits, and so that a faster implementation can be swapped in per type.
+//! firmware call exactly the same implementation and give the same bits, and so that a
+//! faster implementation can be swapped in per type: `f64` uses libm (pinned in the
+//! workspace); `f32` uses the crate's own f32-native sin/cos, exp, atan, atan2 and round
+//! (within 1–2 ulp, see `fastmath.rs`) and libm's `sqrtf`, because libm's `sincosf` works in
+//! f64, which a Cortex-M4F does in software.
 
 use nalgebra::RealField;
 
