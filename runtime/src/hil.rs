@@ -18,7 +18,9 @@
 //!
 //! ## Modes
 //!
-//! *Real time* (default): the plant publishes measurement `n` at the absolute release time
+//! *Real time* (default): after a handshake (measurement 0, whose command is awaited up to
+//! `--peer-timeout`, so that a cold first step is not a miss; `start` is when it arrives) the
+//! plant publishes measurement `n` at the absolute release time
 //! `start + n·period` (never "sleep a period after the work"), waits for command `n` until
 //! `release + --deadline-us`, and applies it over the period (zero-order hold). A command
 //! that is late or missing is a counted deadline miss; the plant then holds the last fresh
@@ -220,7 +222,16 @@ impl HilArgs {
         if a.duration.is_none() {
             a.duration = Some(DEFAULT_DURATION);
         }
-        Scenario::from_args(&a)
+        let mut s = Scenario::from_args(&a)?;
+        if !self.lockstep {
+            // The plant may hold a command for `hold_periods` periods after the one it was
+            // meant for: the joint guard leaves room for all of them, so that a held command
+            // never drives a joint onto its limit.
+            let o = &mut s.controller.overrides;
+            let kappa = o.joint_step_fraction.unwrap_or(0.5).min(1.0 / (f64::from(self.hold_periods) + 2.0));
+            o.joint_step_fraction = Some(kappa);
+        }
+        Ok(s)
     }
 
     /// The timing options.
@@ -265,6 +276,19 @@ impl HilArgs {
         (self.plant_cpu.unwrap_or(usize::from(two)), self.control_cpu.unwrap_or(0))
     }
 
+    /// A warning if `--rt` puts both processes on one CPU with busy waiting (a `SCHED_FIFO`
+    /// spinner never yields its CPU to a peer of the same priority).
+    pub fn cpu_warning(&self) -> Option<String> {
+        let (p, c) = self.cpus();
+        (self.rt && p == c && self.wait != WaitMode::Event).then(|| {
+            format!(
+                "--rt puts plant and controller on the same CPU ({p}); with --wait {} they take turns \
+                 only when the kernel throttles real-time tasks: use --wait event, or two CPUs",
+                self.wait.as_str()
+            )
+        })
+    }
+
     /// The real-time setup for `role`, if `--rt`.
     pub fn rt_config(&self, role: Role) -> Option<crate::rt::RtConfig> {
         self.rt.then(|| {
@@ -303,6 +327,9 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     let s = a.scenario()?;
     a.timing(&s)?;
     ipc::validate_name(&a.name)?;
+    if let Some(w) = a.cpu_warning() {
+        eprintln!("warning: {w}");
+    }
     let cfg = ipc::config()?;
     for role in [Role::Control, Role::Plant] {
         if let Err(e) = ipc::ensure_name_free(&cfg, &a.name, role) {

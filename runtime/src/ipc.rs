@@ -34,7 +34,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 use iceoryx2::node::NodeView;
-use iceoryx2::port::listener::Listener;
+use iceoryx2::port::listener::{Listener, ListenerWaitError};
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
 use iceoryx2::port::subscriber::Subscriber;
@@ -367,7 +367,11 @@ where
     #[inline]
     pub fn wait_event(&self, timeout: Duration) -> Result<()> {
         if let Some(l) = &self.listener {
-            l.timed_wait(|_| {}, timeout).map_err(|e| anyhow!("timed_wait: {e:?}"))?;
+            match l.timed_wait(|_| {}, timeout) {
+                // A signal (SIGSTOP/SIGCONT, SIGINT) ended the wait early: the caller re-checks.
+                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                Err(e) => return Err(anyhow!("timed_wait: {e:?}")),
+            }
         }
         Ok(())
     }

@@ -5,7 +5,9 @@
 //! 1. the controller step alone, per platform and scalar type (in process, one sample per
 //!    step of a simulated run of trajectory 1, variant a);
 //! 2. a bare iceoryx2 ping-pong between two processes, both busy-polling — the transport's
-//!    floor on this machine — and the same with the event service;
+//!    floor on this machine — back to back and paced at one round trip per millisecond (the
+//!    HIL's rate: caches and predictors cool between exchanges), and the same with the event
+//!    service;
 //! 3. a Unix-domain datagram socket ping-pong with blocking receives — what a user would
 //!    otherwise pick;
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
@@ -252,10 +254,13 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         }
     }
     eprintln!("(2) iceoryx2 ping-pong, {} round trips", a.cycles);
-    let iox = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt)?;
+    let iox = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None)?;
     let iox_p50 = iox.percentiles().p50;
     push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
-    let iox_ev = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt)?;
+    let paced = pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000))?;
+    let paced_p50 = paced.percentiles().p50;
+    push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
+    let iox_ev = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None)?;
     let iox_ev_p50 = iox_ev.percentiles().p50;
     push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
     eprintln!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles);
@@ -294,6 +299,10 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
             ratios.push((
                 "HIL spin / (iceoryx2 busy-poll + step unicycle f64)".to_string(),
                 ratio(f.round_trip_ns.p50, iox_p50 + step_p50),
+            ));
+            ratios.push((
+                "HIL spin / (iceoryx2 one per ms + HIL compute)".to_string(),
+                ratio(f.round_trip_ns.p50, paced_p50 + f.controller_compute_ns.p50),
             ));
         }
         if *mode == WaitMode::Event {

@@ -104,7 +104,7 @@ pub fn apply(cfg: &RtConfig) -> RtReport {
         }
     }
     if let Some(cpu) = cfg.cpu {
-        let n = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+        let n = online_cpus();
         if cpu >= n.max(1) || cpu >= libc::CPU_SETSIZE as usize {
             rep.warnings.push(format!("--rt: CPU {cpu} does not exist ({n} online); not pinned"));
         } else {
@@ -142,6 +142,15 @@ pub fn apply(cfg: &RtConfig) -> RtReport {
     rep
 }
 
+impl RtReport {
+    /// Prints the warnings, if any, as one line on stderr (`who`: the process's role).
+    pub fn warn(&self, who: &str) {
+        if !self.warnings.is_empty() {
+            eprintln!("warning: {who}: {}", self.warnings.join("; "));
+        }
+    }
+}
+
 /// Puts the calling thread back on the normal scheduler and every CPU (the end of a real-time
 /// section; memory stays locked).
 pub fn reset_thread() {
@@ -175,9 +184,12 @@ fn prefault_stack(bytes: usize) {
     touch(bytes);
 }
 
-/// The online CPUs.
+/// The online CPUs of the machine (not of the calling thread's affinity mask, which
+/// `std::thread::available_parallelism` reports once a thread is pinned).
 pub fn online_cpus() -> usize {
-    std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
+    // SAFETY: sysconf takes a constant and has no other effect.
+    let n = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_ONLN) };
+    usize::try_from(n).ok().filter(|n| *n > 0).unwrap_or(1)
 }
 
 /// The kernel's real-time throttling (`sched_rt_runtime_us` / `sched_rt_period_us`), if readable:
@@ -251,5 +263,14 @@ mod tests {
         assert!(rep.warnings.iter().any(|w| w.contains("CPU 100000")));
         // Back to the normal scheduler so the test harness is not left real-time.
         reset_thread();
+        // Pinning does not change what the machine has, and reset gives every CPU back.
+        let n = online_cpus();
+        let rep = apply(&RtConfig { priority: 1, cpu: Some(0), lock_memory: false, prefault_stack: 0 });
+        assert_eq!(online_cpus(), n);
+        reset_thread();
+        if rep.pinned.is_some() {
+            let back = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
+            assert_eq!(back, n, "reset_thread restores every CPU");
+        }
     }
 }

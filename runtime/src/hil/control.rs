@@ -298,9 +298,7 @@ fn session(a: &HilArgs, s: &Scenario, abort: impl FnMut() -> Option<String>) -> 
     ep.wait_for_peer(startup, abort)?;
     let rt = a.rt_config(Role::Control).map(|cfg| crate::rt::apply(&cfg));
     if let Some(r) = &rt {
-        for w in &r.warnings {
-            eprintln!("warning: controller: {w}");
-        }
+        r.warn("controller");
     }
     let mut stats = ControlStats::default();
     let r = serve(&MonotonicClock, &mut ep, &mut ctrl, &opt, &injections, &mut stats);
@@ -427,7 +425,11 @@ pub fn run_as_parent(a: &HilArgs, s: &Scenario, child: Child) -> Result<ExitCode
             if let Some(st) = exited {
                 return Ok(ExitCode::from(u8::try_from(st.code().unwrap_or(2)).unwrap_or(2)));
             }
-            return Err(e);
+            // Leave the plant to notice the lost controller, stop the robot and write its
+            // files (it does so within --silence-ms); kill it only if it does not.
+            eprintln!("error: {e:#}");
+            let _ = child.finish(Duration::from_secs_f64(a.peer_timeout + 5.0));
+            return Ok(ExitCode::from(2));
         }
     };
     match end {

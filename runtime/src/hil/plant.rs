@@ -268,6 +268,11 @@ impl HoldPolicy {
         self.consecutive > self.hold_periods || (self.consecutive > 0 && self.last.is_none())
     }
 
+    /// Whether a fresh command was ever applied.
+    pub fn has_commanded(&self) -> bool {
+        self.last.is_some()
+    }
+
     /// Consecutive misses so far.
     pub fn consecutive(&self) -> u32 {
         self.consecutive
@@ -341,7 +346,10 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
     let period = timing.period_ns;
     let mut idler = Idler::new(timing.wait, timing.spin_margin_ns);
     let mut policy = HoldPolicy::new(timing.hold_periods);
-    let start = clock.now_ns() + period;
+    // Step 0 is a handshake: published now, its command awaited up to --peer-timeout (a cold
+    // controller's first step, page faults and all, is not a deadline miss). Real time starts
+    // when it is answered: release n = start + n·period.
+    let mut start = clock.now_ns();
     let mut last_step = steps;
     let mut end = PlantEnd::Completed;
     let mut last_fresh_ns = start;
@@ -371,8 +379,12 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         let t_pub = clock.now_ns();
         msg.plant_time_ns = t_pub;
         link.publish(&msg)?;
-        stats.jitter.record(t_pub - release);
-        let deadline = release + timing.deadline_ns;
+        let deadline = if n == 0 {
+            t_pub + timing.peer_timeout_ns
+        } else {
+            stats.jitter.record(t_pub - release);
+            release + timing.deadline_ns
+        };
         if t_pub > deadline {
             stats.plant_overruns += 1;
         }
@@ -380,26 +392,32 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         let mut fresh = None;
         idler.reset();
         let peer_lost = matches!(end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
-        while !peer_lost {
-            while let Some(c) = link.try_receive()? {
-                let now = clock.now_ns();
-                match check_command::<JOINTS>(&c, ids.session, n) {
-                    Ok(()) => {
-                        stats.timing(now, &c);
-                        stats.controller_skipped += u64::from(c.skipped);
-                        fresh = Some(c);
+        if !peer_lost {
+            loop {
+                while let Some(c) = link.try_receive()? {
+                    let now = clock.now_ns();
+                    match check_command::<JOINTS>(&c, ids.session, n) {
+                        Ok(()) => {
+                            stats.timing(now, &c);
+                            stats.controller_skipped += u64::from(c.skipped);
+                            fresh = Some(c);
+                        }
+                        Err(WireError::Stale(_)) => {
+                            stats.late_commands += 1;
+                            stats.timing(now, &c);
+                        }
+                        Err(e) => stats.invalid.count(e),
                     }
-                    Err(WireError::Stale(_)) => {
-                        stats.late_commands += 1;
-                        stats.timing(now, &c);
-                    }
-                    Err(e) => stats.invalid.count(e),
                 }
+                if fresh.is_some() || clock.now_ns() >= deadline {
+                    break;
+                }
+                idler.idle(clock, None, deadline, |d| link.wait_event(d))?;
             }
-            if fresh.is_some() || clock.now_ns() >= deadline {
-                break;
-            }
-            idler.idle(clock, None, deadline, |d| link.wait_event(d))?;
+        }
+        if n == 0 {
+            start = clock.now_ns();
+            last_check_ns = start;
         }
         let (report, source) = match fresh {
             Some(c) => {
@@ -411,7 +429,9 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
                 stats.deadline_misses += 1;
                 let was_stopped = policy.stopped();
                 let r = policy.missed();
-                if policy.stopped() && !was_stopped {
+                // A stop event is the hold running out on a moving robot (not the start of a
+                // run before the first command).
+                if policy.stopped() && !was_stopped && policy.has_commanded() {
                     stats.stop_events += 1;
                     stats.first_stop_t.get_or_insert(plant.time());
                 }
@@ -700,9 +720,7 @@ pub fn run(a: &HilArgs) -> Result<ExitCode> {
             rt_report = Some(crate::rt::apply(&cfg));
         }
         if let Some(r) = &rt_report {
-            for w in &r.warnings {
-                eprintln!("warning: plant: {w}");
-            }
+            r.warn("plant");
         }
         let mut sink = |n: u64, row: &Row, last: bool| tx.push(LogItem { n, row: *row, last }).is_ok();
         let r = run_real_time(
@@ -719,9 +737,7 @@ pub fn run(a: &HilArgs) -> Result<ExitCode> {
     };
     if timing.lockstep {
         if let Some(r) = &rt_report {
-            for w in &r.warnings {
-                eprintln!("warning: plant: {w}");
-            }
+            r.warn("plant");
         }
     }
     progress.done.store(true, Ordering::Release);

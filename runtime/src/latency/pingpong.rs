@@ -98,9 +98,7 @@ fn ping(seq: u64, last: bool) -> MeasurementMsg {
 pub fn run_peer(a: &PeerArgs) -> Result<()> {
     crate::ipc::quiet_logs();
     if let Some(cpu) = a.rt_cpu {
-        for w in rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warnings {
-            eprintln!("warning: {w}");
-        }
+        rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warn("latency peer");
     }
     match a.transport {
         Transport::IoxSpin | Transport::IoxEvent => peer_iox(&a.name, a.transport == Transport::IoxEvent),
@@ -210,7 +208,8 @@ fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
     Ok(ChildGuard(Some(child)))
 }
 
-/// Where each process runs with `--rt` on this machine: `(benchmark, peer)`.
+/// Where each process runs with `--rt` on this machine: `(benchmark, peer)`. On a single CPU
+/// both share it (and busy-polling ping-pong then measures the scheduler, not the transport).
 pub fn rt_cpus() -> (usize, usize) {
     if rt::online_cpus() >= 2 {
         (1, 0)
@@ -219,7 +218,8 @@ pub fn rt_cpus() -> (usize, usize) {
     }
 }
 
-/// Round trips over iceoryx2 (`events`: with the event service), `warmup` unrecorded first.
+/// Round trips over iceoryx2 (`events`: with the event service), `warmup` unrecorded first;
+/// back to back, or one every `pace_ns` (busy-waiting in between, as the HIL plant does).
 ///
 /// # Errors
 /// The peer could not be started or stopped answering.
@@ -229,8 +229,14 @@ pub fn iceoryx(
     warmup: u64,
     events: bool,
     use_rt: bool,
+    pace_ns: Option<u64>,
 ) -> Result<LatencyHistogram> {
-    let name = format!("latency-{}-{}", std::process::id(), if events { "event" } else { "spin" });
+    let name = format!(
+        "latency-{}-{}{}",
+        std::process::id(),
+        if events { "event" } else { "spin" },
+        if pace_ns.is_some() { "-paced" } else { "" }
+    );
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
         "--transport".to_string(),
@@ -247,7 +253,14 @@ pub fn iceoryx(
     let _rt = use_rt.then(|| RtScope::enter(own_cpu));
     let mut hist = LatencyHistogram::new();
     let total = warmup + iterations;
+    let start = rt::monotonic_ns();
     for i in 0..total {
+        if let Some(p) = pace_ns {
+            let next = start + i * p;
+            while rt::monotonic_ns() < next {
+                core::hint::spin_loop();
+            }
+        }
         let msg = ping(i, i + 1 == total);
         let t0 = msg.plant_time_ns;
         ep.send(&msg)?;
@@ -352,9 +365,7 @@ pub struct RtScope;
 impl RtScope {
     /// Applies `--rt` pinned to `cpu` (warnings printed once).
     pub fn enter(cpu: usize) -> Self {
-        for w in rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warnings {
-            eprintln!("warning: {w}");
-        }
+        rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warn("latency");
         Self
     }
 }

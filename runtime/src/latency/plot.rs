@@ -124,7 +124,10 @@ pub fn latency_svg(
         .y_label_area_size(60)
         .build_cartesian_2d(0f64..max_nines.ceil(), (min_us..max_us).log_scale())
         .map_err(e)?;
+    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+    let ticks = max_nines.ceil() as usize + 1;
     spec.configure_mesh()
+        .x_labels(ticks)
         .x_desc("percentile (nines)")
         .y_desc("latency (µs)")
         .x_label_formatter(&|x| {

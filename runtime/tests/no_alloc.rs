@@ -1,0 +1,259 @@
+//! The HIL cycle allocates nothing of its own: a counting global allocator around (1) the
+//! iceoryx2 exchange of one measurement and one command between the two endpoints — where
+//! the only allocations are iceoryx2 0.10's own, one per `send` — (2) the plant's real-time
+//! loop and (3) the controller's serve loop, each over thousands of cycles after a warm-up.
+#![allow(unsafe_code)]
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use anyhow::Result;
+use clap::Parser;
+use companion_runtime::clock::{Clock, FakeClock};
+use companion_runtime::control::AnyController;
+use companion_runtime::hil::control::{serve, ControlEnd, ControlLink, ControlStats, ServeOptions};
+use companion_runtime::hil::plant::{run_real_time, Ids, PlantLink, PlantStats, Progress};
+use companion_runtime::hil::{HilArgs, WaitMode};
+use companion_runtime::ipc::{ControlEndpoint, PeerState, PlantEndpoint};
+use companion_runtime::record::Row;
+use companion_runtime::wire::{flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+
+struct Counting;
+
+thread_local! {
+    // Per thread: the tests run in parallel.
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+fn count_one() {
+    if COUNTING.with(Cell::get) {
+        ALLOCATIONS.with(|n| n.set(n.get() + 1));
+    }
+}
+
+// SAFETY: delegates every call to the system allocator unchanged; only counts.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count_one();
+        // SAFETY: the caller's contract is passed through.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        // SAFETY: as above.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count_one();
+        // SAFETY: as above.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations made by this thread while `f` runs.
+fn allocations_in<T>(f: impl FnOnce() -> T) -> (u64, T) {
+    let before = ALLOCATIONS.with(Cell::get);
+    COUNTING.with(|c| c.set(true));
+    let r = f();
+    COUNTING.with(|c| c.set(false));
+    (ALLOCATIONS.with(Cell::get) - before, r)
+}
+
+#[derive(Parser, Debug)]
+struct T {
+    #[command(flatten)]
+    a: HilArgs,
+}
+
+fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
+    let t = T::parse_from(["x"]);
+    let s = t.a.scenario().unwrap();
+    let plant = companion_runtime::sim::build_plant(&s).unwrap();
+    let header = MeasurementHeader { seq, flags: fl, session: 9, dt: 1e-3, ..MeasurementHeader::default() };
+    MeasurementMsg::new(header, &plant.measure())
+}
+
+#[test]
+fn the_iceoryx2_exchange_allocates_nothing() {
+    for events in [false, true] {
+        let name = format!("noalloc-{}-{events}", std::process::id());
+        let plant = PlantEndpoint::plant(&name, events).unwrap();
+        let control = ControlEndpoint::control(&name, events).unwrap();
+        plant.wait_for_peer(Duration::from_secs(5), || None).unwrap();
+        control.wait_for_peer(Duration::from_secs(5), || None).unwrap();
+        let m = measurement(0, 0);
+        let diag =
+            LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
+        let cycle = |seq: u64| {
+            let mut msg = m;
+            msg.seq = seq;
+            plant.send(&msg).unwrap();
+            if events {
+                control.wait_event(Duration::from_millis(100)).unwrap();
+            }
+            let got = control.try_receive().unwrap().expect("the measurement");
+            let c = CommandMsg::answer::<3>(&got, &companion_core::Command::zero(), None, &diag, 0, 0);
+            control.send(&c).unwrap();
+            if events {
+                plant.wait_event(Duration::from_millis(100)).unwrap();
+            }
+            assert_eq!(plant.try_receive().unwrap().expect("the command").seq, seq);
+        };
+        for seq in 0..200 {
+            cycle(seq);
+        }
+        // Per operation: iceoryx2 0.10's `loan_uninit` (and so `send_copy`) puts the sample's
+        // bookkeeping in an `Rc` — one 48-byte allocation, freed again by `send`; `receive`
+        // allocates nothing.
+        let (a, ()) = allocations_in(|| plant.send(&m).unwrap());
+        let (b, got) = allocations_in(|| control.try_receive().unwrap());
+        let c = CommandMsg::answer::<3>(&got.unwrap(), &companion_core::Command::zero(), None, &diag, 0, 0);
+        let (d, ()) = allocations_in(|| control.send(&c).unwrap());
+        let (e, _) = allocations_in(|| plant.try_receive().unwrap());
+        assert_eq!((a, b, d, e), (1, 0, 1, 0), "allocations of send, receive, send, receive");
+        let (n, ()) = allocations_in(|| {
+            for seq in 200..5_200 {
+                cycle(seq);
+            }
+        });
+        // Nothing but the transport's own allocation in each of the two sends.
+        assert_eq!(n, 2 * 5_000, "{n} allocations in 5000 exchanges (events: {events})");
+    }
+}
+
+/// A link whose controller answers at once, in process.
+struct InstantController {
+    ctrl: AnyController,
+    pending: Option<CommandMsg>,
+    clock: std::rc::Rc<FakeClock>,
+}
+
+impl PlantLink for InstantController {
+    fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
+        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt);
+        let diag = LoggedDiagnostics {
+            ep_norm: r.ep_norm,
+            h_s: r.h_s,
+            psi: r.psi,
+            saturation: r.saturation,
+            alpha_rate: r.alpha_rate,
+        };
+        let mut c = CommandMsg::answer(m, &r.command, r.error, &diag, 0, 0);
+        c.compute_ns = 3_000;
+        self.clock.advance(10_000);
+        self.pending = Some(c);
+        Ok(())
+    }
+    fn try_receive(&mut self) -> Result<Option<CommandMsg>> {
+        Ok(self.pending.take())
+    }
+    fn wait_event(&mut self, _: Duration) -> Result<()> {
+        Ok(())
+    }
+    fn peer_state(&mut self) -> Result<PeerState> {
+        Ok(PeerState::Alive(1))
+    }
+}
+
+#[test]
+fn the_plant_loop_allocates_nothing() {
+    let t = T::parse_from(["x", "--duration", "5", "--wait", "spin"]);
+    let s = t.a.scenario().unwrap();
+    let timing = t.a.timing(&s).unwrap();
+    let mut plant = companion_runtime::sim::build_plant(&s).unwrap();
+    let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
+    let mut link = InstantController {
+        ctrl: AnyController::new(&s.controller).unwrap(),
+        pending: None,
+        clock: clock.clone(),
+    };
+    let mut stats = PlantStats::default();
+    let progress = Progress::default();
+    let mut rows: Vec<Row> = Vec::with_capacity(6_000);
+    let mut sink = |_: u64, r: &Row, _: bool| {
+        rows.push(*r);
+        true
+    };
+    let (n, end) = allocations_in(|| {
+        run_real_time(
+            clock.as_ref(),
+            &mut link,
+            &timing,
+            Ids { session: 1, scenario_hash: 0 },
+            &mut plant,
+            s.steps(),
+            s.dt,
+            &mut stats,
+            &progress,
+            &mut sink,
+        )
+    });
+    assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
+    assert!(end.is_ok());
+    assert_eq!(stats.cycles, 5_001);
+    assert_eq!(stats.deadline_misses, 0);
+    assert_eq!(rows.len(), 5_001);
+    assert!(clock.now_ns() > 1_000_000_000 + 4_999_000_000);
+}
+
+/// A plant that sends its next measurement once the previous one is answered.
+struct Script {
+    inbox: VecDeque<MeasurementMsg>,
+    sent: Vec<CommandMsg>,
+    ready: bool,
+}
+
+impl ControlLink for Script {
+    fn publish(&mut self, c: &CommandMsg) -> Result<()> {
+        self.sent.push(*c);
+        self.ready = true;
+        Ok(())
+    }
+    fn try_receive(&mut self) -> Result<Option<MeasurementMsg>> {
+        if !self.ready {
+            return Ok(None);
+        }
+        self.ready = false;
+        Ok(self.inbox.pop_front())
+    }
+    fn wait_event(&mut self, _: Duration) -> Result<()> {
+        Ok(())
+    }
+    fn peer_state(&mut self) -> Result<PeerState> {
+        Ok(PeerState::Alive(1))
+    }
+}
+
+#[test]
+fn the_controller_loop_allocates_nothing() {
+    let t = T::parse_from(["x"]);
+    let s = t.a.scenario().unwrap();
+    let mut ctrl = AnyController::new(&s.controller).unwrap();
+    let m = measurement(0, 0);
+    let mut inbox = VecDeque::with_capacity(5_001);
+    for seq in 0..5_000 {
+        inbox.push_back(MeasurementMsg { seq, plant_time_ns: seq * 1_000_000, ..m });
+    }
+    inbox.push_back(MeasurementMsg { seq: 5_000, flags: flags::END_OF_RUN, ..m });
+    let mut link = Script { inbox, sent: Vec::with_capacity(5_001), ready: true };
+    let opt = ServeOptions {
+        wait: WaitMode::Spin,
+        spin_margin_ns: 0,
+        silence_ns: 20_000_000,
+        peer_timeout_ns: 2_000_000_000,
+        startup_timeout_ns: 2_000_000_000,
+        scenario_hash: 0,
+    };
+    let clock = FakeClock::new(0, 100);
+    let mut stats = ControlStats::default();
+    let (n, end) = allocations_in(|| serve(&clock, &mut link, &mut ctrl, &opt, &[], &mut stats));
+    assert_eq!(n, 0, "{n} allocations in {} controller cycles", stats.answered);
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(link.sent.len(), 5_001);
+    let _ = clock.now_ns();
+}
