@@ -9,8 +9,10 @@ use std::fmt::Write as _;
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::Path;
+use std::sync::mpsc::SyncSender;
+use std::thread::JoinHandle;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use companion_core::nalgebra::SVector;
 use companion_core::{PlatformKind, Pose};
 use serde::Serialize;
@@ -99,6 +101,11 @@ pub struct Summary {
     pub max_abs_v: f64,
     /// The largest `|ω|` commanded (rad/s).
     pub max_abs_omega: f64,
+    /// The root mean square of the commanded `v` over the run (m/s): the typical platform
+    /// speed, robust where the maximum is one spike.
+    pub rms_v: f64,
+    /// The root mean square of the commanded `ω` over the run (rad/s).
+    pub rms_omega: f64,
     /// The largest `|α̇ᵢ|` commanded (rad/s).
     pub max_abs_alpha_rate: f64,
     /// The largest saturation factor.
@@ -133,6 +140,8 @@ pub struct SummaryAccumulator {
     /// The signed odometer, the previous command's `v`, the current direction of travel
     /// (0 before the first leg) and the odometer's extremum in that direction.
     odometer: f64,
+    sum_v2: f64,
+    sum_w2: f64,
     prev_v: f64,
     direction: i8,
     extremum: f64,
@@ -156,6 +165,8 @@ impl SummaryAccumulator {
             last_sign: 0,
             last_pos: None,
             odometer: 0.0,
+            sum_v2: 0.0,
+            sum_w2: 0.0,
             prev_v: 0.0,
             direction: 0,
             extremum: 0.0,
@@ -165,6 +176,10 @@ impl SummaryAccumulator {
     }
 
     /// Adds one step.
+    ///
+    /// Reads only the row's time, platform pose and joints and its report: the in-process
+    /// loop ([`run_loop`](crate::sim::run_loop)) skips the end effector's pose on steps
+    /// that are not logged.
     pub fn add(&mut self, row: &Row) {
         let s = &mut self.s;
         let p = &row.plant;
@@ -237,6 +252,8 @@ impl SummaryAccumulator {
         }
         s.max_abs_v = s.max_abs_v.max(v.abs());
         s.max_abs_omega = s.max_abs_omega.max(r.command.platform.omega.abs());
+        self.sum_v2 += v * v;
+        self.sum_w2 += r.command.platform.omega * r.command.platform.omega;
         for a in r.alpha_rate {
             if a.is_finite() {
                 s.max_abs_alpha_rate = s.max_abs_alpha_rate.max(a.abs());
@@ -255,17 +272,56 @@ impl SummaryAccumulator {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
         s.wall_time_s = wall_time_s;
+        #[allow(clippy::cast_precision_loss)]
+        if s.steps > 0 {
+            s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();
+            s.rms_omega = (self.sum_w2 / s.steps as f64).sqrt();
+        }
         s
     }
 }
 
+/// `timeseries.csv`: the open file and a line buffer.
+#[derive(Debug)]
+struct CsvFile {
+    out: BufWriter<File>,
+    kind: PlatformKind,
+    line: String,
+}
+
+impl CsvFile {
+    fn write_row(&mut self, row: &Row) -> std::io::Result<()> {
+        self.line.clear();
+        format_row(&mut self.line, self.kind, row);
+        self.out.write_all(self.line.as_bytes())
+    }
+}
+
+/// Logged rows per message to the writer thread.
+const BATCH_ROWS: usize = 128;
+/// Batches in flight before [`Recorder::record`] waits for the writer thread.
+const BATCHES_IN_FLIGHT: usize = 16;
+
+/// Where logged rows go.
+#[derive(Debug)]
+enum Csv {
+    /// Formatted and written by [`Recorder::record`] itself.
+    Direct(CsvFile),
+    /// Collected into batches for a writer thread, which formats and writes them.
+    Background { batch: Vec<Row>, tx: SyncSender<Vec<Row>>, thread: JoinHandle<std::io::Result<CsvFile>> },
+    /// The writer thread failed; its error was reported.
+    Failed,
+}
+
 /// Writes `timeseries.csv`, keeps the logged rows for plots, and accumulates the summary.
+///
+/// Formatting the CSV (shortest round-trip decimals) is the most expensive part of recording;
+/// [`in_background`](Self::in_background) moves it to a writer thread. The bytes written are
+/// the same either way.
 #[derive(Debug)]
 pub struct Recorder {
-    csv: BufWriter<File>,
-    kind: PlatformKind,
+    csv: Csv,
     log_every: u64,
-    line: String,
     /// The logged rows (for plots).
     pub rows: Vec<Row>,
     /// The summary accumulator.
@@ -286,16 +342,53 @@ impl Recorder {
     ) -> Result<Self> {
         let path = dir.join("timeseries.csv");
         let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-        let mut csv = BufWriter::with_capacity(1 << 16, file);
-        csv.write_all(header(kind).as_bytes())?;
+        let mut out = BufWriter::with_capacity(1 << 16, file);
+        out.write_all(header(kind).as_bytes())?;
         Ok(Self {
-            csv,
-            kind,
+            csv: Csv::Direct(CsvFile { out, kind, line: String::with_capacity(512) }),
             log_every,
-            line: String::with_capacity(512),
             rows: Vec::with_capacity(expected_rows),
             summary,
         })
+    }
+
+    /// The same recorder with the CSV formatted and written by a thread of its own, until
+    /// the next [`flush`](Self::flush) (which waits for it). [`record`](Self::record) then
+    /// only copies the logged rows; write errors are reported by a later `record` or by
+    /// `flush`.
+    ///
+    /// # Errors
+    /// The thread cannot be started.
+    pub fn in_background(mut self) -> Result<Self> {
+        let mut file = match std::mem::replace(&mut self.csv, Csv::Failed) {
+            Csv::Direct(file) => file,
+            other => {
+                // Already in the background, or failed: nothing to do.
+                self.csv = other;
+                return Ok(self);
+            }
+        };
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Vec<Row>>(BATCHES_IN_FLIGHT);
+        let thread = std::thread::Builder::new()
+            .name("csv-format".into())
+            .spawn(move || {
+                for batch in rx {
+                    for row in &batch {
+                        file.write_row(row)?;
+                    }
+                }
+                Ok(file)
+            })
+            .context("starting the CSV writer thread")?;
+        self.csv = Csv::Background { batch: Vec::with_capacity(BATCH_ROWS), tx, thread };
+        Ok(self)
+    }
+
+    /// Whether [`record`](Self::record) logs step `n` (written to the CSV and kept in
+    /// [`rows`](Self::rows)): `n` is a multiple of `log_every`, or the last step.
+    #[inline]
+    pub fn logs(&self, n: u64, last: bool) -> bool {
+        n % self.log_every == 0 || last
     }
 
     /// Records step `n`; the row is logged when `n` is a multiple of `log_every` or `last`.
@@ -304,21 +397,61 @@ impl Recorder {
     /// Writing the file failed.
     pub fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
         self.summary.add(row);
-        if n % self.log_every == 0 || last {
-            self.line.clear();
-            format_row(&mut self.line, self.kind, row);
-            self.csv.write_all(self.line.as_bytes())?;
+        if self.logs(n, last) {
+            match &mut self.csv {
+                Csv::Direct(file) => file.write_row(row)?,
+                Csv::Background { batch, tx, .. } => {
+                    batch.push(*row);
+                    if batch.len() == BATCH_ROWS {
+                        let full = std::mem::replace(batch, Vec::with_capacity(BATCH_ROWS));
+                        if tx.send(full).is_err() {
+                            // The thread stopped early, so it failed: report why.
+                            self.join_writer()?;
+                            bail!("the CSV writer thread stopped early");
+                        }
+                    }
+                }
+                Csv::Failed => bail!("writing timeseries.csv failed earlier"),
+            }
             self.rows.push(*row);
         }
         Ok(())
     }
 
-    /// Flushes the file.
+    /// Flushes the file (after waiting for the writer thread, if there is one; the recorder
+    /// then writes directly again).
     ///
     /// # Errors
     /// Writing the file failed.
     pub fn flush(&mut self) -> Result<()> {
-        self.csv.flush().context("writing timeseries.csv")
+        self.join_writer()?;
+        match &mut self.csv {
+            Csv::Direct(file) => file.out.flush().context("writing timeseries.csv"),
+            Csv::Background { .. } | Csv::Failed => bail!("writing timeseries.csv failed earlier"),
+        }
+    }
+
+    /// Hands the last batch to the writer thread, if any, waits for it and takes the file
+    /// back.
+    fn join_writer(&mut self) -> Result<()> {
+        let (batch, tx, thread) = match std::mem::replace(&mut self.csv, Csv::Failed) {
+            Csv::Background { batch, tx, thread } => (batch, tx, thread),
+            other => {
+                self.csv = other;
+                return Ok(());
+            }
+        };
+        // A failed send means the thread has stopped: its result says why.
+        if !batch.is_empty() {
+            let _ = tx.send(batch);
+        }
+        drop(tx);
+        let file = thread
+            .join()
+            .map_err(|_| anyhow::anyhow!("the CSV writer thread panicked"))?
+            .context("writing timeseries.csv")?;
+        self.csv = Csv::Direct(file);
+        Ok(())
     }
 }
 
@@ -381,4 +514,115 @@ pub fn format_row(out: &mut String, kind: PlatformKind, row: &Row) {
     out.push(',');
     out.push_str(&row.status());
     out.push('\n');
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use companion_core::{Command, StepError};
+
+    fn row(k: u32) -> Row {
+        let x = f64::from(k);
+        let mut report = StepReport {
+            command: Command::zero(),
+            ep_norm: 1.0 / (x + 3.0),
+            h_s: x.sqrt(),
+            psi: 1.0,
+            saturation: 1.0,
+            alpha_rate: [x * 0.1, -x / 7.0],
+            error: None,
+        };
+        report.command.platform.v = (x * 0.37).sin();
+        report.command.platform.omega = -x * 1e-3;
+        if k % 97 == 5 {
+            report = StepReport::rejected(StepError::SingularArm);
+        }
+        let plant = PlantSample {
+            t: x * 1e-3,
+            base: Pose::new(x.cos(), x.sin(), x / 3.0),
+            steering: 0.01 * x,
+            joints: SVector::<f64, JOINTS>::new(0.1, 0.35 + 1e-5 * x, -0.2),
+            end_effector: Pose::new(1.0 / 3.0, x * 1e-7, -x),
+            target: Pose::new(2.5, 1.0, 0.0),
+        };
+        Row { plant, report, source: CommandSource::Fresh }
+    }
+
+    fn dir(tag: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("companion-record-{}-{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("temporary folder");
+        d
+    }
+
+    fn recorder(d: &Path, kind: PlatformKind) -> Recorder {
+        let acc = SummaryAccumulator::new("test", [-1.0, 0.0, -1.5], [1.0, 0.7, 1.5]);
+        Recorder::create(d, kind, 3, acc, 0).expect("creating the CSV")
+    }
+
+    #[test]
+    fn the_writer_thread_writes_the_same_bytes_rows_and_summary() {
+        for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
+            let (d1, d2) = (dir("direct"), dir("background"));
+            let mut direct = recorder(&d1, kind);
+            // Twice: the second call keeps the running thread.
+            let mut background =
+                recorder(&d2, kind).in_background().expect("thread").in_background().expect("thread");
+            let steps = 3 * BATCH_ROWS as u32 * 5 + 7;
+            for k in 0..=steps {
+                direct.record(u64::from(k), &row(k), k == steps).expect("direct");
+                background.record(u64::from(k), &row(k), k == steps).expect("background");
+            }
+            direct.flush().expect("direct");
+            background.flush().expect("background");
+            let a = std::fs::read(d1.join("timeseries.csv")).expect("read");
+            let b = std::fs::read(d2.join("timeseries.csv")).expect("read");
+            assert!(a.len() > 100_000, "{}", a.len());
+            assert_eq!(a, b, "{kind:?}");
+            // Debug strings: rejected rows hold NaN.
+            assert_eq!(format!("{:?}", direct.rows), format!("{:?}", background.rows));
+            assert_eq!(
+                format!("{:?}", direct.summary.finish(0.0)),
+                format!("{:?}", background.summary.finish(0.0))
+            );
+            // After a flush the recorder writes directly again, and still the same bytes.
+            for k in steps + 1..steps + 10 {
+                direct.record(u64::from(k), &row(k), false).expect("direct");
+                background.record(u64::from(k), &row(k), false).expect("background");
+            }
+            direct.flush().expect("direct");
+            background.flush().expect("background");
+            assert_eq!(
+                std::fs::read(d1.join("timeseries.csv")).expect("read"),
+                std::fs::read(d2.join("timeseries.csv")).expect("read")
+            );
+            let _ = std::fs::remove_dir_all(&d1);
+            let _ = std::fs::remove_dir_all(&d2);
+        }
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_write_error_of_the_writer_thread_is_reported() {
+        // `timeseries.csv` -> /dev/full: every write fails with "no space left on device".
+        let d = dir("full");
+        std::os::unix::fs::symlink("/dev/full", d.join("timeseries.csv")).expect("symlink");
+        let mut r = recorder(&d, PlatformKind::Unicycle).in_background().expect("thread");
+        let mut result = Ok(());
+        for k in 0..200_000 {
+            result = r.record(k, &row(k as u32), false);
+            if result.is_err() {
+                break;
+            }
+        }
+        let err = match result {
+            Err(e) => e,
+            Ok(()) => r.flush().expect_err("the disk is full"),
+        };
+        assert!(format!("{err:#}").contains("timeseries.csv"), "{err:#}");
+        // Later calls keep failing instead of silently dropping rows.
+        assert!(r.record(0, &row(0), false).is_err());
+        assert!(r.flush().is_err());
+        let _ = std::fs::remove_dir_all(&d);
+    }
 }

@@ -12,6 +12,11 @@
 //!
 //! With lag, the platform and joint velocities used above are the lag states `a`;
 //! without, the command itself. Angles are integrated as they are, never wrapped.
+//!
+//! Cost: sin/cos are most of a step's work, so they go through [`SinCos`], which returns
+//! the stored result when an argument repeats bit for bit (it often does between RK4
+//! stages and steps); without lag (the paper's plant) the stages carry only what the
+//! derivative depends on ([`Model::rk4`]). Neither changes a single bit of the result.
 
 use companion_core::nalgebra::{SVector, Vector3, Vector4};
 use companion_core::{Command, PlatformCommand, PlatformKind};
@@ -37,6 +42,7 @@ pub(crate) struct Continuous<const N: usize> {
 
 impl<const N: usize> Continuous<N> {
     /// `self + h · d`.
+    #[inline]
     fn add_scaled(&self, h: f64, d: &Self) -> Self {
         Self {
             base: self.base + d.base * h,
@@ -49,14 +55,57 @@ impl<const N: usize> Continuous<N> {
     }
 }
 
+/// `libm::sincos` with the results of its last two distinct arguments kept, compared bit for
+/// bit: a repeated argument gets exactly the bits libm would return, without the ~60
+/// instructions of computing them again.
+///
+/// Where arguments repeat: a unicycle's or omnidirectional platform's heading is the same at
+/// the two midpoint stages of RK4 (ω is held over the step); a target that does not turn
+/// keeps its heading at every stage of every step; the target's velocity is evaluated at a
+/// step's end and again at the next step's start (see [`Trig`]).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct SinCos {
+    /// `(argument bits, sin, cos)`.
+    slots: [Option<(u64, f64, f64)>; 2],
+    /// The slot the next miss replaces (the older one).
+    next: usize,
+}
+
+impl SinCos {
+    /// `(sin x, cos x)`, bit for bit as `libm::sincos(x)`.
+    #[inline]
+    pub fn sincos(&mut self, x: f64) -> (f64, f64) {
+        let bits = x.to_bits();
+        for (k, s, c) in self.slots.iter().flatten() {
+            if *k == bits {
+                return (*s, *c);
+            }
+        }
+        let (s, c) = libm::sincos(x);
+        self.slots[self.next] = Some((bits, s, c));
+        self.next ^= 1;
+        (s, c)
+    }
+}
+
+/// The plant's [`SinCos`] caches, one per kind of angle so that they do not evict each
+/// other: the platform's heading, the target's heading, and the phase of the target's
+/// velocity `u_d(t)` (trajectory 1 and Table 1's rotations).
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Trig {
+    pub base: SinCos,
+    pub target: SinCos,
+    pub phase: SinCos,
+}
+
 /// `(v, v_lat, ω, v_ξ)` of a platform command.
 pub(crate) fn pack(p: &PlatformCommand<f64>) -> Vector4<f64> {
     Vector4::new(p.v, p.v_lat, p.omega, p.v_xi)
 }
 
-/// `R̄(θ) u`, eq. (3).
-fn pose_rate(theta: f64, u: &Vector3<f64>) -> Vector3<f64> {
-    let (s, c) = libm::sincos(theta);
+/// `R̄(θ) u`, eq. (3), with `(sin θ, cos θ)` given.
+#[inline]
+fn pose_rate((s, c): (f64, f64), u: &Vector3<f64>) -> Vector3<f64> {
     Vector3::new(c * u[0] - s * u[1], s * u[0] + c * u[1], u[2])
 }
 
@@ -76,6 +125,7 @@ pub(crate) struct Model<'a> {
 impl Model<'_> {
     /// The platform's actual body velocity `u_b` and steering rate `ξ̇` for velocities
     /// `p = (v, v_lat, ω, v_ξ)` delivered by the actuators, at steering `ξ`.
+    #[inline]
     fn platform(&self, p: &Vector4<f64>, xi: f64) -> (Vector3<f64>, f64) {
         let v = self.wheel_scale * p[0];
         match self.kind {
@@ -109,6 +159,7 @@ impl Model<'_> {
     }
 
     /// `ẋ = F(t, x)` under the held command `(c, c_q)`.
+    #[inline]
     fn derivative<const N: usize>(
         &self,
         piece: &Piece,
@@ -116,18 +167,19 @@ impl Model<'_> {
         x: &Continuous<N>,
         c: &Vector4<f64>,
         c_q: &SVector<f64, N>,
+        trig: &mut Trig,
     ) -> Continuous<N> {
         let (p, p_q, lag_rate, joint_lag_rate) = match self.lag {
             Some(tau) => (x.platform_lag, x.joint_lag, (c - x.platform_lag) / tau, (c_q - x.joint_lag) / tau),
             None => (*c, *c_q, Vector4::zeros(), SVector::zeros()),
         };
         let (u_b, steering) = self.platform(&p, x.steering);
-        let u_d = piece.velocity(t);
+        let u_d = piece.velocity_with(t, |a| trig.phase.sincos(a));
         Continuous {
-            base: pose_rate(x.base[2], &u_b),
+            base: pose_rate(trig.base.sincos(x.base[2]), &u_b),
             steering,
             joints: p_q,
-            target: pose_rate(x.target[2], &u_d),
+            target: pose_rate(trig.target.sincos(x.target[2]), &u_d),
             platform_lag: lag_rate,
             joint_lag: joint_lag_rate,
         }
@@ -137,7 +189,7 @@ impl Model<'_> {
     /// velocity is evaluated at `t0`, `t0 + h/2` and `t1`, on the smooth piece of `u_d`
     /// that contains the step's midpoint (so a jump of `u_d` on a step's edge is taken
     /// exactly). A steering limit, if any, is enforced exactly at the end of the step
-    /// (clamp).
+    /// (clamp). `trig` caches sin/cos across stages and steps (results unchanged).
     pub fn rk4<const N: usize>(
         &self,
         t0: f64,
@@ -145,21 +197,233 @@ impl Model<'_> {
         h: f64,
         x: &Continuous<N>,
         command: &Command<f64, N>,
+        trig: &mut Trig,
+    ) -> Continuous<N> {
+        let mut next = if self.lag.is_some() {
+            self.rk4_general(t0, t1, h, x, command, trig)
+        } else {
+            self.rk4_direct(t0, t1, h, x, command, trig)
+        };
+        if let (PlatformKind::Car, Some(l)) = (self.kind, self.steering_limit) {
+            next.steering = next.steering.clamp(-l, l);
+        }
+        next
+    }
+
+    /// RK4 on the whole state, lag states included.
+    fn rk4_general<const N: usize>(
+        &self,
+        t0: f64,
+        t1: f64,
+        h: f64,
+        x: &Continuous<N>,
+        command: &Command<f64, N>,
+        trig: &mut Trig,
     ) -> Continuous<N> {
         let c = pack(&command.platform);
         let c_q = command.joints;
         let half = 0.5 * h;
         let t_mid = t0 + half;
         let piece = self.trajectory.piece(t_mid);
-        let k1 = self.derivative(&piece, t0, x, &c, &c_q);
-        let k2 = self.derivative(&piece, t_mid, &x.add_scaled(half, &k1), &c, &c_q);
-        let k3 = self.derivative(&piece, t_mid, &x.add_scaled(half, &k2), &c, &c_q);
-        let k4 = self.derivative(&piece, t1, &x.add_scaled(h, &k3), &c, &c_q);
+        let k1 = self.derivative(&piece, t0, x, &c, &c_q, trig);
+        let k2 = self.derivative(&piece, t_mid, &x.add_scaled(half, &k1), &c, &c_q, trig);
+        let k3 = self.derivative(&piece, t_mid, &x.add_scaled(half, &k2), &c, &c_q, trig);
+        let k4 = self.derivative(&piece, t1, &x.add_scaled(h, &k3), &c, &c_q, trig);
         let sum = k1.add_scaled(2.0, &k2).add_scaled(2.0, &k3).add_scaled(1.0, &k4);
-        let mut next = x.add_scaled(h / 6.0, &sum);
-        if let (PlatformKind::Car, Some(l)) = (self.kind, self.steering_limit) {
+        x.add_scaled(h / 6.0, &sum)
+    }
+
+    /// RK4 without actuator lag: the derivative then depends only on the time, the two
+    /// headings and the steering state, and the joints move at the held command, so the
+    /// stages carry just those three numbers and positions and joints are summed once. Each
+    /// component goes through exactly the operations of [`rk4_general`](Self::rk4_general)
+    /// (`x + h·k`, `((k₁ + 2k₂) + 2k₃) + 1·k₄`, `x + (h/6)·sum`), so the result is the same
+    /// to the bit (and the lag states stay exactly zero).
+    fn rk4_direct<const N: usize>(
+        &self,
+        t0: f64,
+        t1: f64,
+        h: f64,
+        x: &Continuous<N>,
+        command: &Command<f64, N>,
+        trig: &mut Trig,
+    ) -> Continuous<N> {
+        let p = pack(&command.platform);
+        let c_q = command.joints;
+        let half = 0.5 * h;
+        let t_mid = t0 + half;
+        let piece = self.trajectory.piece(t_mid);
+        // (ṙ_b, ξ̇, ṙ_d) at time t with headings θ_b, θ_d and steering ξ.
+        let mut rates = |t: f64, theta_b: f64, xi: f64, theta_d: f64| {
+            let (u_b, xi_dot) = self.platform(&p, xi);
+            let u_d = piece.velocity_with(t, |a| trig.phase.sincos(a));
+            (pose_rate(trig.base.sincos(theta_b), &u_b), xi_dot, pose_rate(trig.target.sincos(theta_d), &u_d))
+        };
+        let (b, xi, d) = (&x.base, x.steering, &x.target);
+        let (b1, s1, d1) = rates(t0, b[2], xi, d[2]);
+        let (b2, s2, d2) = rates(t_mid, b[2] + b1[2] * half, xi + half * s1, d[2] + d1[2] * half);
+        let (b3, s3, d3) = rates(t_mid, b[2] + b2[2] * half, xi + half * s2, d[2] + d2[2] * half);
+        let (b4, s4, d4) = rates(t1, b[2] + b3[2] * h, xi + h * s3, d[2] + d3[2] * h);
+        let sum_b = b1 + b2 * 2.0 + b3 * 2.0 + b4 * 1.0;
+        let sum_s = s1 + 2.0 * s2 + 2.0 * s3 + 1.0 * s4;
+        let sum_q = c_q + c_q * 2.0 + c_q * 2.0 + c_q * 1.0;
+        let sum_d = d1 + d2 * 2.0 + d3 * 2.0 + d4 * 1.0;
+        let k = h / 6.0;
+        Continuous {
+            base: b + sum_b * k,
+            steering: xi + k * sum_s,
+            joints: x.joints + sum_q * k,
+            target: d + sum_d * k,
+            platform_lag: x.platform_lag,
+            joint_lag: x.joint_lag,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use companion_core::nalgebra::SVector;
+    use proptest::prelude::*;
+
+    /// The step as it was written before the caches: every sin/cos from libm, every lag
+    /// state computed. The plant must give exactly these bits.
+    fn reference_rk4<const N: usize>(
+        m: &Model<'_>,
+        t0: f64,
+        t1: f64,
+        h: f64,
+        x: &Continuous<N>,
+        command: &Command<f64, N>,
+    ) -> Continuous<N> {
+        let rate = |theta: f64, u: &Vector3<f64>| {
+            let (s, c) = libm::sincos(theta);
+            Vector3::new(c * u[0] - s * u[1], s * u[0] + c * u[1], u[2])
+        };
+        let add = |a: &Continuous<N>, k: f64, d: &Continuous<N>| Continuous {
+            base: a.base + d.base * k,
+            steering: a.steering + k * d.steering,
+            joints: a.joints + d.joints * k,
+            target: a.target + d.target * k,
+            platform_lag: a.platform_lag + d.platform_lag * k,
+            joint_lag: a.joint_lag + d.joint_lag * k,
+        };
+        let c = pack(&command.platform);
+        let c_q = command.joints;
+        let half = 0.5 * h;
+        let t_mid = t0 + half;
+        let piece = m.trajectory.piece(t_mid);
+        let f = |t: f64, x: &Continuous<N>| {
+            let (p, p_q, lag_rate, joint_lag_rate) = match m.lag {
+                Some(tau) => {
+                    (x.platform_lag, x.joint_lag, (c - x.platform_lag) / tau, (c_q - x.joint_lag) / tau)
+                }
+                None => (c, c_q, Vector4::zeros(), SVector::zeros()),
+            };
+            let (u_b, steering) = m.platform(&p, x.steering);
+            Continuous {
+                base: rate(x.base[2], &u_b),
+                steering,
+                joints: p_q,
+                target: rate(x.target[2], &piece.velocity(t)),
+                platform_lag: lag_rate,
+                joint_lag: joint_lag_rate,
+            }
+        };
+        let k1 = f(t0, x);
+        let k2 = f(t_mid, &add(x, half, &k1));
+        let k3 = f(t_mid, &add(x, half, &k2));
+        let k4 = f(t1, &add(x, h, &k3));
+        let sum = add(&add(&add(&k1, 2.0, &k2), 2.0, &k3), 1.0, &k4);
+        let mut next = add(x, h / 6.0, &sum);
+        if let (PlatformKind::Car, Some(l)) = (m.kind, m.steering_limit) {
             next.steering = next.steering.clamp(-l, l);
         }
         next
+    }
+
+    fn bits<const N: usize>(x: &Continuous<N>) -> Vec<u64> {
+        x.base
+            .iter()
+            .chain([x.steering].iter())
+            .chain(x.joints.iter())
+            .chain(x.target.iter())
+            .chain(x.platform_lag.iter())
+            .chain(x.joint_lag.iter())
+            .map(|v| v.to_bits())
+            .collect()
+    }
+
+    #[test]
+    fn sincos_returns_libms_bits_for_repeated_and_signed_zero_arguments() {
+        let mut cache = SinCos::default();
+        let args = [0.0, -0.0, 0.0, 1.0, 1.0, -0.0, 1e300, 3.5, 1.0, 3.5, -7.25, -7.25, f64::MIN_POSITIVE];
+        for _ in 0..3 {
+            for a in args {
+                let (s, c) = cache.sincos(a);
+                let (ls, lc) = libm::sincos(a);
+                assert_eq!((s.to_bits(), c.to_bits()), (ls.to_bits(), lc.to_bits()), "{a:e}");
+            }
+        }
+    }
+
+    fn any_kind() -> impl Strategy<Value = PlatformKind> {
+        prop_oneof![Just(PlatformKind::Unicycle), Just(PlatformKind::Car), Just(PlatformKind::Omni)]
+    }
+
+    fn any_trajectory() -> impl Strategy<Value = Trajectory> {
+        prop_oneof![Just(Trajectory::Paper1), Just(Trajectory::Paper2)]
+    }
+
+    proptest! {
+        /// Stepping with the caches, carried from step to step, gives exactly the bits of
+        /// the uncached step, on every platform, with and without lag and steering limit,
+        /// on both paper trajectories (rotations, constant pieces and a jump inside the run).
+        #[test]
+        fn the_cached_step_is_the_reference_step_bit_for_bit(
+            kind in any_kind(),
+            trajectory in any_trajectory(),
+            lag in prop_oneof![Just(None), (0.01..0.5f64).prop_map(Some)],
+            steering_limit in prop_oneof![Just(None), Just(Some(0.3))],
+            start in prop_oneof![Just(0.0), Just(4.9), Just(26.95), 0.0..125.0f64],
+            commands in prop::collection::vec(
+                (prop::array::uniform4(-3.0..3.0f64), prop::array::uniform3(-2.0..2.0f64), 0..4u8),
+                1..40,
+            ),
+            theta in prop_oneof![Just(0.0), Just(-0.0), -10.0..10.0f64],
+        ) {
+            let model = Model { kind, wheel_scale: 1.02, lag, steering_limit, trajectory: &trajectory };
+            let mut x = Continuous::<3> {
+                base: Vector3::new(0.1, -0.2, theta),
+                steering: 0.05,
+                joints: SVector::<f64, 3>::new(0.0, 0.35, 0.0),
+                target: Vector3::new(2.5, 1.0, -theta),
+                platform_lag: Vector4::zeros(),
+                joint_lag: SVector::zeros(),
+            };
+            let mut trig = Trig::default();
+            let h = 1e-3;
+            let n0 = (start / h) as u64;
+            for (i, (p, q, zero)) in commands.iter().enumerate() {
+                // Some commands hold ω or v at exactly zero (headings then repeat).
+                let mut p = *p;
+                if *zero == 1 { p[2] = 0.0; }
+                if *zero == 2 { p = [0.0; 4]; }
+                let command = Command {
+                    platform: PlatformCommand { v: p[0], v_lat: p[1], omega: p[2], v_xi: p[3] },
+                    joints: SVector::<f64, 3>::from(*q),
+                };
+                let n = n0 + i as u64;
+                let (t0, t1) = (n as f64 * h, (n + 1) as f64 * h);
+                let expected = reference_rk4(&model, t0, t1, h, &x, &command);
+                let got = model.rk4(t0, t1, h, &x, &command, &mut trig);
+                prop_assert_eq!(bits(&got), bits(&expected), "step {}", i);
+                // The plant evaluates u_d(t₁⁺) through the same cache between steps.
+                let piece = trajectory.piece(t1 + 0.5 * h);
+                let u = piece.velocity_with(t1, |a| trig.phase.sincos(a));
+                prop_assert_eq!(u, piece.velocity(t1));
+                x = got;
+            }
+        }
     }
 }

@@ -6,7 +6,7 @@ use rand::distr::{OpenClosed01, StandardUniform};
 use rand::rngs::ChaCha12Rng;
 use rand::{RngExt, SeedableRng};
 
-use crate::dynamics::{Continuous, Model};
+use crate::dynamics::{Continuous, Model, Trig};
 use crate::imperfections::{Imperfections, Noise};
 use crate::trajectory::Trajectory;
 
@@ -217,6 +217,8 @@ pub struct Plant<A: Arm<f64, N>, const N: usize> {
     state: PlantState<N>,
     x: Continuous<N>,
     dt: Option<f64>,
+    /// sin/cos of recent angles (a pure cache: it never changes a result).
+    trig: Trig,
 }
 
 impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
@@ -261,7 +263,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
             applied: Command::zero(),
             command: Command::zero(),
         };
-        Ok(Self { config, arm, trajectory, state, x, dt: None })
+        Ok(Self { config, arm, trajectory, state, x, dt: None, trig: Trig::default() })
     }
 
     /// The configuration.
@@ -365,12 +367,16 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
             return Err(AdvanceError::NonFiniteCommand);
         }
         self.dt = Some(dt);
-        let model = self.model();
+        let model = Self::model(&self.config, &self.trajectory);
         let n = self.state.step;
         let t0 = n as f64 * dt;
         let t1 = (n + 1) as f64 * dt;
-        let x = model.rk4(t0, t1, dt, &self.x, command);
+        let trig = &mut self.trig;
+        let x = model.rk4(t0, t1, dt, &self.x, command, trig);
         let applied = model.applied(&x, command);
+        // u_d(t₁⁺): the piece the target follows over the next step.
+        let target_velocity =
+            self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
         self.x = x;
         self.state = PlantState {
             t: t1,
@@ -379,21 +385,22 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
             steering: self.x.steering,
             joints: self.x.joints,
             target: Pose::from_vector(&self.x.target),
-            // u_d(t₁⁺): the piece the target follows over the next step.
-            target_velocity: self.trajectory.piece(t1 + 0.5 * dt).velocity(t1),
+            target_velocity,
             applied,
             command: *command,
         };
         Ok(())
     }
 
-    fn model(&self) -> Model<'_> {
+    /// The equations of motion (an associated function, so that it borrows only these two
+    /// fields and the sin/cos cache can be borrowed beside it).
+    fn model<'a>(config: &PlantConfig, trajectory: &'a Trajectory) -> Model<'a> {
         Model {
-            kind: self.config.platform,
-            wheel_scale: 1.0 + self.config.imperfections.wheel_scale_error,
-            lag: self.config.imperfections.actuator_lag,
-            steering_limit: self.config.steering_limit,
-            trajectory: &self.trajectory,
+            kind: config.platform,
+            wheel_scale: 1.0 + config.imperfections.wheel_scale_error,
+            lag: config.imperfections.actuator_lag,
+            steering_limit: config.steering_limit,
+            trajectory,
         }
     }
 }

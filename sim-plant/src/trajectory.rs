@@ -185,14 +185,21 @@ pub(crate) enum Piece {
 impl Piece {
     /// `u_d(t)` on this piece (m/s, m/s, rad/s).
     pub(crate) fn velocity(&self, t: f64) -> Vector3<f64> {
+        self.velocity_with(t, libm::sincos)
+    }
+
+    /// [`velocity`](Self::velocity) with `sincos` in place of `libm::sincos` (the plant
+    /// passes a cache that returns libm's very bits).
+    #[inline]
+    pub(crate) fn velocity_with(&self, t: f64, mut sincos: impl FnMut(f64) -> (f64, f64)) -> Vector3<f64> {
         match *self {
             Piece::Constant(u) => u,
             Piece::Circle => {
-                let (s, c) = libm::sincos(FRAC_PI_2 * t);
+                let (s, c) = sincos(FRAC_PI_2 * t);
                 Vector3::new(-TRAJECTORY1_SPEED * s, -TRAJECTORY1_SPEED * c, 0.0)
             }
             Piece::Rotation { t0 } => {
-                let (_, c) = libm::sincos(FRAC_PI_2 * (t - t0));
+                let (_, c) = sincos(FRAC_PI_2 * (t - t0));
                 Vector3::new(0.0, 0.0, TABLE1_OMEGA * c)
             }
         }
