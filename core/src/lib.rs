@@ -71,7 +71,7 @@ pub use arm::{Arm, ArmKinematics, Rpr};
 pub use error::{Field, ParamError, Rule, StepError};
 pub use law::{Command, ControlLaw, Controller, Diagnostics, Measurement, Output, Rejected, State};
 pub use params::{
-    JointLimits, PaperRun, Params, Precompensation, PrimaryTask, SecondaryTask, Warning, Weight,
+    JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask, Warning, Weight,
     WeightMargins,
 };
 pub use platform::{

@@ -104,6 +104,23 @@ pub enum Precompensation<T> {
     Partial,
 }
 
+/// How the rest filter (28) — and with it `ū_b` — is advanced over one sampling period.
+///
+/// The paper's law is continuous-time. Sampled with the command held over a period, the
+/// loop through the filter `r̃_b → h_s2 → ū_b → r̃_b` has a gain up to
+/// `2 (1 − Ψ) λ_max(K) aᵀDa/(aᵀKa + μ)`, ~2·10³/s with the paper's `K̄ = diag(1, 1, 100)`:
+/// at dt = 1 ms an explicit update makes `α̇` and `ω` flip sign every step during the
+/// transients of runs (b)–(d). Both variants equal the paper's law as `dt → 0`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RestFilter {
+    /// Explicit Euler: (37) evaluated at the start-of-step filter state. Oscillates at the
+    /// Nyquist frequency when `dt · gain > 2`.
+    Explicit,
+    /// Linearly implicit Euler: (37) evaluated at the end-of-step filter state, linearised
+    /// (one 3×3 solve). Stable for any gain. The default.
+    LinearlyImplicit,
+}
+
 /// The secondary task and the platform law: `h_s1` (49), `h_s2` (27)–(28), `Ψ`, and (37).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SecondaryTask<T, const N: usize> {
@@ -128,6 +145,8 @@ pub struct SecondaryTask<T, const N: usize> {
     pub mu: T,
     /// The pre-compensation choice.
     pub precompensation: Precompensation<T>,
+    /// How the rest filter (28) is advanced over a step (see [`RestFilter`]).
+    pub rest_filter: RestFilter,
     /// Whether `∂h_s/∂t` includes `Ψ̇ (h_s1 − h_s2)`. The paper preset leaves it out: with
     /// it, runs (b) and (d) chatter (SPEC §3).
     pub psi_rate_in_drift: bool,
@@ -146,6 +165,13 @@ pub struct Params<T, const N: usize> {
     pub velocity_limits: VelocityLimits<T>,
     /// The largest time step `step` accepts (s). Default 0.1.
     pub max_time_step: T,
+    /// `κ ∈ (0, 1]`: within one step no joint may cover more than this fraction of its
+    /// distance to the limit it moves towards; all joint velocities are divided by one common
+    /// factor when one would (a discrete-time guard, see `Diagnostics::joint_scale`). Default
+    /// 0.5.
+    pub joint_step_fraction: T,
+    /// `|q̇ᵢ|` limits (rad/s or m/s), met by the same common factor. Default `+∞` (none).
+    pub joint_velocity_limits: SVector<T, N>,
 }
 
 /// The paper's four control variants (§4.3).
@@ -249,10 +275,13 @@ impl<T: Real> Params<T, 3> {
                 d: Vector3::repeat(T::one()),
                 mu: T::of(1e-4),
                 precompensation,
+                rest_filter: RestFilter::LinearlyImplicit,
                 psi_rate_in_drift: false,
             },
             velocity_limits: VelocityLimits::unlimited(),
             max_time_step: T::of(0.1),
+            joint_step_fraction: T::of(0.5),
+            joint_velocity_limits: SVector::repeat(T::of(f64::INFINITY)),
         }
     }
 }
@@ -371,7 +400,21 @@ impl<T: Real, const N: usize> Params<T, N> {
             Precompensation::None | Precompensation::Partial => {}
         }
         self.velocity_limits.validate()?;
-        positive("max_time_step", self.max_time_step)
+        positive("max_time_step", self.max_time_step)?;
+        positive("joint_step_fraction", self.joint_step_fraction)?;
+        if self.joint_step_fraction > T::one() {
+            return Err(ParamError::new("joint_step_fraction", Rule::NotInUnitInterval));
+        }
+        for i in 0..N {
+            let v = self.joint_velocity_limits[i];
+            if v.nan() {
+                return Err(ParamError::joint("joint_velocity_limits", i, Rule::NonFinite));
+            }
+            if v <= T::zero() {
+                return Err(ParamError::joint("joint_velocity_limits", i, Rule::NotPositive));
+            }
+        }
+        Ok(())
     }
 
     /// Conditions the paper's text asks for that these parameters break but that are

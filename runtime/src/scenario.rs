@@ -110,6 +110,11 @@ pub struct ScenarioArgs {
     /// leaves it out; with it runs b and d chatter).
     #[arg(long)]
     pub psi_rate_in_drift: bool,
+    /// Advance the rest filter (28) by explicit Euler, as a literal discretisation of the
+    /// paper would; at dt = 1 ms runs b–d then chatter at the Nyquist frequency during
+    /// transients. The default is linearly implicit (see companion-core's `RestFilter`).
+    #[arg(long)]
+    pub explicit_rest_filter: bool,
     /// Platform velocity limits, met by one common scale factor.
     #[arg(long, value_enum)]
     pub limits: Option<LimitsArg>,
@@ -156,8 +161,12 @@ pub struct ControllerConfig {
     pub gamma: Option<f64>,
     /// Include `Ψ̇ (h_s1 − h_s2)` in `∂h_s/∂t`.
     pub psi_rate_in_drift: Option<bool>,
+    /// Advance the rest filter (28) by explicit Euler instead of linearly implicit Euler.
+    pub explicit_rest_filter: Option<bool>,
     /// The largest accepted time step (s).
     pub max_time_step: Option<f64>,
+    /// `κ`: no joint covers more than this fraction of its distance to a limit in one step.
+    pub joint_step_fraction: Option<f64>,
 }
 
 /// Lemma 1's parameters.
@@ -370,8 +379,14 @@ impl ControllerSpec {
         if let Some(b) = o.psi_rate_in_drift {
             p.secondary.psi_rate_in_drift = b;
         }
+        if o.explicit_rest_filter == Some(true) {
+            p.secondary.rest_filter = companion_core::RestFilter::Explicit;
+        }
         if let Some(x) = o.max_time_step {
             p.max_time_step = t(x);
+        }
+        if let Some(x) = o.joint_step_fraction {
+            p.joint_step_fraction = t(x);
         }
         if let Some(l) = self.limits {
             let l = l.to_limits();
@@ -459,6 +474,9 @@ impl Scenario {
         if a.psi_rate_in_drift {
             overrides.psi_rate_in_drift = Some(true);
         }
+        if a.explicit_rest_filter {
+            overrides.explicit_rest_filter = Some(true);
+        }
         let limits = match a.limits {
             Some(LimitsArg::Realistic) => Some(realistic_limits_config()),
             Some(LimitsArg::None) => None,
@@ -521,6 +539,9 @@ impl Scenario {
         }
         if c.overrides.psi_rate_in_drift == Some(true) {
             name.push_str("-psidot");
+        }
+        if c.overrides.explicit_rest_filter == Some(true) {
+            name.push_str("-explicit");
         }
         name
     }

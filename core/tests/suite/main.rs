@@ -25,6 +25,7 @@ mod common;
 mod arm_law;
 mod closed_loop;
 mod derivatives;
+mod joint_guard;
 mod params;
 mod platform_law;
 mod precision;

@@ -20,8 +20,8 @@
 use crate::common::*;
 use companion_core::nalgebra::{Matrix3, Vector2};
 use companion_core::{
-    ControlLaw, Output, PaperRun, Params, Platform, PlatformKind, Precompensation, Rpr, State, Weight,
-    WeightMargins,
+    ControlLaw, Output, PaperRun, Params, Platform, PlatformKind, Precompensation, RestFilter, Rpr, State,
+    Weight, WeightMargins,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -74,6 +74,9 @@ fn params(v: &Variant) -> Params<f64, 3> {
     };
     s.weight = weight;
     s.precompensation = pre;
+    // (37) itself, evaluated at the start-of-step state; the linearly implicit default is
+    // checked against it in `implicit_rest_filter_*` below.
+    s.rest_filter = RestFilter::Explicit;
     s.psi_rate_in_drift = psi_dot;
     s.k_bar = v.k_bar;
     s.d = v.d;
@@ -283,6 +286,92 @@ proptest! {
         if (pt.state.psi - target).abs() > 1e-3 && (d.h_s1 - d.h_s2).abs() > 1e-3 {
             prop_assert!(with.diagnostics.u_bar != d.u_bar);
         }
+    }
+}
+
+/// ū_b of (37) with Choice 2 (no pre-compensation) from definitions, as a function of the
+/// rest filter's state `r̃_b` (everything else as at `pt`).
+fn u_bar_choice2_reference<P: Platform<f64>>(
+    law: &ControlLaw<f64, P, Rpr<f64>, 3>,
+    pt: &Point,
+    r_tilde: &V3,
+) -> V3 {
+    let sec = &law.params().secondary;
+    let m = &pt.meas;
+    let st = &pt.state;
+    let prim = &law.params().primary;
+    let q_hat_rate =
+        -(st.q_hat - m.joints) * prim.filter_sigma / (prim.filter_xi + (st.q_hat - m.joints).norm());
+    let (psi, _) = weight_and_rate(&sec.weight, st, &m.joints, &q_hat_rate);
+    let r_bar_b = mul(&v3(&m.base), &inv(&f_reference(P::KIND, &st.alpha)));
+    let r_hat = mul(&r_bar_b, r_tilde);
+    let (r_star, r_d) = (v3(&sec.preferred_pose), v3(&m.target));
+    let h_s = |rb: &V3| {
+        psi * 0.5 * d_gamma(&r_star, &mul(&inv(&r_d), rb), sec.gamma_1).powi(2)
+            + (1.0 - psi) * d_gamma(rb, &r_hat, sec.gamma_2).powi(2)
+    };
+    let a = V3::from_fn(|i, _| central_scalar(|s| h_s(&flow(&r_bar_b, &V3::ith(i, 1.0), s)), 0.0, H));
+    let hbar = law.platform().companion(&st.alpha).expect("transverse").hbar;
+    let k = hbar * Matrix3::from_diagonal(&sec.k_bar) * hbar.transpose();
+    -(k * a) * (a.dot(&sec.d.component_mul(&a)) / (a.dot(&(k * a)) + sec.mu))
+}
+
+/// The linearly implicit rest filter (the default): ū_b is (37) evaluated at the end-of-step
+/// filter state, linearised — `ū = (I + dt J Q)⁻¹ (ū₀ + dt J R̄(θ̃) û)` with
+/// `J = ∂ū/∂r̃_b` — checked with Choice 2, where the core's `J` is exact, against a `J` by
+/// differences of the reference (37). `J` is a difference (step 1e−5: (37) is strongly
+/// nonlinear where `aᵀKa` is small, so larger steps carry truncation error) of a difference
+/// (accurate to ~1e−9), amplified by cond K ~1e3: 1e−4 relative for the unicycle and omni.
+fn check_implicit<P: Platform<f64>>(
+    law: &ControlLaw<f64, P, Rpr<f64>, 3>,
+    pt: &Point,
+    rtol: f64,
+) -> Result<(), TestCaseError> {
+    let (out, _) = step(law, pt)?;
+    let sec = &law.params().secondary;
+    let r_tilde = v3(&pt.state.r_tilde);
+    let u0 = u_bar_choice2_reference(law, pt, &r_tilde);
+    let j = {
+        let mut j = Matrix3::zeros();
+        for c in 0..3 {
+            let h = 1e-5;
+            let e = V3::ith(c, h);
+            let d = (u_bar_choice2_reference(law, pt, &(r_tilde + e))
+                - u_bar_choice2_reference(law, pt, &(r_tilde - e)))
+                / (2.0 * h);
+            j.set_column(c, &d);
+        }
+        j
+    };
+    let u_hat = -sec.rest_sigma.component_mul(&r_tilde)
+        / (sec.rest_xi + d_gamma(&V3::zeros(), &r_tilde, sec.gamma_2));
+    let q_mat = Matrix3::new(1.0, 0.0, -r_tilde[1], 0.0, 1.0, r_tilde[0], 0.0, 0.0, 1.0);
+    let lhs = Matrix3::identity() + j * q_mat * DT;
+    let want = lhs.try_inverse().expect("invertible") * (u0 + j * rbar(r_tilde[2]) * u_hat * DT);
+    check_close("implicit ū_b", &out.diagnostics.u_bar, &want, rtol, 1.0)?;
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn implicit_rest_filter_unicycle(pt in point(0.01)) {
+        check_implicit(&unicycle_law(Params::paper(PaperRun::C)), &pt, 1e-4)?;
+    }
+
+    #[test]
+    fn implicit_rest_filter_car(pt in point(0.01)) {
+        let mut p = Params::paper(PaperRun::C);
+        p.secondary.k_bar = V3::new(1.0, 10.0, 10.0);
+        // The car's K = H̄ K̄ H̄ᵀ has a condition number up to ~1e5 (det H ≈ 1e−3), which
+        // multiplies the rounding of the reference's difference-of-a-difference J: 1e−3.
+        check_implicit(&car_law(p), &pt, 1e-3)?;
+    }
+
+    #[test]
+    fn implicit_rest_filter_omni(pt in point(0.01)) {
+        check_implicit(&omni_law(Params::paper(PaperRun::C)), &pt, 1e-4)?;
     }
 }
 
