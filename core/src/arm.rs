@@ -20,10 +20,18 @@ pub struct ArmKinematics<T, const N: usize> {
     pub jacobian: SMatrix<T, 3, N>,
     /// The Hessians `∂²x_eb/∂q²`, `∂²y_eb/∂q²`, `∂²θ_eb/∂q²` (each N×N, symmetric).
     pub hessian: [SMatrix<T, N, N>; 3],
+    /// `(sin θ_eb, cos θ_eb)`: arms usually know them from their own trigonometry, which
+    /// saves the law a call.
+    pub sin_cos_theta: (T, T),
 }
 
 /// A planar manipulator arm with `N` joints mounted on the platform.
 pub trait Arm<T: Real, const N: usize>: Copy + core::fmt::Debug {
+    /// Whether `∂²θ_eb/∂q²` may be non-zero. Planar arms of revolute and prismatic joints
+    /// have `θ_eb` linear in `q` (minus a sum of joint angles) and may set this to `false`,
+    /// which lets the law skip that term of (24); the default is the safe `true`.
+    const THETA_CURVED: bool = true;
+
     /// Checks the geometry (e.g. positive link lengths).
     ///
     /// # Errors
@@ -67,6 +75,9 @@ impl<T: Real> Rpr<T> {
 }
 
 impl<T: Real> Arm<T, 3> for Rpr<T> {
+    /// `θ_eb = −(q₁ + q₃)` is linear.
+    const THETA_CURVED: bool = false;
+
     fn validate(&self) -> Result<(), ParamError> {
         for (name, v) in [("L", self.l), ("L_e", self.l_e)] {
             if !v.finite() {
@@ -106,7 +117,8 @@ impl<T: Real> Arm<T, 3> for Rpr<T> {
             z,        z,  c3,
             -l * s13, c3, -l * s13 - q2 * s3,
         );
-        ArmKinematics { r_eb, jacobian, hessian: [hx, hy, SMatrix::zeros()] }
+        // θ_eb = −(q₁ + q₃).
+        ArmKinematics { r_eb, jacobian, hessian: [hx, hy, SMatrix::zeros()], sin_cos_theta: (-s13, c13) }
     }
 
     #[inline]

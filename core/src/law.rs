@@ -20,8 +20,8 @@ use crate::params::{Params, Precompensation, RestFilter, Warning, Weight};
 use crate::platform::{Platform, PlatformCommand, PlatformKind};
 use crate::primary::{base_to_relative, filter_rate, primary_terms};
 use crate::scalar::{wrap_angle, Real};
-use crate::se2::{inverse3, rbar, Pose};
-use crate::secondary::{bounded_filter_rate, psi_tilde, rest_cost, sigma_tilde_joint, tracking_cost};
+use crate::se2::{add_sc, inverse3, rbar_sc, Pose};
+use crate::secondary::{bounded_filter_rate, psi_tilde, rest_cost, sigma_tilde_joint, tracking_cost_sc};
 
 /// What the controller measures each cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -183,6 +183,8 @@ pub struct ControlLaw<T: Real, P, A, const N: usize> {
     rot_star: (T, T),
     /// `r_*⁻¹`.
     r_star_inv: Pose<T>,
+    /// `(sin, cos)` of `r_*⁻¹`'s angle.
+    sc_star_inv: (T, T),
 }
 
 #[inline]
@@ -207,7 +209,8 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         arm.validate()?;
         let rot_star = params.primary.target_in_effector.theta.sincos();
         let r_star_inv = params.secondary.preferred_pose.inverse();
-        Ok(Self { params, platform, arm, rot_star, r_star_inv })
+        let sc_star_inv = r_star_inv.theta.sincos();
+        Ok(Self { params, platform, arm, rot_star, r_star_inv, sc_star_inv })
     }
 
     /// The parameters.
@@ -244,10 +247,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         dt: T,
     ) -> Result<Output<T, N>, Rejected<T, N>> {
         match self.compute(state, meas, dt) {
-            Ok((out, next)) => {
-                *state = next;
-                Ok(out)
-            }
+            Ok(out) => Ok(out),
             Err(error) => Err(Rejected { error, command: Command::zero() }),
         }
     }
@@ -256,23 +256,21 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         if !dt.finite() || dt <= T::zero() || dt > self.params.max_time_step {
             return Err(StepError::BadTimeStep);
         }
-        if !meas.t.finite() {
-            return Err(StepError::NonFinite(Field::Time));
+        // 0·x is ±0 for finite x and NaN otherwise: one test on the common path, the field
+        // by field search only when something is not finite.
+        let (b, d, u) = (&meas.base, &meas.target, &meas.target_velocity);
+        let mut nan = meas.t * T::zero();
+        for x in [b.x, b.y, b.theta, d.x, d.y, d.theta, u[0], u[1], u[2]] {
+            nan += x * T::zero();
         }
-        if !meas.base.is_finite() {
-            return Err(StepError::NonFinite(Field::BasePose));
+        if P::KIND == PlatformKind::Car {
+            nan += meas.steering * T::zero();
         }
-        if P::KIND == PlatformKind::Car && !meas.steering.finite() {
-            return Err(StepError::NonFinite(Field::Steering));
+        for i in 0..N {
+            nan += meas.joints[i] * T::zero();
         }
-        if !meas.joints.iter().all(|x| x.finite()) {
-            return Err(StepError::NonFinite(Field::Joints));
-        }
-        if !meas.target.is_finite() {
-            return Err(StepError::NonFinite(Field::TargetPose));
-        }
-        if !meas.target_velocity.iter().all(|x| x.finite()) {
-            return Err(StepError::NonFinite(Field::TargetVelocity));
+        if nan != T::zero() {
+            return Err(Self::which_non_finite(meas));
         }
         let lim = &self.params.joint_limits;
         for i in 0..N {
@@ -286,6 +284,25 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             return Err(StepError::SingularArm);
         }
         Ok(())
+    }
+
+    /// The first non-finite field of a measurement that has one.
+    #[cold]
+    fn which_non_finite(meas: &Measurement<T, N>) -> StepError {
+        let field = if !meas.t.finite() {
+            Field::Time
+        } else if !meas.base.is_finite() {
+            Field::BasePose
+        } else if !meas.joints.iter().all(|x| x.finite()) {
+            Field::Joints
+        } else if !meas.target.is_finite() {
+            Field::TargetPose
+        } else if !meas.target_velocity.iter().all(|x| x.finite()) {
+            Field::TargetVelocity
+        } else {
+            Field::Steering
+        };
+        StepError::NonFinite(field)
     }
 
     /// The state the first step starts from (SPEC §3).
@@ -363,7 +380,6 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         &self,
         hbar: &Matrix3<T>,
         rest: &crate::secondary::RestCost<T>,
-        r_tilde: &Pose<T>,
         psi: T,
         a: &Vector3<T>,
         k_a: &Vector3<T>,
@@ -378,7 +394,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         let dcoef = (a.component_mul(&sec.d) - k_a * coef) * (two / denom);
         let du_da = -(k_a * dcoef.transpose()) - k * coef;
         let s = -two * (T::one() - psi);
-        let da_dr = Vector3::new(s, s, s * sec.gamma_2 * r_tilde.theta.sincos().1);
+        let da_dr = Vector3::new(s, s, s * sec.gamma_2 * rest.cos_theta);
         let j = Matrix3::from_fn(|r, c| du_da[(r, c)] * da_dr[c]);
         let m = Matrix3::identity() + j * rest.q * dt;
         match inverse3(&m) {
@@ -388,15 +404,21 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     }
 
     #[allow(clippy::too_many_lines)]
-    #[inline]
+    #[inline(always)]
     fn compute(
         &self,
-        state: &State<T, N>,
+        state: &mut State<T, N>,
         meas: &Measurement<T, N>,
         dt: T,
-    ) -> Result<(Output<T, N>, State<T, N>), StepError> {
+    ) -> Result<Output<T, N>, StepError> {
         self.check(meas, dt)?;
-        let st = if state.initialized { *state } else { self.initial(state, meas) };
+        let init;
+        let st: &State<T, N> = if state.initialized {
+            state
+        } else {
+            init = self.initial(state, meas);
+            &init
+        };
         let prm = &self.params;
         let sec = &prm.secondary;
         let lim = &prm.joint_limits;
@@ -420,7 +442,11 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         };
         let gamma_rate = -p.regularisation_decay * gamma;
         let q_hat_rate = filter_rate(&st.q_hat, q, p.filter_sigma, p.filter_xi);
-        let r_bd = meas.base.between(&meas.target);
+        // Every sine and cosine is computed once: of θ_b, θ_bd, α (in the companion frame) and
+        // the arm's angles; the others follow by angle addition.
+        let sc_b = meas.base.theta.sincos();
+        let r_bd = meas.base.between_sc(&meas.target, sc_b.0, sc_b.1);
+        let sc_bd = r_bd.theta.sincos();
         let prim = primary_terms(
             p,
             lim,
@@ -436,8 +462,13 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
 
         // Companion frame (11): m = r_d⁻¹ r̄_b = r_db f(α)⁻¹, r̄ = r_*⁻¹ m.
         let frame = self.platform.companion(&st.alpha).ok_or(StepError::NumericalFailure)?;
-        let m = r_bd.inverse().compose(&frame.f.inverse());
-        let r_bar = self.r_star_inv.compose(&m).wrapped();
+        let sc_f = frame.sin_cos_theta_f;
+        let f_inv = frame.f.inverse_sc(sc_f.0, sc_f.1);
+        let sc_db = (-sc_bd.0, sc_bd.1);
+        let m = r_bd.inverse_sc(sc_bd.0, sc_bd.1).compose_sc(&f_inv, sc_db.0, sc_db.1);
+        let sc_m = add_sc(sc_db, (-sc_f.0, sc_f.1));
+        let r_bar = self.r_star_inv.compose_sc(&m, self.sc_star_inv.0, self.sc_star_inv.1).wrapped();
+        let sc_bar = add_sc(self.sc_star_inv, sc_m);
 
         // The weight Ψ and its rate.
         let inv_n = T::one() / T::of(N as f64);
@@ -464,7 +495,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         };
 
         // Secondary cost (29): h_s1 always; h_s2 and the rest filter unless Ψ ≡ 1.
-        let track = tracking_cost(&r_bar, &m, u_d, sec.gamma_1);
+        let track = tracking_cost_sc(&r_bar, sc_bar, &m, sc_m, u_d, sec.gamma_1);
         let rest_needed = sec.weight != Weight::Constant(T::one());
         let (h_s, a, dh_dt, h_s2, rest) = if rest_needed {
             let rest = rest_cost(&st.r_tilde, &sec.rest_sigma, sec.rest_xi, sec.gamma_2);
@@ -505,18 +536,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         }
         let mut w = match (&rest, sec.rest_filter) {
             (Some(rest), RestFilter::LinearlyImplicit) => {
-                u_bar = self.implicit_rest_step(
-                    &frame.hbar,
-                    rest,
-                    &st.r_tilde,
-                    psi,
-                    &a,
-                    &k_a,
-                    coef,
-                    denom,
-                    u_bar,
-                    dt,
-                );
+                u_bar = self.implicit_rest_step(&frame.hbar, rest, psi, &a, &k_a, coef, denom, u_bar, dt);
                 frame.hbar_inv * u_bar
             }
             _ => {
@@ -543,7 +563,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
 
         // Arm law (30): u_q = (∂e_m/∂q)⁻¹ (G e_m − ∂e_m/∂r_b u_b − ∂e_m/∂t)
         //             = (∂e_m/∂q)⁻¹ (G e_m − ∂e_m/∂r_bd ṙ_bd − ∂e_m/∂t|explicit).
-        let r_bd_rate = rbar(r_bd.theta) * u_d - base_to_relative(&r_bd) * u_b;
+        let r_bd_rate = rbar_sc(sc_bd.0, sc_bd.1) * u_d - base_to_relative(&r_bd) * u_b;
         let rhs = -prim.e_m.component_mul(&p.gain) - prim.de_m_dr_bd * r_bd_rate - prim.de_m_dt_explicit;
         let inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
         let mut u_q = inv * rhs;
@@ -554,40 +574,55 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         }
 
         let command = Command { platform: P::command(&w, v_xi, meas.steering), joints: u_q };
-        if !command.is_finite() || !condition.finite() {
-            return Err(StepError::NumericalFailure);
-        }
 
-        // Advance the state by dt.
-        let mut next = st;
-        let mut alpha = st.alpha + alpha_rate * dt;
-        alpha[0] = wrap_angle(alpha[0]);
-        alpha[1] = wrap_angle(alpha[1]);
-        next.alpha = alpha;
-        next.q_hat = st.q_hat + q_hat_rate * dt;
+        // The state after dt (written only once everything is known to be finite).
+        let mut alpha = st.alpha;
+        for i in 0..P::ALPHA_DIM {
+            alpha[i] = wrap_angle(alpha[i] + alpha_rate[i] * dt);
+        }
+        let q_hat = st.q_hat + q_hat_rate * dt;
+        let (mut psi_next, mut sigma_next) = (st.psi, st.sigma);
         match &sec.weight {
-            Weight::Filtered { .. } => next.psi = clamp01(st.psi + psi_rate * dt),
+            Weight::Filtered { .. } => psi_next = clamp01(st.psi + psi_rate * dt),
             Weight::PerJoint { .. } => {
-                next.sigma = (st.sigma + sigma_rate * dt).map(clamp01);
-                next.psi = next.sigma.dot(&next.sigma) * inv_n;
+                sigma_next = (st.sigma + sigma_rate * dt).map(clamp01);
+                psi_next = sigma_next.dot(&sigma_next) * inv_n;
             }
             Weight::Constant(_) | Weight::FromFilteredJoints { .. } => {}
         }
-        if let Some(rest) = &rest {
-            let rate = rest.drift - rest.q * u_bar;
-            let r = &st.r_tilde;
-            next.r_tilde =
-                Pose::new(r.x + rate[0] * dt, r.y + rate[1] * dt, wrap_angle(r.theta + rate[2] * dt));
-        }
-        if !(next.alpha.iter().all(|x| x.finite())
-            && next.q_hat.iter().all(|x| x.finite())
-            && next.psi.finite()
-            && next.r_tilde.is_finite())
+        let r_tilde = match &rest {
+            Some(rest) => {
+                let rate = rest.drift - rest.q * u_bar;
+                let r = &st.r_tilde;
+                Pose::new(r.x + rate[0] * dt, r.y + rate[1] * dt, wrap_angle(r.theta + rate[2] * dt))
+            }
+            None => st.r_tilde,
+        };
+        // 0·x is ±0 for finite x and NaN otherwise: one test for everything.
+        let mut nan = condition * T::zero();
+        let c = &command.platform;
+        for x in
+            [c.v, c.v_lat, c.omega, c.v_xi, alpha[0], alpha[1], psi_next, r_tilde.x, r_tilde.y, r_tilde.theta]
         {
+            nan += x * T::zero();
+        }
+        for i in 0..N {
+            nan += (u_q[i] + q_hat[i]) * T::zero();
+        }
+        if nan != T::zero() {
             return Err(StepError::NumericalFailure);
         }
 
-        let companion = meas.base.compose(&frame.f.inverse());
+        let companion = meas.base.compose_sc(&f_inv, sc_b.0, sc_b.1);
+        let prev_alpha = st.alpha;
+        if !state.initialized {
+            *state = *st;
+        }
+        state.alpha = alpha;
+        state.q_hat = q_hat;
+        state.psi = psi_next;
+        state.sigma = sigma_next;
+        state.r_tilde = r_tilde;
         let diagnostics = Diagnostics {
             e_p: prim.e_p,
             e_m: prim.e_m,
@@ -600,12 +635,12 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             joint_scale,
             det_h: frame.det_h,
             condition,
-            alpha: st.alpha,
+            alpha: prev_alpha,
             alpha_rate,
             u_bar,
             companion,
         };
-        Ok((Output { command, diagnostics }, next))
+        Ok(Output { command, diagnostics })
     }
 }
 

@@ -36,6 +36,8 @@ pub enum PlatformKind {
 pub struct CompanionFrame<T> {
     /// `f(α)` as a pose `(p_f, θ_f)`.
     pub f: Pose<T>,
+    /// `(sin θ_f, cos θ_f)`, known algebraically for both transverse functions.
+    pub sin_cos_theta_f: (T, T),
     /// `H̄(α)`, eq. (15) (unicycle) or (60) (car); `I₃` for the omnidirectional platform.
     pub hbar: Matrix3<T>,
     /// `H̄(α)⁻¹`.
@@ -230,7 +232,15 @@ impl<T: Real> Platform<T> for Unicycle<T> {
         let h = Matrix3::new(cf, z, -dx, sf, z, -dy, z, T::one(), -dth);
         let hbar = hbar_from_h(&h, (f.x, f.y));
         let (hbar_inv, det_h) = inverse3(&hbar)?;
-        Some(CompanionFrame { f, hbar, hbar_inv, det_h, xi_f: z, dxi_f: Vector2::zeros() })
+        Some(CompanionFrame {
+            f,
+            sin_cos_theta_f: (sf, cf),
+            hbar,
+            hbar_inv,
+            det_h,
+            xi_f: z,
+            dxi_f: Vector2::zeros(),
+        })
     }
 
     #[inline]
@@ -366,7 +376,7 @@ impl<T: Real> Platform<T> for CarLike<T> {
         let h = Matrix3::new(cf, -d1[0], -d2[0], sf, -d1[3], -d2[3], xi_f, -d1[2] * k2, -d2[2] * k2);
         let hbar = hbar_from_h(&h, (f.x, f.y));
         let (hbar_inv, det_h) = inverse3(&hbar)?;
-        Some(CompanionFrame { f, hbar, hbar_inv, det_h, xi_f, dxi_f })
+        Some(CompanionFrame { f, sin_cos_theta_f: (sf, cf), hbar, hbar_inv, det_h, xi_f, dxi_f })
     }
 
     #[inline]
@@ -413,6 +423,7 @@ impl<T: Real> Platform<T> for Omnidirectional {
     fn companion(&self, _alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
         Some(CompanionFrame {
             f: Pose::identity(),
+            sin_cos_theta_f: (T::zero(), T::one()),
             hbar: Matrix3::identity(),
             hbar_inv: Matrix3::identity(),
             det_h: T::one(),

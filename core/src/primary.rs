@@ -98,7 +98,7 @@ pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
 ) -> PrimaryTerms<T, N> {
     let kin = arm.kinematics(q);
     let r_eb = kin.r_eb;
-    let (s, c) = r_eb.theta.sincos();
+    let (s, c) = kin.sin_cos_theta;
     // rp = R(θ_eb) p_bd; r_ed = r_eb r_bd.
     let rp = (c * r_bd.x - s * r_bd.y, s * r_bd.x + c * r_bd.y);
     let target = &task.target_in_effector;
@@ -141,9 +141,22 @@ pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
     let grad_th = jb.row(2).transpose();
     let e_dot_rp = e[0] * rp.0 + e[1] * rp.1;
     let e_dot_srp = e[0] * m.0 + e[1] * m.1;
-    let mut de_m_dq = jt * j;
-    de_m_dq += hx * e[0] + hy * e[1] + hth * (e[2] + e_dot_srp);
-    de_m_dq -= grad_th * grad_th.transpose() * e_dot_rp;
+    // (24), assembled on the upper triangle (the matrix is symmetric) in one pass.
+    let k_th = e[2] + e_dot_srp;
+    let theta_curved = A::THETA_CURVED;
+    let mut de_m_dq = SMatrix::<T, N, N>::zeros();
+    for col in 0..N {
+        for row in 0..=col {
+            let mut v = j[(0, row)] * j[(0, col)] + j[(1, row)] * j[(1, col)] + j[(2, row)] * j[(2, col)];
+            v += hx[(row, col)] * e[0] + hy[(row, col)] * e[1];
+            if theta_curved {
+                v += hth[(row, col)] * k_th;
+            }
+            v -= grad_th[row] * grad_th[col] * e_dot_rp;
+            de_m_dq[(row, col)] = v;
+            de_m_dq[(col, row)] = v;
+        }
+    }
     for i in 0..N {
         de_m_dq[(i, i)] += hess_l[i] + gamma;
     }
@@ -152,14 +165,15 @@ pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
     // Row 3 of the Ṁᵀ ẽ term: ẽ_xyᵀ R(θ_eb) S = (a₁, −a₀) with (a₀, a₁) = R(θ_eb)ᵀ ẽ_xy.
     let a0 = c * e[0] + s * e[1];
     let a1 = -s * e[0] + c * e[1];
-    let z = T::zero();
-    #[rustfmt::skip]
-    let b = Matrix3::new(
-        c, -s, z,
-        s, c, z,
-        m.0 * c + m.1 * s + a1, -m.0 * s + m.1 * c - a0, T::one(),
-    );
-    let de_m_dr_bd = jb.transpose() * b;
+    let (b20, b21) = (m.0 * c + m.1 * s + a1, -m.0 * s + m.1 * c - a0);
+    let de_m_dr_bd = SMatrix::<T, N, 3>::from_fn(|i, col| {
+        let (x, y, t) = (jb[(0, i)], jb[(1, i)], jb[(2, i)]);
+        match col {
+            0 => x * c + y * s + t * b20,
+            1 => -x * s + y * c + t * b21,
+            _ => t,
+        }
+    });
     let de_m_dt_explicit = dq * gamma_rate - q_hat_rate * gamma;
 
     // e_p's Jacobian in the rotated frame of r*_ed (for reporting and tests).

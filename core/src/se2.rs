@@ -96,6 +96,14 @@ impl<T: Real> Pose<T> {
         Self::new(c * dx + s * dy, -s * dx + c * dy, wrap_angle(other.theta - self.theta))
     }
 
+    /// [`between`](Self::between) with `sin θ_self`, `cos θ_self` already known.
+    #[inline]
+    pub(crate) fn between_sc(&self, other: &Self, s: T, c: T) -> Self {
+        let dx = other.x - self.x;
+        let dy = other.y - self.y;
+        Self::new(c * dx + s * dy, -s * dx + c * dy, wrap_angle(other.theta - self.theta))
+    }
+
     /// The same pose with its angle wrapped to (−π, π].
     #[inline]
     pub fn wrapped(&self) -> Self {
@@ -135,6 +143,12 @@ impl<T: Real> Pose<T> {
     pub fn is_finite(&self) -> bool {
         self.x.finite() && self.y.finite() && self.theta.finite()
     }
+}
+
+/// `(sin(a + b), cos(a + b))` from the sines and cosines of `a` and `b`.
+#[inline]
+pub(crate) fn add_sc<T: Real>(a: (T, T), b: (T, T)) -> (T, T) {
+    (a.0 * b.1 + a.1 * b.0, a.1 * b.1 - a.0 * b.0)
 }
 
 /// `R(θ)` as a 2×2 matrix (§2).

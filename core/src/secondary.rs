@@ -31,13 +31,26 @@ pub struct TrackingCost<T> {
 /// companion frame seen from the target), the target's body velocity `u_d` and `γ`.
 #[inline]
 pub fn tracking_cost<T: Real>(r_bar: &Pose<T>, m: &Pose<T>, u_d: &Vector3<T>, gamma: T) -> TrackingCost<T> {
-    let (s, c) = r_bar.theta.sincos();
+    tracking_cost_sc(r_bar, r_bar.theta.sincos(), m, m.theta.sincos(), u_d, gamma)
+}
+
+/// [`tracking_cost`] with the sines and cosines of `θ̃` (of `r̄`) and `θ_m` already known.
+#[inline]
+pub(crate) fn tracking_cost_sc<T: Real>(
+    r_bar: &Pose<T>,
+    sc_bar: (T, T),
+    m: &Pose<T>,
+    sc_m: (T, T),
+    u_d: &Vector3<T>,
+    gamma: T,
+) -> TrackingCost<T> {
+    let (s, c) = sc_bar;
     let (x, y) = (r_bar.x, r_bar.y);
     let half = T::of(0.5);
     let h = half * (x * x + y * y) + gamma * (T::one() - c);
     let a = Vector3::new(c * x + s * y, -s * x + c * y, gamma * s);
     // Ad_{m⁻¹} = [R(−θ_m)  R(−θ_m) S p_m; 0 1], S p_m = (−y_m, x_m).
-    let (sm, cm) = m.theta.sincos();
+    let (sm, cm) = sc_m;
     let (u0, u1, w) = (u_d[0], u_d[1], u_d[2]);
     let px = u0 - m.y * w;
     let py = u1 + m.x * w;
@@ -58,6 +71,8 @@ pub struct RestCost<T> {
     pub drift: Vector3<T>,
     /// `Q = [I₂ S p̃_b; 0 1]`: `ṙ̃_b = drift − Q ū_b`, eq. (28).
     pub q: Matrix3<T>,
+    /// `cos θ̃_b`.
+    pub cos_theta: T,
 }
 
 /// Evaluates `h_s2` (27) and the filter (28) at `r̃_b` with `(σ₁, σ₂, σ₃)`, `ξ`, `γ`.
@@ -74,7 +89,7 @@ pub fn rest_cost<T: Real>(r_tilde: &Pose<T>, sigma: &Vector3<T>, xi: T, gamma: T
     let a = Vector3::new(g[0], g[1], -y * g[0] + x * g[1] + g[2]) * (-two);
     let (z, o) = (T::zero(), T::one());
     let q = Matrix3::new(o, z, -y, z, o, x, z, z, o);
-    RestCost { h: d2, a, dh_dt: two * g.dot(&drift), drift, q }
+    RestCost { h: d2, a, dh_dt: two * g.dot(&drift), drift, q, cos_theta: c }
 }
 
 /// `σ̃ᵢ(qᵢ)` of eq. (52) for joint `i` (SPEC §3's reading), with its derivative:

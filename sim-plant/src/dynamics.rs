@@ -199,8 +199,25 @@ impl Model<'_> {
         command: &Command<f64, N>,
         trig: &mut Trig,
     ) -> Continuous<N> {
-        let mut next = if self.lag.is_some() {
-            self.rk4_general(t0, t1, h, x, command, trig)
+        let mut next = if let Some(tau) = self.lag {
+            // RK4 is stable on ȧ = (c − a)/τ only for h/τ < 2.78: a step longer than τ is
+            // split into equal sub-steps no longer than τ (one sub-step, the same bits, in
+            // the usual case h ≤ τ).
+            let ratio = h / tau;
+            if ratio > 1.0 {
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                let n = libm::ceil(ratio) as u32;
+                let hk = h / f64::from(n);
+                let mut y = *x;
+                for k in 0..n {
+                    let a = t0 + hk * f64::from(k);
+                    let b = if k + 1 == n { t1 } else { a + hk };
+                    y = self.rk4_general(a, b, hk, &y, command, trig);
+                }
+                y
+            } else {
+                self.rk4_general(t0, t1, h, x, command, trig)
+            }
         } else {
             self.rk4_direct(t0, t1, h, x, command, trig)
         };

@@ -161,7 +161,12 @@ impl Arm<f64, 2> for Rp {
     fn kinematics(&self, q: &SVector<f64, 2>) -> ArmKinematics<f64, 2> {
         let (s, c) = libm::sincos(q[0]);
         let r_be = Pose::new(0.3 + q[1] * c, q[1] * s, q[0]);
-        ArmKinematics { r_eb: r_be.inverse(), jacobian: SMatrix::zeros(), hessian: [SMatrix::zeros(); 3] }
+        ArmKinematics {
+            r_eb: r_be.inverse(),
+            jacobian: SMatrix::zeros(),
+            hessian: [SMatrix::zeros(); 3],
+            sin_cos_theta: (0.0, 1.0),
+        }
     }
     fn is_singular(&self, q: &SVector<f64, 2>) -> bool {
         q[1] <= 0.0
