@@ -173,7 +173,8 @@ pub struct HilArgs {
     #[arg(long)]
     pub quiet: bool,
     /// Testing: the controller also sends corrupted commands, e.g. `version@100,nan@200,seq@300,
-    /// session@400` (each is sent before the good answer to that measurement).
+    /// session@400` (each is sent once, before the good answer to the first measurement with
+    /// at least that sequence number).
     #[arg(long, hide = true, value_name = "LIST")]
     pub inject: Option<String>,
     /// Set by `companion hil` on the plant it starts.

@@ -70,7 +70,11 @@ pub enum Corruption {
     Session,
 }
 
-/// Parses `version@100,nan@200,seq@300,session@400`.
+/// Parses `version@100,nan@200,seq@300,session@400`, sorted by sequence number.
+///
+/// Each corruption goes out once, just before the answer to the first measurement whose
+/// sequence number is at least the given one (in real time a measurement can be skipped as
+/// superseded, so an exact match could never come).
 ///
 /// # Errors
 /// An unknown kind or a bad number.
@@ -89,7 +93,11 @@ pub fn parse_injections(s: &str) -> Result<Vec<(u64, Corruption)>> {
             };
             Ok((at.parse::<u64>().map_err(|e| anyhow!("--inject {item:?}: {e}"))?, kind))
         })
-        .collect()
+        .collect::<Result<Vec<_>>>()
+        .map(|mut v| {
+            v.sort_by_key(|x| x.0);
+            v
+        })
 }
 
 fn corrupt(c: &CommandMsg, k: Corruption) -> CommandMsg {
@@ -163,6 +171,9 @@ pub struct ServeOptions {
 
 /// Answers measurements until the end of the run or until the plant is lost.
 ///
+/// `injections` (sorted by sequence number, as [`parse_injections`] returns them) are
+/// corrupted commands sent for testing.
+///
 /// # Errors
 /// A transport failure, or a plant running another scenario.
 pub fn serve<C: Clock, L: ControlLink>(
@@ -181,6 +192,7 @@ pub fn serve<C: Clock, L: ControlLink>(
     let mut expected = None;
     let mut skipped_since = 0u32;
     let mut interrupted_at = None;
+    let mut next_injection = 0;
     loop {
         let mut newest: Option<MeasurementMsg> = None;
         while let Some(m) = link.try_receive()? {
@@ -225,8 +237,12 @@ pub fn serve<C: Clock, L: ControlLink>(
                 alpha_rate: report.alpha_rate,
             };
             let mut cmd = CommandMsg::answer(&m, &report.command, report.error, &diag, t_rx, skipped_since);
-            for (_, kind) in injections.iter().filter(|(at, _)| *at == m.seq) {
-                link.publish(&corrupt(&cmd, *kind))?;
+            while let Some(&(at, kind)) = injections.get(next_injection) {
+                if at > m.seq {
+                    break;
+                }
+                link.publish(&corrupt(&cmd, kind))?;
+                next_injection += 1;
             }
             cmd.compute_ns = clock.now_ns() - t_rx;
             link.publish(&cmd)?;
@@ -539,6 +555,12 @@ mod tests {
         (s, ctrl, opt)
     }
 
+    fn fake(peer: PeerState) -> (std::rc::Rc<FakeClock>, Fake) {
+        let clock = std::rc::Rc::new(FakeClock::new(0, 1_000));
+        let link = Fake { inbox: VecDeque::new(), sent: Vec::new(), clock: clock.clone(), peer, checks: 0 };
+        (clock, link)
+    }
+
     fn meas_msg(s: &Scenario, seq: u64, fl: u32) -> MeasurementMsg {
         let plant = crate::sim::build_plant(s).unwrap();
         MeasurementMsg::new(
@@ -558,14 +580,7 @@ mod tests {
     #[test]
     fn answers_the_newest_measurement_and_echoes_its_ids() {
         let (s, mut ctrl, opt) = setup();
-        let clock = std::rc::Rc::new(FakeClock::new(0, 1_000));
-        let mut link = Fake {
-            inbox: VecDeque::new(),
-            sent: Vec::new(),
-            clock: clock.clone(),
-            peer: PeerState::Alive(1),
-            checks: 0,
-        };
+        let (clock, mut link) = fake(PeerState::Alive(1));
         link.inbox.push_back((0, meas_msg(&s, 0, 0)));
         // Two measurements waiting at once: only the newer one is answered.
         link.inbox.push_back((5_000_000, meas_msg(&s, 1, 0)));
@@ -582,16 +597,29 @@ mod tests {
     }
 
     #[test]
+    fn an_injection_at_a_skipped_measurement_goes_out_with_the_next_answer() {
+        let (s, mut ctrl, opt) = setup();
+        let (clock, mut link) = fake(PeerState::Alive(1));
+        link.inbox.push_back((0, meas_msg(&s, 0, 0)));
+        link.inbox.push_back((5_000_000, meas_msg(&s, 1, 0)));
+        link.inbox.push_back((5_000_000, meas_msg(&s, 2, 0)));
+        link.inbox.push_back((6_000_000, meas_msg(&s, 3, flags::END_OF_RUN)));
+        let inj = parse_injections("session@1,nan@0").unwrap();
+        let mut st = ControlStats::default();
+        serve(clock.as_ref(), &mut link, &mut ctrl, &opt, &inj, &mut st).unwrap();
+        // Answers 0, 2, 3; NaN before answer 0; seq 1 was skipped, so its corruption goes
+        // before answer 2; each exactly once.
+        let seen: Vec<_> = link.sent.iter().map(|c| (c.seq, c.session == 77, c.v.is_nan())).collect();
+        assert_eq!(
+            seen,
+            vec![(0, true, true), (0, true, false), (2, false, false), (2, true, false), (3, true, false)]
+        );
+    }
+
+    #[test]
     fn a_dead_plant_is_noticed_after_the_silence_threshold() {
         let (s, mut ctrl, opt) = setup();
-        let clock = std::rc::Rc::new(FakeClock::new(0, 1_000));
-        let mut link = Fake {
-            inbox: VecDeque::new(),
-            sent: Vec::new(),
-            clock: clock.clone(),
-            peer: PeerState::Dead(4242),
-            checks: 0,
-        };
+        let (clock, mut link) = fake(PeerState::Dead(4242));
         link.inbox.push_back((0, meas_msg(&s, 0, 0)));
         let mut st = ControlStats::default();
         let end = serve(clock.as_ref(), &mut link, &mut ctrl, &opt, &[], &mut st).unwrap();
@@ -608,14 +636,7 @@ mod tests {
     #[test]
     fn a_plant_with_another_scenario_is_refused() {
         let (s, mut ctrl, opt) = setup();
-        let clock = std::rc::Rc::new(FakeClock::new(0, 1_000));
-        let mut link = Fake {
-            inbox: VecDeque::new(),
-            sent: Vec::new(),
-            clock: clock.clone(),
-            peer: PeerState::Alive(1),
-            checks: 0,
-        };
+        let (clock, mut link) = fake(PeerState::Alive(1));
         let mut m = meas_msg(&s, 0, 0);
         m.scenario_hash ^= 1;
         link.inbox.push_back((0, m));
