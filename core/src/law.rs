@@ -404,7 +404,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     }
 
     #[allow(clippy::too_many_lines)]
-    #[inline(always)]
+    #[inline]
     fn compute(
         &self,
         state: &mut State<T, N>,

@@ -37,12 +37,15 @@ pub fn out_dir(tag: &str) -> PathBuf {
     dir
 }
 
-/// Runs a scenario in process, writing into a fresh folder named `tag`.
+/// Runs a scenario in process, writing into a fresh folder named `tag` that is removed
+/// afterwards.
 ///
 /// # Panics
 /// If the run fails (a test failure).
 pub fn run(s: &Scenario, tag: &str) -> RunOutcome {
-    run_in(s, tag).0
+    let (outcome, dir) = run_in(s, tag);
+    let _ = std::fs::remove_dir_all(dir);
+    outcome
 }
 
 /// Runs a scenario in process, writing into a fresh folder named `tag`, which is returned.

@@ -59,9 +59,11 @@ fn with_psi_rate(traj: u8, choice: char) -> &'static Summary {
 /// The floor of ‖e_p‖ that zero-order hold at dt = 1 ms leaves; "→ 0" means below it.
 const EP_FLOOR: f64 = 1e-3;
 
+/// The paper's eight runs (its claim); the runs with the Ψ̇ term are not the paper's, and
+/// (b) with it can diverge (see `psi_rate_term_makes_b_and_d_chatter`).
 #[test]
 fn every_run_keeps_the_joints_strictly_inside_their_limits() {
-    for (key, s) in runs() {
+    for (key, s) in runs().iter().filter(|(k, _)| !k.2) {
         for (i, m) in s.min_joint_margin.iter().enumerate() {
             assert!(*m > 0.0, "{key:?}: joint {} reached its limit (margin {m})", i + 1);
         }
@@ -216,7 +218,9 @@ fn traj2_d_is_sharper_than_c() {
 /// chatter — `b̂₂/(aᵀKa + μ)` becomes a very high gain near `a = 0`. With this
 /// implementation's (linearly implicit) rest filter, (b) chatters on both trajectories and
 /// (d) on trajectory 2; (d) on trajectory 1 does not (the SPEC's observation was made with an
-/// explicit update, whose own Nyquist oscillation adds to it). Asserted as observed.
+/// explicit update, whose own Nyquist oscillation adds to it). Without velocity limits the
+/// chattering (b) can even diverge: `b̂₁ = ∂h_s/∂t · a/(‖a‖² + ν)` grows with `h_s1` as the
+/// platform runs off. Asserted as observed.
 #[test]
 fn psi_rate_term_makes_b_and_d_chatter() {
     for (traj, choice) in [(1u8, 'b'), (2, 'b'), (2, 'd')] {
