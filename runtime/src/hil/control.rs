@@ -308,7 +308,7 @@ fn session(a: &HilArgs, s: &Scenario, abort: impl FnMut() -> Option<String>) -> 
     let opt = serve_options(a, s)?;
     let injections = a.inject.as_deref().map(parse_injections).transpose()?.unwrap_or_default();
     let mut ctrl = AnyController::new(&s.controller).map_err(|e| anyhow!("invalid parameter: {e}"))?;
-    let mut ep = ControlEndpoint::control(&a.name, a.wait == WaitMode::Event)?;
+    let mut ep = ControlEndpoint::control(&a.name, a.wait_mode() == WaitMode::Event)?;
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let startup = Duration::from_secs_f64(a.startup_timeout);
     ep.wait_for_peer(startup, abort)?;
