@@ -97,7 +97,8 @@ pub struct ScenarioArgs {
     /// The control period and integration step, in seconds.
     #[arg(long, default_value_t = 0.001, value_name = "SECONDS")]
     pub dt: f64,
-    /// The simulated duration, in seconds (default: 120 for trajectories, 30 for --target-file...).
+    /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil`, `plant` and
+    /// `control`].
     #[arg(long, value_name = "SECONDS")]
     pub duration: Option<f64>,
     /// The controller's scalar type.
