@@ -11,10 +11,11 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use companion_benches::{convert, law, to_f64, Config, TempDir, CHOICE_CONFIGS};
+use companion_benches::{law, Config, TempDir, CHOICE_CONFIGS};
 use companion_core::{Command, PlatformKind, Rpr, State, Unicycle};
 use companion_plant::Plant;
 use companion_runtime::control::JOINTS;
+use companion_runtime::control::{command_f64, measurement_in};
 use companion_runtime::record::{format_row, Row, SummaryAccumulator};
 use companion_runtime::sim::{build_plant, run_one, sample};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
@@ -34,10 +35,10 @@ fn snapshots(config: Config) -> Vec<(RprPlant, Command<f64, JOINTS>)> {
     let mut state = State::new();
     let mut out = Vec::with_capacity(SNAPSHOTS);
     for n in 0..steps {
-        let meas = convert::<f64>(&plant.measure());
+        let meas = measurement_in::<f64>(&plant.measure());
         let command = match law.step(&mut state, &meas, s.dt) {
-            Ok(o) => to_f64(&o.command),
-            Err(r) => to_f64(&r.command),
+            Ok(o) => command_f64(&o.command),
+            Err(r) => command_f64(&r.command),
         };
         if n % stride == 0 && out.len() < SNAPSHOTS {
             out.push((plant.clone(), command));

@@ -34,11 +34,10 @@
 //! the code does), so decisions are better made on the counts.
 
 use clap::Parser;
-use companion_core::nalgebra::SVector;
 use companion_core::{
-    CarLike, Command, ControlLaw, Measurement, Omnidirectional, Platform, PlatformCommand, Pose, Real, Rpr,
-    State, Unicycle,
+    CarLike, ControlLaw, Measurement, Omnidirectional, Platform, Real, Rpr, State, Unicycle,
 };
+use companion_runtime::control::{command_f64, measurement_in};
 use companion_runtime::scenario::{ControllerSpec, Scenario, ScenarioArgs};
 
 /// The arm's joint count (the paper's RPR arm).
@@ -257,33 +256,6 @@ pub struct Recording<T: Real, P> {
     pub rejected: usize,
 }
 
-/// A measurement in scalar type `T` (rounding to nearest for `f32`, as the runtime does).
-pub fn convert<T: Real>(m: &Measurement<f64, JOINTS>) -> Measurement<T, JOINTS> {
-    let pose = |p: &Pose<f64>| Pose::new(T::of(p.x), T::of(p.y), T::of(p.theta));
-    Measurement {
-        t: T::of(m.t),
-        base: pose(&m.base),
-        steering: T::of(m.steering),
-        joints: m.joints.map(T::of),
-        target: pose(&m.target),
-        target_velocity: m.target_velocity.map(T::of),
-    }
-}
-
-/// A command in `f64`, for the plant.
-pub fn to_f64<T: Real>(c: &Command<T, JOINTS>) -> Command<f64, JOINTS> {
-    let p = &c.platform;
-    Command {
-        platform: PlatformCommand {
-            v: p.v.as_f64(),
-            v_lat: p.v_lat.as_f64(),
-            omega: p.omega.as_f64(),
-            v_xi: p.v_xi.as_f64(),
-        },
-        joints: SVector::<f64, JOINTS>::from_fn(|i, _| c.joints[i].as_f64()),
-    }
-}
-
 /// Runs the closed loop of `config` on trajectories 1 and 2 (the runtime's plant, the law
 /// in `T` on `P`, the safe command after a rejected step, as `companion sim` does) and keeps
 /// up to `per_trajectory` `(state, measurement)` pairs from each, evenly spaced in time,
@@ -308,7 +280,7 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
         let mut state = State::new();
         let mut kept = 0;
         for n in 0..=steps {
-            let meas = convert::<T>(&plant.measure());
+            let meas = measurement_in::<T>(&plant.measure());
             let before = state;
             let command = match law.step(&mut state, &meas, dt) {
                 Ok(out) => {
@@ -316,11 +288,11 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
                         samples.push(Sample { state: before, meas });
                         kept += 1;
                     }
-                    to_f64(&out.command)
+                    command_f64(&out.command)
                 }
                 Err(rej) => {
                     rejected += 1;
-                    to_f64(&rej.command)
+                    command_f64(&rej.command)
                 }
             };
             if n < steps {

@@ -1,7 +1,7 @@
 //! One controller of any platform × scalar type behind one concrete type, and the report of
 //! one step that both the simulation and the HIL loop record.
 
-use companion_core::nalgebra::{SVector, Vector3};
+use companion_core::nalgebra::Vector3;
 use companion_core::{
     CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformCommand, PlatformKind,
     Pose, Real, Rpr, StepError, Unicycle,
@@ -101,11 +101,11 @@ impl AnyController {
     pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, dt: f64) -> StepReport {
         match self {
             Self::UnicycleF64(c) => report(c.step(meas, dt)),
-            Self::UnicycleF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+            Self::UnicycleF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
             Self::CarF64(c) => report(c.step(meas, dt)),
-            Self::CarF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+            Self::CarF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
             Self::OmniF64(c) => report(c.step(meas, dt)),
-            Self::OmniF32(c) => report(c.step(&to_f32(meas), dt as f32)),
+            Self::OmniF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
         }
     }
 
@@ -123,21 +123,30 @@ impl AnyController {
     }
 }
 
-#[allow(clippy::cast_possible_truncation)]
-fn pose_f32(p: &Pose<f64>) -> Pose<f32> {
-    Pose::new(p.x as f32, p.y as f32, p.theta as f32)
+/// The measurement in scalar type `T` (`f32`: rounding to nearest).
+pub fn measurement_in<T: Real>(m: &Measurement<f64, JOINTS>) -> Measurement<T, JOINTS> {
+    let pose = |p: &Pose<f64>| Pose::new(T::of(p.x), T::of(p.y), T::of(p.theta));
+    Measurement {
+        t: T::of(m.t),
+        base: pose(&m.base),
+        steering: T::of(m.steering),
+        joints: m.joints.map(T::of),
+        target: pose(&m.target),
+        target_velocity: m.target_velocity.map(T::of),
+    }
 }
 
-/// The measurement in f32 (rounding to nearest).
-#[allow(clippy::cast_possible_truncation)]
-pub fn to_f32(m: &Measurement<f64, JOINTS>) -> Measurement<f32, JOINTS> {
-    Measurement {
-        t: m.t as f32,
-        base: pose_f32(&m.base),
-        steering: m.steering as f32,
-        joints: m.joints.map(|x| x as f32),
-        target: pose_f32(&m.target),
-        target_velocity: m.target_velocity.map(|x| x as f32),
+/// A command in `f64` (exact), for the plant.
+pub fn command_f64<T: Real>(c: &Command<T, JOINTS>) -> Command<f64, JOINTS> {
+    let p = &c.platform;
+    Command {
+        platform: PlatformCommand {
+            v: p.v.as_f64(),
+            v_lat: p.v_lat.as_f64(),
+            omega: p.omega.as_f64(),
+            v_xi: p.v_xi.as_f64(),
+        },
+        joints: c.joints.map(Real::as_f64),
     }
 }
 
@@ -146,19 +155,9 @@ fn report<T: Real>(
 ) -> StepReport {
     match r {
         Ok(out) => {
-            let c = &out.command;
             let d = &out.diagnostics;
-            let p = &c.platform;
             StepReport {
-                command: Command {
-                    platform: PlatformCommand {
-                        v: p.v.as_f64(),
-                        v_lat: p.v_lat.as_f64(),
-                        omega: p.omega.as_f64(),
-                        v_xi: p.v_xi.as_f64(),
-                    },
-                    joints: SVector::<f64, JOINTS>::from_fn(|i, _| c.joints[i].as_f64()),
-                },
+                command: command_f64(&out.command),
                 ep_norm: norm(&d.e_p),
                 h_s: d.h_s.as_f64(),
                 psi: d.psi.as_f64(),
