@@ -18,62 +18,22 @@ of libm functions come from callgrind's call counts.
 """
 import collections
 import re
-import subprocess
 import sys
 
+from callgrind_format import inline_chains, parse
 
-def parse(path):
-    """Self cost per instruction address, and call counts per callee name."""
-    names = {}
 
-    def name(kind, text):
-        m = re.match(r"\((\d+)\)(?: (.*))?", text)
-        if not m:
-            return text
-        if m.group(2) is not None:
-            names[(kind, m.group(1))] = m.group(2)
-        return names.get((kind, m.group(1)), "?")
-
+def costs(path):
+    """Self cost per instruction address in count_steps, and call counts per callee name."""
+    prof = parse(path)
     cost = collections.Counter()
+    for fn, per_addr in prof.self_cost.items():
+        if "count_steps" in (prof.obj.get(fn) or ""):
+            cost.update(per_addr)
     calls = collections.Counter()
-    obj = None
-    callee = None
-    last = [0, 0]
-    skip = False
-    for raw in open(path):
-        line = raw.rstrip("\n")
-        if not line or line.startswith("#"):
-            continue
-        m = re.match(r"(\w+)=", line)
-        head = m.group(1) if m else ""
-        if head == "ob":
-            obj = name("ob", line[3:])
-        elif head == "cob":
-            name("ob", line[4:])
-        elif head in ("fl", "fi", "fe"):
-            name("fl", line[3:])
-        elif head in ("cfl", "cfi"):
-            name("fl", line[4:])
-        elif head == "fn":
-            name("fn", line[3:])
-        elif head == "cfn":
-            callee = name("fn", line[4:])
-        elif head == "calls":
-            calls[callee] += int(line.split()[0][6:])
-            skip = True  # the next cost line is the call's inclusive cost
-        elif line[0] in "0123456789+-*":
-            parts = line.split()
-            pos = []
-            for i in range(2):
-                p = parts[i]
-                v = last[i] if p == "*" else last[i] + int(p, 0) if p[0] in "+-" else int(p, 0)
-                pos.append(v)
-            last = pos
-            if skip:
-                skip = False
-                continue
-            if obj and "count_steps" in obj and len(parts) > 2:
-                cost[pos[0]] += int(parts[2])
+    for sites in prof.calls.values():
+        for _, callee, count, _ in sites:
+            calls[callee] += count
     return cost, calls
 
 
@@ -96,28 +56,10 @@ LIBM = {
 
 def main():
     one, two, steps, binary = sys.argv[1], sys.argv[2], float(sys.argv[3]), sys.argv[4]
-    cost1, calls1 = parse(one)
-    cost2, calls2 = parse(two)
+    cost1, calls1 = costs(one)
+    cost2, calls2 = costs(two)
     diff = {a: c - cost1.get(a, 0) for a, c in cost2.items() if c != cost1.get(a, 0)}
-    addrs = sorted(diff)
-    out = subprocess.run(
-        ["addr2line", "-a", "-f", "-i", "-C", "-e", binary],
-        input="".join(f"{a:#x}\n" for a in addrs),
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.splitlines()
-    chains = {}
-    cur = None
-    i = 0
-    while i < len(out):
-        if out[i].startswith("0x"):
-            cur = int(out[i], 16)
-            chains[cur] = []
-            i += 1
-        else:
-            chains[cur].append((out[i], out[i + 1] if i + 1 < len(out) else ""))
-            i += 2
+    chains = inline_chains(binary, sorted(diff))
 
     def short(fn):
         fn = re.sub(r"<(\w+) as companion_core::[\w:]+::(\w+)<[^>]*>>", r"<\1 as \2>", fn)

@@ -14,9 +14,9 @@ inlined directly into run_loop — `AnyController::step`, `Plant::advance`, ... 
 call made by run_loop itself, to the function called.
 """
 import collections
-import re
-import subprocess
 import sys
+
+from callgrind_format import inline_chains, parse
 
 LOOP = "companion_runtime::sim::run_loop"
 
@@ -33,82 +33,16 @@ PARTS = [
 SUMMARY = "recording: summary over every step"
 
 
-def parse(path):
-    """Per function: self cost per address, and (address, callee, inclusive) per call."""
-    names = {}
-
-    def name(kind, text):
-        m = re.match(r"\((\d+)\)(?: (.*))?", text)
-        if not m:
-            return text
-        if m.group(2) is not None:
-            names[(kind, m.group(1))] = m.group(2)
-        return names.get((kind, m.group(1)), "?")
-
-    self_cost = collections.defaultdict(collections.Counter)
-    calls = collections.defaultdict(list)
-    total = 0
-    fn = callee = None
-    last = [0, 0]
-    pending = False
-    for raw in open(path):
-        line = raw.rstrip("\n")
-        if not line or line.startswith("#"):
-            continue
-        m = re.match(r"(summary|totals):(.*)", line)
-        if m:
-            total = int(m.group(2).strip())
-            continue
-        m = re.match(r"(\w+)=(.*)", line)
-        if m:
-            key, val = m.groups()
-            if key in ("fl", "fi", "fe", "cfl", "cfi"):
-                name("fl", val)
-            elif key in ("ob", "cob"):
-                name("ob", val)
-            elif key == "fn":
-                fn = name("fn", val)
-            elif key == "cfn":
-                callee = name("fn", val)
-            elif key == "calls":
-                pending = True
-            continue
-        if line[0] not in "0123456789+-*":
-            continue
-        parts = line.split()
-        pos = []
-        for i in range(2):
-            p = parts[i]
-            v = last[i] if p == "*" else last[i] + int(p, 0) if p[0] in "+-" else int(p, 0)
-            pos.append(v)
-        last = pos
-        c = int(parts[2]) if len(parts) > 2 else 0
-        if pending:
-            calls[fn].append((pos[0], callee, c))
-            pending = False
-        else:
-            self_cost[fn][pos[0]] += c
-    return self_cost, calls, total
+def load(path):
+    """Per function: self cost per address, (address, callee, inclusive) per call; the total."""
+    prof = parse(path)
+    calls = {fn: [(a, callee, c) for a, callee, _, c in sites] for fn, sites in prof.calls.items()}
+    return prof.self_cost, collections.defaultdict(list, calls), prof.total
 
 
 def chains(binary, addrs):
-    out = subprocess.run(
-        ["addr2line", "-a", "-f", "-i", "-C", "-e", binary],
-        input="".join(f"{a:#x}\n" for a in addrs),
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout.splitlines()
-    result, cur, i = {}, None, 0
-    while i < len(out):
-        if out[i].startswith("0x"):
-            cur = int(out[i], 16)
-            result[cur] = []
-            i += 1
-        else:
-            result[cur].append(out[i])
-            i += 2
-    return result
+    """{address: [function, ...]}, innermost inlined frame first."""
+    return {a: [f for f, _ in frames] for a, frames in inline_chains(binary, addrs).items()}
 
 
 def part_of(below, callee):
@@ -147,7 +81,7 @@ def summary_in(prefix, self_cost, calls, binary):
 
 def main():
     steps, binary, main_out = float(sys.argv[1]), sys.argv[2], sys.argv[3]
-    self_cost, calls, main_total = parse(main_out)
+    self_cost, calls, main_total = load(main_out)
     holders = [f for f in self_cost if f and (f.startswith(LOOP) or f.startswith("companion_runtime::sim::run_one"))]
     items = []  # (address, callee or None, cost)
     for f in holders:
@@ -180,7 +114,7 @@ def main():
         if c / steps >= 0.5:
             print(f"{'    ' + part:<56} {c / steps:8.0f}  {100 * c / in_loop:5.1f} %")
     for other in sys.argv[4:]:
-        _, _, t = parse(other)
+        _, _, t = load(other)
         print(f"{'CSV writer thread (formatting, writing)':<56} {t / steps:8.0f}")
 
 
