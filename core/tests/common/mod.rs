@@ -17,8 +17,8 @@
 
 use companion_core::nalgebra::{Matrix3, SMatrix, SVector, Vector2, Vector3};
 use companion_core::{
-    CarLike, Command, ControlLaw, Measurement, Omnidirectional, PaperRun, Params, Platform, PlatformKind,
-    Pose, Real, Rpr, State, Unicycle,
+    CarLike, Command, ControlLaw, Measurement, Omnidirectional, Output, PaperRun, Params, Platform,
+    PlatformKind, Pose, Real, Rpr, State, Unicycle,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -280,6 +280,20 @@ pub fn base_velocity(kind: PlatformKind, cmd: &Command<f64, 3>, xi: f64) -> V3 {
 pub struct Point {
     pub meas: Measurement<f64, 3>,
     pub state: State<f64, 3>,
+}
+
+/// One step of `law` from `pt` over `dt`: the output and the next state. A rejection is a
+/// test failure.
+pub fn step_point<P: Platform<f64>>(
+    law: &ControlLaw<f64, P, Rpr<f64>, 3>,
+    pt: &Point,
+    dt: f64,
+) -> Result<(Output<f64, 3>, State<f64, 3>), TestCaseError> {
+    let mut st = pt.state;
+    let out = law
+        .step(&mut st, &pt.meas, dt)
+        .map_err(|r| TestCaseError::fail(format!("valid point rejected: {:?}", r.error)))?;
+    Ok((out, st))
 }
 
 /// A valid measurement and an initialised state: joints at least `joint_frac` of their

@@ -20,8 +20,8 @@
 use crate::common::*;
 use companion_core::nalgebra::{Matrix3, Vector2};
 use companion_core::{
-    ControlLaw, Output, PaperRun, Params, Platform, PlatformKind, Precompensation, RestFilter, Rpr, State,
-    Weight, WeightMargins,
+    ControlLaw, PaperRun, Params, Platform, PlatformKind, Precompensation, RestFilter, Rpr, State, Weight,
+    WeightMargins,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -110,22 +110,11 @@ fn weight_and_rate(w: &Weight<f64, 3>, st: &State<f64, 3>, q: &Q, q_hat_rate: &Q
     }
 }
 
-fn step<P: Platform<f64>>(
-    law: &ControlLaw<f64, P, Rpr<f64>, 3>,
-    pt: &Point,
-) -> Result<(Output<f64, 3>, State<f64, 3>), TestCaseError> {
-    let mut st = pt.state;
-    let out = law
-        .step(&mut st, &pt.meas, DT)
-        .map_err(|r| TestCaseError::fail(format!("valid point rejected: {:?}", r.error)))?;
-    Ok((out, st))
-}
-
 fn check_step<P: Platform<f64>>(
     law: &ControlLaw<f64, P, Rpr<f64>, 3>,
     pt: &Point,
 ) -> Result<(), TestCaseError> {
-    let (out, next) = step(law, pt)?;
+    let (out, next) = step_point(law, pt, DT)?;
     let dg = &out.diagnostics;
     let prm = law.params();
     let sec = &prm.secondary;
@@ -277,9 +266,9 @@ proptest! {
     #[test]
     fn psi_rate_term_changes_the_command(pt in point(0.01)) {
         let mut p = Params::paper(PaperRun::D);
-        let without = step(&unicycle_law(p), &pt)?.0;
+        let without = step_point(&unicycle_law(p), &pt, DT)?.0;
         p.secondary.psi_rate_in_drift = true;
-        let with = step(&unicycle_law(p), &pt)?.0;
+        let with = step_point(&unicycle_law(p), &pt, DT)?.0;
         let d = &without.diagnostics;
         let q = pt.meas.joints;
         let target = psi_tilde_reference(&margins(), &q);
@@ -327,7 +316,7 @@ fn check_implicit<P: Platform<f64>>(
     pt: &Point,
     rtol: f64,
 ) -> Result<(), TestCaseError> {
-    let (out, _) = step(law, pt)?;
+    let (out, _) = step_point(law, pt, DT)?;
     let sec = &law.params().secondary;
     let r_tilde = v3(&pt.state.r_tilde);
     let u0 = u_bar_choice2_reference(law, pt, &r_tilde);

@@ -10,9 +10,7 @@
 
 use crate::common::*;
 use companion_core::nalgebra::{Matrix3, Vector2};
-use companion_core::{
-    Command, ControlLaw, Output, PaperRun, Params, Platform, PlatformKind, Rpr, State, VelocityLimits,
-};
+use companion_core::{Command, ControlLaw, PaperRun, Params, Platform, PlatformKind, Rpr, VelocityLimits};
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
 
@@ -55,25 +53,14 @@ fn limited(
     }
 }
 
-fn run_step<P: Platform<f64>>(
-    law: &ControlLaw<f64, P, Rpr<f64>, 3>,
-    pt: &Point,
-) -> Result<(Output<f64, 3>, State<f64, 3>), TestCaseError> {
-    let mut st = pt.state;
-    let out = law
-        .step(&mut st, &pt.meas, DT)
-        .map_err(|r| TestCaseError::fail(format!("rejected: {:?}", r.error)))?;
-    Ok((out, st))
-}
-
 fn check<P: Platform<f64>>(
     free: &ControlLaw<f64, P, Rpr<f64>, 3>,
     limited_law: &ControlLaw<f64, P, Rpr<f64>, 3>,
     pt: &Point,
 ) -> Result<(), TestCaseError> {
     let lim = limited_law.params().velocity_limits;
-    let (u, u_next) = run_step(free, pt)?;
-    let (s, s_next) = run_step(limited_law, pt)?;
+    let (u, u_next) = step_point(free, pt, DT)?;
+    let (s, s_next) = step_point(limited_law, pt, DT)?;
     let factor = s.diagnostics.saturation;
     prop_assert_eq!(u.diagnostics.saturation, 1.0);
 
