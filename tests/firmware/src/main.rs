@@ -2,23 +2,39 @@
 //!
 //! Runs every case of [`scenario::CASES`] closed loop, prints the scenario's digest lines
 //! (compared bit for bit with the host by `tests/tests/firmware_host.rs`) and, per case,
-//! the cost of one controller step in instructions, counted by SysTick. Under QEMU's
-//! `-icount shift=5` one instruction is 32 ns of virtual time, so the counts are exact
-//! and deterministic (to ±1 instruction: SysTick ticks every 20 ns of virtual time, and
-//! the rate is calibrated against a loop of known length); without `-icount` they are
-//! meaningless (QEMU then runs SysTick from the host clock) and only the digests count.
-//! Lines it adds:
+//! the cost of one controller step in instructions, counted by SysTick.
+//!
+//! How SysTick counts instructions: under QEMU's `-icount shift=s` every instruction
+//! advances virtual time by exactly 2^s ns, and SysTick (core clock) ticks at the board's
+//! 25 MHz of virtual time, one tick per 40 ns. `tests/firmware/measure` (and the host
+//! test) use `shift=7`: 3.2 ticks per instruction, so rounding ticks to instructions is
+//! exact for any count. The rate is not assumed: [`calibrate`] times a hand-written loop
+//! ([`spin`]) whose instruction count is known by construction and checks that the ticks
+//! grow in proportion to it; an empty pair of readings must convert to the same count
+//! every time (which fails when ticks are too coarse); the calibration is taken again after
+//! the last case and must not have changed. Any failed check ends the run with exit code 3
+//! and an `E` line — as does a run without `-icount`, where SysTick follows the host's
+//! clock. `measure` then checks the rate against 2^s / 40 ticks per instruction and counts
+//! the `S` steps a second way, by single-stepping the same ELF through QEMU's gdb stub
+//! (`tests/firmware/gdbcount.py`). Lines it adds:
 //!
 //! ```text
 //! M <flash bytes> <static RAM bytes> <SysTick ticks per 20 000 instructions>
 //! K <function> <f32|libm-f32|f64> <mean instructions per call>
+//! S <case> <step index> <instructions of that step>
 //! C <case> <mean instructions/step> <min> <max> <first step> <stack bytes of a step> <stack bytes of the case>
+//! V <SysTick ticks per 20 000 instructions, measured again after the last case>
+//! E <why the counts cannot be trusted>
 //! ```
 //!
-//! The step's stack is that of building the controller and two steps; the case's adds
-//! the plant, the digest and the formatting of the output.
+//! The count of a step is the instructions executed between the two SysTick readings
+//! around the call of [`scenario::controller_step`] (argument set-up, call, step, return)
+//! less those between the readings of an empty pair (the probe's own). The step's stack is
+//! that of building the controller and two steps; the case's adds the plant, the digest and
+//! the formatting of the output.
 //!
-//! Exit code 0 when every case ran without a rejected step, 1 otherwise, 101 on a panic.
+//! Exit code 0 when every case ran without a rejected step, 1 when a step was rejected,
+//! 3 when the SysTick calibration failed its checks, 101 on a panic.
 #![no_std]
 #![no_main]
 
@@ -84,20 +100,58 @@ fn elapsed(start: u32, end: u32) -> u32 {
     start.wrapping_sub(end) & SYST_MASK
 }
 
-/// Counts SysTick ticks per controller step: mean, min, max, and the first step.
+/// Converts SysTick ticks to instructions.
+#[derive(Clone, Copy, Debug)]
+struct Clock {
+    /// SysTick ticks per [`CALIBRATION_INSTRUCTIONS`] instructions (from [`calibrate`]).
+    per: u32,
+    /// Instructions of an empty pair of readings (from [`empty_bracket`]), subtracted
+    /// from every count: a count is then the instructions strictly between the readings.
+    overhead: u32,
+}
+
+impl Clock {
+    /// Instructions in `t` ticks, rounded to the nearest. Exact while a tick is less than
+    /// a third of an instruction (`-icount shift=7`: 3.2 ticks per instruction, so one
+    /// tick of quantisation at each end is 0.31 instruction).
+    fn instructions(self, t: u32) -> u32 {
+        let n = (u64::from(t) * u64::from(CALIBRATION_INSTRUCTIONS) + u64::from(self.per) / 2)
+            / u64::from(self.per.max(1));
+        u32::try_from(n).unwrap_or(u32::MAX)
+    }
+}
+
+/// Counts instructions per controller step: mean, min, max, the first step, and the
+/// steps of [`SAMPLE_STEPS`].
 struct Meter {
     start: u32,
-    overhead: u32,
+    clock: Clock,
     n: u32,
     sum: u64,
     min: u32,
     max: u32,
     first: u32,
+    samples: [u32; SAMPLE_STEPS.len()],
 }
 
 impl Meter {
-    fn new(overhead: u32) -> Self {
-        Self { start: 0, overhead, n: 0, sum: 0, min: u32::MAX, max: 0, first: 0 }
+    fn new(clock: Clock) -> Self {
+        Self {
+            start: 0,
+            clock,
+            n: 0,
+            sum: 0,
+            min: u32::MAX,
+            max: 0,
+            first: 0,
+            samples: [0; SAMPLE_STEPS.len()],
+        }
+    }
+
+    /// The mean count, rounded to the nearest.
+    fn mean(&self) -> u64 {
+        let n = u64::from(self.n.max(1));
+        (self.sum + n / 2) / n
     }
 }
 
@@ -114,9 +168,12 @@ impl Probe for Meter {
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
         let end = ticks();
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
-        let d = elapsed(self.start, end).saturating_sub(self.overhead);
+        let d = self.clock.instructions(elapsed(self.start, end)).saturating_sub(self.clock.overhead);
         if self.n == 0 {
             self.first = d;
+        }
+        if let Some(i) = SAMPLE_STEPS.iter().position(|&k| k == self.n) {
+            self.samples[i] = d;
         }
         self.n += 1;
         self.sum += u64::from(d);
@@ -125,39 +182,72 @@ impl Probe for Meter {
     }
 }
 
-/// Ticks of an empty `enter`/`leave` pair (subtracted from every measurement).
+/// Instructions of an empty `enter`/`leave` pair, least and most of 16 (equal when the
+/// counts are exact).
 #[inline(never)]
-fn probe_overhead() -> u32 {
-    let mut m = Meter::new(0);
-    let mut best = u32::MAX;
+fn empty_bracket(per: u32) -> (u32, u32) {
+    let mut m = Meter::new(Clock { per, overhead: 0 });
     for _ in 0..16 {
         m.enter();
         m.leave();
-        best = best.min(m.max);
-        m.max = 0;
     }
-    best
+    (m.min, m.max)
 }
 
-/// Instructions in the difference of the two calibration loops: `delay(n)` runs
-/// `1 + n/2` iterations of `subs; bne`, so `delay(2 N + 2 K)` − `delay(2 N)` is `2 K`
-/// instructions.
-const CALIBRATION_INSTRUCTIONS: u32 = 20_000;
-
-/// SysTick ticks per [`CALIBRATION_INSTRUCTIONS`] instructions. Under `-icount shift=s`
-/// an instruction takes 2^s ns of virtual time; SysTick's rate on this board is
-/// whatever QEMU gives it (20 ns per tick in QEMU 7.2), so it is measured, not assumed.
+/// Runs `n` iterations (`n ≥ 1`) of a hand-written two-instruction loop (`subs; bne`):
+/// `spin(a + k)` executes exactly `2 k` more instructions than `spin(a)`, whatever the
+/// compiler does around the loop.
 #[inline(never)]
-fn calibrate() -> u32 {
-    let run = |n: u32| {
-        let start = ticks();
-        cortex_m::asm::delay(n);
-        elapsed(start, ticks())
-    };
-    let short = run(20_000);
-    let long = run(20_000 + CALIBRATION_INSTRUCTIONS);
-    long.saturating_sub(short)
+fn spin(n: u32) {
+    // SAFETY: arithmetic on one register and a branch back within the asm block; no
+    // memory, no stack.
+    unsafe {
+        core::arch::asm!(
+            "2:",
+            "subs {n}, #1",
+            "bne 2b",
+            n = inout(reg) n.max(1) => _,
+            options(nomem, nostack),
+        );
+    }
 }
+
+/// Iterations of [`spin`] in each calibration interval.
+const CALIBRATION_ITERATIONS: u32 = 10_000;
+
+/// Instructions in each calibration interval: two per iteration of [`spin`].
+const CALIBRATION_INSTRUCTIONS: u32 = 2 * CALIBRATION_ITERATIONS;
+
+/// SysTick ticks of `spin(n)`.
+#[inline(never)]
+fn spin_ticks(n: u32) -> u32 {
+    let start = ticks();
+    spin(n);
+    elapsed(start, ticks())
+}
+
+/// SysTick ticks per [`CALIBRATION_INSTRUCTIONS`] instructions, measured twice: as
+/// `spin(a + k) − spin(a)` and as `spin(a + 2k) − spin(a + k)`. Under `-icount` the two
+/// agree to a tick (ticks are counted from the instructions); when they do not, ticks
+/// are not proportional to instructions and no count is worth printing.
+#[inline(never)]
+fn calibrate() -> (u32, u32) {
+    const BASE: u32 = 1_000;
+    let base = spin_ticks(BASE);
+    let one = spin_ticks(BASE + CALIBRATION_ITERATIONS);
+    let two = spin_ticks(BASE + 2 * CALIBRATION_ITERATIONS);
+    (one.saturating_sub(base), two.saturating_sub(one))
+}
+
+/// Whether two calibrations agree to one tick.
+fn agree(a: u32, b: u32) -> bool {
+    a.abs_diff(b) <= 1
+}
+
+/// Steps whose counts are printed one by one (`S` lines): `measure` counts the same steps
+/// by single-stepping (`gdbcount.py`, which can bracket any step but the first) and
+/// compares.
+const SAMPLE_STEPS: [u32; 3] = [1, 2, 100];
 
 // Symbols of cortex-m-rt's link.x.
 extern "C" {
@@ -223,51 +313,46 @@ fn stack_of(f: impl FnOnce()) -> usize {
 const FUNCTION_ARGS: [f64; 8] = [0.3, 1.2, -2.5, 3.0, 0.05, 2.0, -0.7, 5.5];
 
 /// Prints the mean instructions of one call of `f` (including a call through `dyn`).
-fn function_cost<T: Real>(out: &mut Out, name: &str, ty: &str, cost: &Cost<'_>, f: &dyn Fn(T) -> T) {
-    let mut m = Meter::new(cost.overhead);
+fn function_cost<T: Real>(out: &mut Out, name: &str, ty: &str, clock: Clock, f: &dyn Fn(T) -> T) {
+    let mut m = Meter::new(clock);
     for a in FUNCTION_ARGS {
-        let x = T::of(a);
+        // The argument is converted before the first reading (black_box) and passes
+        // through black_box after it, so the call can be neither hoisted above the first
+        // reading nor sunk below the second.
+        let x = black_box(T::of(a));
         m.enter();
-        // black_box inside the bracket: the call cannot be hoisted above the first reading.
         let y = f(black_box(x));
         black_box(y);
         m.leave();
     }
-    let mean = (cost.to_instructions)(m.sum) / u64::from(m.n.max(1));
-    let _ = writeln!(out, "K {name} {ty} {mean}");
-}
-
-/// The probe's overhead (ticks) and the tick-to-instruction conversion.
-struct Cost<'a> {
-    overhead: u32,
-    to_instructions: &'a dyn Fn(u64) -> u64,
+    let _ = writeln!(out, "K {name} {ty} {}", m.mean());
 }
 
 /// Each elementary function of [`Real`] for `T`.
-fn function_costs<T: Real>(out: &mut Out, ty: &str, cost: &Cost<'_>) {
-    function_cost::<T>(out, "sincos", ty, cost, &|x| {
+fn function_costs<T: Real>(out: &mut Out, ty: &str, clock: Clock) {
+    function_cost::<T>(out, "sincos", ty, clock, &|x| {
         let (s, c) = x.sincos();
         s + c
     });
-    function_cost::<T>(out, "atan", ty, cost, &|x| x.arctan());
-    function_cost::<T>(out, "atan2", ty, cost, &|x| x.arctan2(T::of(-1.3)));
-    function_cost::<T>(out, "exp", ty, cost, &|x| (-x.abs()).exponential());
-    function_cost::<T>(out, "sqrt", ty, cost, &|x| x.abs().square_root());
-    function_cost::<T>(out, "round", ty, cost, &|x| (x * T::of(3.3)).round_nearest());
+    function_cost::<T>(out, "atan", ty, clock, &|x| x.arctan());
+    function_cost::<T>(out, "atan2", ty, clock, &|x| x.arctan2(T::of(-1.3)));
+    function_cost::<T>(out, "exp", ty, clock, &|x| (-x.abs()).exponential());
+    function_cost::<T>(out, "sqrt", ty, clock, &|x| x.abs().square_root());
+    function_cost::<T>(out, "round", ty, clock, &|x| (x * T::of(3.3)).round_nearest());
 }
 
 /// libm's `f32` functions, which `Real for f32` used before `fastmath` (for comparison).
-fn libm_f32_costs(out: &mut Out, cost: &Cost<'_>) {
+fn libm_f32_costs(out: &mut Out, clock: Clock) {
     let ty = "libm-f32";
-    function_cost::<f32>(out, "sincos", ty, cost, &|x| {
+    function_cost::<f32>(out, "sincos", ty, clock, &|x| {
         let (s, c) = libm::sincosf(x);
         s + c
     });
-    function_cost::<f32>(out, "atan", ty, cost, &libm::atanf);
-    function_cost::<f32>(out, "atan2", ty, cost, &|x| libm::atan2f(x, -1.3));
-    function_cost::<f32>(out, "exp", ty, cost, &|x| libm::expf(-x.abs()));
-    function_cost::<f32>(out, "sqrt", ty, cost, &|x| libm::sqrtf(x.abs()));
-    function_cost::<f32>(out, "round", ty, cost, &|x| libm::roundf(x * 3.3));
+    function_cost::<f32>(out, "atan", ty, clock, &libm::atanf);
+    function_cost::<f32>(out, "atan2", ty, clock, &|x| libm::atan2f(x, -1.3));
+    function_cost::<f32>(out, "exp", ty, clock, &|x| libm::expf(-x.abs()));
+    function_cost::<f32>(out, "sqrt", ty, clock, &|x| libm::sqrtf(x.abs()));
+    function_cost::<f32>(out, "round", ty, clock, &|x| libm::roundf(x * 3.3));
 }
 
 #[entry]
@@ -282,34 +367,72 @@ fn main() -> ! {
     let flash = core::ptr::addr_of!(__sidata) as usize
         + (core::ptr::addr_of!(__edata) as usize - core::ptr::addr_of!(__sdata) as usize);
     let ram = core::ptr::addr_of!(__ebss) as usize - RAM_START;
-    let per = calibrate();
+    let (per, again) = calibrate();
     let _ = writeln!(out, "M {flash} {ram} {per}");
-    let overhead = probe_overhead();
-    // Ticks to instructions, rounded.
-    let instructions =
-        |t: u64| (t * u64::from(CALIBRATION_INSTRUCTIONS) + u64::from(per) / 2) / u64::from(per.max(1));
-    let cost = Cost { overhead, to_instructions: &instructions };
-    function_costs::<f32>(&mut out, "f32", &cost);
-    libm_f32_costs(&mut out, &cost);
-    function_costs::<f64>(&mut out, "f64", &cost);
+    if per == 0 || !agree(per, again) {
+        fail(
+            &mut out,
+            format_args!(
+                "calibration: {per} then {again} SysTick ticks for the same {CALIBRATION_INSTRUCTIONS} \
+                 instructions; ticks do not count instructions (run under QEMU -icount)"
+            ),
+        );
+    }
+    let (overhead, most) = empty_bracket(per);
+    if overhead != most {
+        fail(
+            &mut out,
+            format_args!(
+                "an empty pair of readings took {overhead} to {most} instructions: \
+                 {per} ticks per {CALIBRATION_INSTRUCTIONS} instructions are too few to count exactly \
+                 (use -icount shift=7 or more)"
+            ),
+        );
+    }
+    let clock = Clock { per, overhead };
+    function_costs::<f32>(&mut out, "f32", clock);
+    libm_f32_costs(&mut out, clock);
+    function_costs::<f64>(&mut out, "f64", clock);
     let mut failed = false;
     for case in &CASES {
         let step_stack = stack_of(|| scenario::first_step(case));
-        let mut meter = Meter::new(overhead);
+        let mut meter = Meter::new(clock);
         let mut outcome = None;
         let case_stack = stack_of(|| outcome = Some(scenario::run_case(case, &mut out, &mut meter)));
         if outcome.is_none_or(|o| o.rejected > 0) {
             failed = true;
         }
-        let mean = instructions(meter.sum) / u64::from(meter.n.max(1));
-        let (min, max, first) = (
-            instructions(meter.min.into()),
-            instructions(meter.max.into()),
-            instructions(meter.first.into()),
+        for (k, n) in SAMPLE_STEPS.iter().zip(meter.samples) {
+            let _ = writeln!(out, "S {} {k} {n}", case.name);
+        }
+        let _ = writeln!(
+            out,
+            "C {} {} {} {} {} {step_stack} {case_stack}",
+            case.name,
+            meter.mean(),
+            meter.min,
+            meter.max,
+            meter.first
         );
-        let _ = writeln!(out, "C {} {mean} {min} {max} {first} {step_stack} {case_stack}", case.name);
+    }
+    let (end, _) = calibrate();
+    let _ = writeln!(out, "V {end}");
+    if !agree(per, end) {
+        fail(
+            &mut out,
+            format_args!(
+                "calibration: {per} SysTick ticks per {CALIBRATION_INSTRUCTIONS} instructions at the start, \
+                 {end} at the end; the counts above are not exact"
+            ),
+        );
     }
     semihosting::process::exit(i32::from(failed))
+}
+
+/// Prints an `E` line and exits with 3: the counts cannot be trusted.
+fn fail(out: &mut Out, why: core::fmt::Arguments<'_>) -> ! {
+    let _ = writeln!(out, "E {why}");
+    semihosting::process::exit(3)
 }
 
 #[panic_handler]

@@ -22,8 +22,8 @@ use core::hint::black_box;
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    CarLike, Command, Controller, Measurement, Omnidirectional, PaperRun, Params, Platform, PlatformKind,
-    Pose, Real, Rpr, Unicycle, VelocityLimits,
+    CarLike, Command, Controller, Measurement, Omnidirectional, Output, PaperRun, Params, Platform,
+    PlatformKind, Pose, Real, Rejected, Rpr, Unicycle, VelocityLimits,
 };
 
 /// Control period (s).
@@ -204,6 +204,18 @@ fn command_words<T: Real>(c: &Command<T, 3>) -> [u64; 7] {
     [b(p.v), b(p.v_lat), b(p.omega), b(p.v_xi), b(c.joints[0]), b(c.joints[1]), b(c.joints[2])]
 }
 
+/// One controller step, never inlined: the firmware's second instruction count
+/// (`tests/firmware/gdbcount.py`) single-steps from this function's entry to its return.
+/// One instance per scalar type and platform; in each, the steps of run (a) come first.
+#[inline(never)]
+pub fn controller_step<T: Real, P: Platform<T>>(
+    ctrl: &mut Controller<T, P, Rpr<T>, 3>,
+    meas: &Measurement<T, 3>,
+    dt: T,
+) -> Result<Output<T, 3>, Rejected<T, 3>> {
+    ctrl.step(meas, dt)
+}
+
 fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
     c: &Case,
     platform: P,
@@ -232,10 +244,13 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
         let (target, target_velocity) = target(t);
         let meas =
             Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
+        // The inputs are complete in memory before the probe's first reading (black_box
+        // there), and pass through black_box again after it, so that no part of building
+        // them falls inside the bracket and no part of the step before it; the result
+        // goes through black_box before the second reading.
+        let (ct, me, h) = (black_box(&mut ctrl), black_box(&meas), black_box(dt));
         probe.enter();
-        // Everything the step reads goes through black_box after `enter`, so no part of
-        // it can be scheduled before the probe's first reading (nor after its second).
-        let result = black_box(&mut ctrl).step(black_box(&meas), black_box(dt));
+        let result = controller_step(black_box(ct), black_box(me), black_box(h));
         black_box(&result);
         probe.leave();
         let cmd = match result {
