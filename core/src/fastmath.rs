@@ -1,12 +1,13 @@
 //! Elementary functions computed in `f32` arithmetic, for `impl Real for f32`.
 //!
 //! Why they exist: libm's `sincosf` evaluates in `f64`, which a Cortex-M4F does in
-//! software: ~1 100 instructions per call on the emulated M4F, against 31 here. A
+//! software: ~2 200 instructions per call on the emulated M4F, against ~60 here. A
 //! unicycle step calls it six times or more; with libm's `f32` functions a unicycle `f32`
-//! step of run (a) took 14 700 instructions, with these it takes ~1 200
-//! (`tests/firmware/measure`). Everything here uses only `f32` operations the FPU has
-//! (add, sub, mul, div, conversions), integer operations, and, on the cold path of huge
-//! sin/cos arguments only, `u64`/`u128` integer arithmetic.
+//! step of run (a) took ~29 000 instructions (an earlier law), with these it takes ~1 950
+//! (`tests/firmware/measure`, which checks its counts by single-stepping). Everything here
+//! uses only `f32` operations the FPU has (add, sub, mul, div, conversions), integer
+//! operations, and, on the cold path of huge sin/cos arguments only, `u64`/`u128` integer
+//! arithmetic.
 //!
 //! Determinism: every operation is an IEEE-754 single operation (Rust never contracts
 //! `a * b + c` into a fused multiply-add), so the host (SSE) and the M4F (FPv4-SP, default
@@ -15,10 +16,11 @@
 //! Not here: the square root. No `unsafe` (the core forbids it), so no inline
 //! `vsqrt.f32`, and `core` has no stable `f32::sqrt` (Rust 1.95). A Heron iteration from a
 //! bit-trick guess with an exact integer rounding check gave the correctly rounded result
-//! (checked on all 2³¹ non-negative inputs) in 41 instructions on the M4F, but libm's
-//! `sqrtf` (integer, table-driven, also correctly rounded) takes 29, so `Real for f32`
-//! keeps libm's. libm 0.2.16's `atanf` and `expf` are `f32` code too (26 and 24
-//! instructions; these take 19 and 20): only its `sincosf` works in `f64` (1 100).
+//! (checked on all 2³¹ non-negative inputs) in ~80 instructions on the M4F, but libm's
+//! `sqrtf` (integer, table-driven, also correctly rounded) takes ~60, so `Real for f32`
+//! keeps libm's. libm 0.2.16's `atanf` and `expf` are `f32` code too (~55 and ~50
+//! instructions per call through `dyn`; these take ~45 and ~55): only its `sincosf` works
+//! in `f64` (~2 200).
 //!
 //! ## Accuracy
 //!
