@@ -7,7 +7,7 @@
 
 use nalgebra::{SMatrix, SVector};
 
-use crate::error::{ParamError, Rule};
+use crate::error::{Bound, ParamError, Rule};
 use crate::scalar::Real;
 use crate::se2::Pose;
 
@@ -79,12 +79,15 @@ impl<T: Real> Arm<T, 3> for Rpr<T> {
     const THETA_CURVED: bool = false;
 
     fn validate(&self) -> Result<(), ParamError> {
-        for (name, v) in [("L", self.l), ("L_e", self.l_e)] {
+        for (name, v) in [("l", self.l), ("l_e", self.l_e)] {
             if !v.finite() {
                 return Err(ParamError::new(name, Rule::NonFinite));
             }
             if v < T::zero() {
                 return Err(ParamError::new(name, Rule::Geometry));
+            }
+            if v > T::of(Bound::Length.value()) {
+                return Err(ParamError::new(name, Rule::TooLarge(Bound::Length)));
             }
         }
         Ok(())

@@ -28,6 +28,38 @@ pub enum Rule {
     Decomposition51NeedsPsiOne,
     /// The arm geometry is not usable (e.g. a non-positive link length).
     Geometry,
+    /// The value is above the bound that keeps every step computable (in `f32` too).
+    TooLarge(Bound),
+    /// `max_time_step` is longer than the period bound derived from the law's rates:
+    /// `max_time_step · r_max ≤ 0.1`, with `r_max` the largest of the arm gains `gᵢ`, the
+    /// filter rates `σ/ξ` of (26) and `σᵢ/ξ` of (28), and `λ/ξ` of (53)–(54)
+    /// (see [`Params::period_bound`](crate::Params::period_bound)).
+    PeriodTooLong,
+}
+
+/// An upper bound of [`Rule::TooLarge`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bound {
+    /// Lengths, poses and joint limits: 10³ (m or rad).
+    Length,
+    /// The transverse functions' sizes `ε₁`, `ε` (m): 10.
+    TransverseSize,
+    /// Gains, rates, weights and shape factors: 10⁶ (in their units).
+    Magnitude,
+    /// Times (`max_time_step`, `max_delay`): 1 s.
+    Time,
+}
+
+impl Bound {
+    /// The bound's value.
+    pub const fn value(self) -> f64 {
+        match self {
+            Bound::Length => 1e3,
+            Bound::TransverseSize => 10.0,
+            Bound::Magnitude => 1e6,
+            Bound::Time => 1.0,
+        }
+    }
 }
 
 /// An invalid parameter: which one, which joint (if per joint), and the rule it breaks.
@@ -71,6 +103,10 @@ impl fmt::Display for Rule {
                 "decomposition (51) is exact only for h_s = h_s1: use the constant weight psi = 1"
             }
             Rule::Geometry => "arm geometry is not usable",
+            Rule::TooLarge(b) => return write!(f, "must be <= {:e}", b.value()),
+            Rule::PeriodTooLong => {
+                "max_time_step times the law's largest rate (the gains, sigma/xi of the filters, lambda/xi) must be <= 0.1"
+            }
         })
     }
 }
@@ -118,7 +154,11 @@ pub enum StepError {
     SingularArm,
     /// `∂e_m/∂q` (eq. 24) cannot be inverted.
     SingularTaskJacobian,
-    /// The law produced a non-finite value (an overflow on extreme input).
+    /// The delay is not finite, negative, above `max_delay`, or longer than the command
+    /// history covers ([`HISTORY`](crate::HISTORY) periods).
+    BadDelay,
+    /// The law produced a non-finite value (an overflow on extreme input), also after
+    /// re-initialising its filters from the measurement.
     NumericalFailure,
 }
 
@@ -130,6 +170,9 @@ impl fmt::Display for StepError {
             StepError::JointAtLimit(j) => write!(f, "joint {} is at or beyond its limit", j + 1),
             StepError::SingularArm => f.write_str("arm configuration is singular"),
             StepError::SingularTaskJacobian => f.write_str("task Jacobian de_m/dq is singular"),
+            StepError::BadDelay => {
+                f.write_str("delay is not finite, < 0, above max_delay or beyond the command history")
+            }
             StepError::NumericalFailure => f.write_str("the law produced a non-finite value"),
         }
     }

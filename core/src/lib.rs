@@ -57,28 +57,37 @@
 extern crate std;
 
 pub mod arm;
+mod arm_law;
+pub mod command;
 pub mod error;
 mod fastmath;
+mod hold;
 pub mod law;
+pub mod measurement;
 pub mod params;
 pub mod platform;
+mod platform_law;
 pub mod primary;
 pub mod scalar;
 pub mod se2;
 pub mod secondary;
+pub mod state;
 
 pub use arm::{Arm, ArmKinematics, Rpr};
-pub use error::{Field, ParamError, Rule, StepError};
-pub use law::{Command, ControlLaw, Controller, Diagnostics, Measurement, Output, Rejected, State};
+pub use command::{Command, Diagnostics, Output, Rejected};
+pub use error::{Bound, Field, ParamError, Rule, StepError};
+pub use law::{ControlLaw, Controller};
+pub use measurement::Measurement;
 pub use params::{
-    JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask, Warning, Weight,
-    WeightMargins,
+    Discretisation, JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask,
+    TargetMotion, Warning, Weight, WeightMargins,
 };
 pub use platform::{
     CarLike, CompanionFrame, Omnidirectional, Platform, PlatformCommand, PlatformKind, Unicycle,
     VelocityLimits,
 };
 pub use scalar::{wrap_angle, Real};
-pub use se2::Pose;
+pub use se2::{Pose, PoseSc};
+pub use state::{Sent, State, HISTORY};
 
 pub use nalgebra;

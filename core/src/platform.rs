@@ -16,7 +16,8 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
-use crate::error::{ParamError, Rule};
+use crate::error::{Bound, ParamError, Rule};
+use crate::params::check_positive;
 use crate::scalar::Real;
 use crate::se2::{inverse3, Pose};
 
@@ -48,6 +49,10 @@ pub struct CompanionFrame<T> {
     pub xi_f: T,
     /// `∂ξ_f/∂α` (car-like; 0 otherwise).
     pub dxi_f: Vector2<T>,
+    /// `∂H̄/∂αᵢ` for each transverse-function variable (unused ones zero): how the map from
+    /// the platform's inputs to the companion frame's velocity turns with `α`. The law uses
+    /// it to advance `α` linearly implicitly over a hold.
+    pub dhbar: [Matrix3<T>; 2],
 }
 
 /// Velocity limits of a platform, met by one common scale factor (end of §3.4.2).
@@ -76,11 +81,11 @@ impl<T: Real> VelocityLimits<T> {
 
     pub(crate) fn validate(&self) -> Result<(), ParamError> {
         for (name, v) in [
-            ("limits.forward", self.forward),
-            ("limits.lateral", self.lateral),
-            ("limits.angular", self.angular),
-            ("limits.alpha_rate", self.alpha_rate),
-            ("limits.steering_rate", self.steering_rate),
+            ("velocity_limits.forward", self.forward),
+            ("velocity_limits.lateral", self.lateral),
+            ("velocity_limits.angular", self.angular),
+            ("velocity_limits.alpha_rate", self.alpha_rate),
+            ("velocity_limits.steering_rate", self.steering_rate),
         ] {
             // +∞ is allowed (no limit); NaN and non-positive values are not.
             if v.nan() {
@@ -124,9 +129,19 @@ pub trait Platform<T: Real>: Copy + core::fmt::Debug {
     /// The first parameter that breaks a rule.
     fn validate(&self) -> Result<(), ParamError>;
 
-    /// `f(α)`, `H̄(α)` and its inverse. `None` only if `H̄(α)` is numerically singular,
-    /// which a validated transverse function excludes for finite `α`.
-    fn companion(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>>;
+    /// `f(α)`, `H̄(α)` and its inverse (with `dhbar` zero). `None` only if `H̄(α)` is
+    /// numerically singular, which a validated transverse function excludes for finite `α`.
+    fn companion(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
+        self.companion_frame::<false>(alpha)
+    }
+
+    /// [`companion`](Self::companion) with `∂H̄/∂α` (`dhbar`) as well.
+    fn companion_with_derivative(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
+        self.companion_frame::<true>(alpha)
+    }
+
+    /// The companion frame, with `∂H̄/∂α` when `DERIVATIVE` (otherwise `dhbar` is zero).
+    fn companion_frame<const DERIVATIVE: bool>(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>>;
 
     /// The body velocity `u_b` that generalised inputs `w` give, with measured steering
     /// `ξ` (car-like only).
@@ -135,19 +150,36 @@ pub trait Platform<T: Real>: Copy + core::fmt::Debug {
     /// `α̇` contained in the generalised inputs `w` (unused components zero).
     fn alpha_rate(w: &Vector3<T>) -> Vector2<T>;
 
-    /// The steering rate `v_ξ`, eq. (59) (car-like; 0 otherwise).
-    fn steering_rate(&self, companion: &CompanionFrame<T>, xi: T, alpha_rate: &Vector2<T>) -> T;
+    /// The gain `k` (1/s) of the steering law (59) (car-like; 0 otherwise).
+    fn steering_gain(&self) -> T {
+        T::zero()
+    }
 
     /// The platform command for generalised inputs `w` and steering rate `v_ξ`.
     fn command(w: &Vector3<T>, v_xi: T, xi: T) -> PlatformCommand<T>;
 
-    /// The largest ratio `|component| / limit` over the platform's velocities and `α̇`.
-    fn saturation_ratio(limits: &VelocityLimits<T>, w: &Vector3<T>, v_xi: T) -> T;
+    /// The body velocity `u_b` a platform command gives at steering `ξ` (car-like only).
+    fn body_velocity_of(c: &PlatformCommand<T>, xi: T) -> Vector3<T>;
+
+    /// The largest rate (rad/s) among `α̇ᵢ` and the heading rate `ω` that `w` gives at
+    /// steering `ξ`.
+    fn max_turn_rate(w: &Vector3<T>, xi: T) -> T;
+
+    /// The largest factor `ρ ∈ (0, 1]` such that `ρ w` meets the velocity limits (`α̇`
+    /// included, the car's steering rate apart): `min(1, minᵢ limitᵢ/|wᵢ|)`, which cannot
+    /// overflow.
+    fn saturation_scale(limits: &VelocityLimits<T>, w: &Vector3<T>) -> T;
 }
 
+/// `min(ρ, limit/|x|)` (`+∞` for `x = 0`: no constraint).
 #[inline]
-fn ratio<T: Real>(x: T, limit: T) -> T {
-    x.abs() / limit
+fn within<T: Real>(rho: T, x: T, limit: T) -> T {
+    let r = limit / x.abs();
+    if r < rho {
+        r
+    } else {
+        rho
+    }
 }
 
 #[inline]
@@ -169,6 +201,17 @@ fn hbar_from_h<T: Real>(h: &Matrix3<T>, pf: (T, T)) -> Matrix3<T> {
         hb[(1, j)] -= pf.0 * h[(2, j)];
     }
     hb
+}
+
+/// `∂H̄/∂α = [I −S p_f; 0 1] ∂H/∂α + [0 0 ∂p_fy/∂α; 0 0 −∂p_fx/∂α; 0 0 0] H`.
+#[inline]
+fn dhbar_from<T: Real>(h: &Matrix3<T>, dh: &Matrix3<T>, pf: (T, T), dpf: (T, T)) -> Matrix3<T> {
+    let mut d = hbar_from_h(dh, pf);
+    for j in 0..3 {
+        d[(0, j)] += dpf.1 * h[(2, j)];
+        d[(1, j)] -= dpf.0 * h[(2, j)];
+    }
+    d
 }
 
 /// Unicycle-like platform with Lemma 1's transverse function, eq. (16):
@@ -209,12 +252,12 @@ impl<T: Real> Platform<T> for Unicycle<T> {
     const ALPHA_DIM: usize = 1;
 
     fn validate(&self) -> Result<(), ParamError> {
-        positive("epsilon_1", self.epsilon_1)?;
-        positive("epsilon_2", self.epsilon_2)
+        check_positive("epsilon_1", self.epsilon_1, Bound::TransverseSize)?;
+        check_positive("epsilon_2", self.epsilon_2, Bound::Magnitude)
     }
 
-    #[inline]
-    fn companion(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
+    #[inline(always)]
+    fn companion_frame<const DERIVATIVE: bool>(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
         let (e1, e2) = (self.epsilon_1, self.epsilon_2);
         let (s, c) = alpha[0].sincos();
         let half = T::of(0.5);
@@ -232,6 +275,18 @@ impl<T: Real> Platform<T> for Unicycle<T> {
         let h = Matrix3::new(cf, z, -dx, sf, z, -dy, z, T::one(), -dth);
         let hbar = hbar_from_h(&h, (f.x, f.y));
         let (hbar_inv, det_h) = inverse3(&hbar)?;
+        // ∂H/∂α: (cos θ_f, sin θ_f)' = θ_f' (−sin θ_f, cos θ_f); x_f'' = −ε₁ sin α,
+        // y_f'' = −2 ε₁ε₂ sin α cos α, θ_f'' = −ε₂ cos α k² − 2 ε₂³ sin²α cos α k⁴ (k² = 1/(1+y²));
+        // ∂H̄/∂α = [I −S p_f; 0 1] ∂H/∂α + [0 0 y_f'; 0 0 −x_f'; 0 0 0] H.
+        let dhbar = if DERIVATIVE {
+            let ddx = -e1 * s;
+            let ddy = -(e1 * e2 * s * c) * T::of(2.0);
+            let ddth = -e2 * c * k2 - T::of(2.0) * e2 * e2 * e2 * s * s * c * k2 * k2;
+            let dh = Matrix3::new(-sf * dth, z, -ddx, cf * dth, z, -ddy, z, z, -ddth);
+            dhbar_from(&h, &dh, (f.x, f.y), (dx, dy))
+        } else {
+            Matrix3::zeros()
+        };
         Some(CompanionFrame {
             f,
             sin_cos_theta_f: (sf, cf),
@@ -240,6 +295,7 @@ impl<T: Real> Platform<T> for Unicycle<T> {
             det_h,
             xi_f: z,
             dxi_f: Vector2::zeros(),
+            dhbar: [dhbar, Matrix3::zeros()],
         })
     }
 
@@ -254,18 +310,23 @@ impl<T: Real> Platform<T> for Unicycle<T> {
     }
 
     #[inline]
-    fn steering_rate(&self, _: &CompanionFrame<T>, _: T, _: &Vector2<T>) -> T {
-        T::zero()
-    }
-
-    #[inline]
     fn command(w: &Vector3<T>, _v_xi: T, _xi: T) -> PlatformCommand<T> {
         PlatformCommand { v: w[0], v_lat: T::zero(), omega: w[1], v_xi: T::zero() }
     }
 
     #[inline]
-    fn saturation_ratio(l: &VelocityLimits<T>, w: &Vector3<T>, _: T) -> T {
-        max(max(ratio(w[0], l.forward), ratio(w[1], l.angular)), ratio(w[2], l.alpha_rate))
+    fn body_velocity_of(c: &PlatformCommand<T>, _xi: T) -> Vector3<T> {
+        Vector3::new(c.v, T::zero(), c.omega)
+    }
+
+    #[inline]
+    fn max_turn_rate(w: &Vector3<T>, _xi: T) -> T {
+        max(w[1].abs(), w[2].abs())
+    }
+
+    #[inline]
+    fn saturation_scale(l: &VelocityLimits<T>, w: &Vector3<T>) -> T {
+        within(within(within(T::one(), w[0], l.forward), w[1], l.angular), w[2], l.alpha_rate)
     }
 }
 
@@ -295,12 +356,15 @@ pub struct CarLike<T> {
     pub k: T,
 }
 
-/// The values of `f̄` and its partial derivatives for [`CarLike`].
+/// The values of `f̄` and its first and second partial derivatives for [`CarLike`].
 #[derive(Clone, Copy, Debug)]
 struct CarF<T> {
     fb: [T; 4],
     d1: [T; 4],
     d2: [T; 4],
+    d11: [T; 4],
+    d12: [T; 4],
+    d22: [T; 4],
 }
 
 impl<T: Real> CarLike<T> {
@@ -309,7 +373,14 @@ impl<T: Real> CarLike<T> {
         Self { epsilon, eta_1: eta[0], eta_2: eta[1], eta_3: eta[2], k }
     }
 
-    fn fbar(&self, alpha: &Vector2<T>) -> CarF<T> {
+    /// The steering law (59) in continuous time, `v_ξ = −k (ξ − ξ_f(α)) + ∂ξ_f/∂α · α̇`
+    /// (1/(m·s)). The law applies its exact discretisation over the hold (see the
+    /// `platform_law` module).
+    pub fn steering_rate(&self, frame: &CompanionFrame<T>, xi: T, alpha_rate: &Vector2<T>) -> T {
+        -self.k * (xi - frame.xi_f) + frame.dxi_f.dot(alpha_rate)
+    }
+
+    fn fbar<const SECOND: bool>(&self, alpha: &Vector2<T>) -> CarF<T> {
         let e = self.epsilon;
         let (n1, n2, n3) = (self.eta_1, self.eta_2, self.eta_3);
         let (s1, c1) = alpha[0].sincos();
@@ -335,7 +406,19 @@ impl<T: Real> CarLike<T> {
             e3 * (n1 * (two * s1 * c1 * c1 - s1 * s1 * s1) * sixth - n3 * c1 * c2),
         ];
         let d2 = [e * n2 * c2, T::zero(), e2 * n3 * s2, e3 * (-n2 * n3 * c22 * half + n3 * s1 * s2)];
-        CarF { fb, d1, d2 }
+        let z = T::zero();
+        if !SECOND {
+            return CarF { fb, d1, d2, d11: [z; 4], d12: [z; 4], d22: [z; 4] };
+        }
+        let d11 = [
+            -e * s1,
+            -e * n1 * c1,
+            -e2 * n1 * s21,
+            e3 * (n1 * (two * c1 * c1 * c1 - T::of(7.0) * s1 * s1 * c1) * sixth + n3 * s1 * c2),
+        ];
+        let d12 = [z, z, z, e3 * n3 * c1 * s2];
+        let d22 = [-e * n2 * s2, z, e2 * n3 * c2, e3 * (n2 * n3 * s22 + n3 * s1 * c2)];
+        CarF { fb, d1, d2, d11, d12, d22 }
     }
 }
 
@@ -344,11 +427,11 @@ impl<T: Real> Platform<T> for CarLike<T> {
     const ALPHA_DIM: usize = 2;
 
     fn validate(&self) -> Result<(), ParamError> {
-        positive("epsilon", self.epsilon)?;
-        positive("eta_1", self.eta_1)?;
-        positive("eta_2", self.eta_2)?;
-        positive("eta_3", self.eta_3)?;
-        positive("k", self.k)?;
+        check_positive("epsilon", self.epsilon, Bound::TransverseSize)?;
+        check_positive("eta_1", self.eta_1, Bound::Magnitude)?;
+        check_positive("eta_2", self.eta_2, Bound::Magnitude)?;
+        check_positive("eta_3", self.eta_3, Bound::Magnitude)?;
+        check_positive("k", self.k, Bound::Magnitude)?;
         let lhs = T::of(6.0) * self.eta_2 * self.eta_3;
         let rhs = T::of(8.0) * self.eta_3 + self.eta_1 * self.eta_2;
         if lhs > rhs {
@@ -358,9 +441,9 @@ impl<T: Real> Platform<T> for CarLike<T> {
         }
     }
 
-    #[inline]
-    fn companion(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
-        let CarF { fb, d1, d2 } = self.fbar(alpha);
+    #[inline(always)]
+    fn companion_frame<const DERIVATIVE: bool>(&self, alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
+        let CarF { fb, d1, d2, d11, d12, d22 } = self.fbar::<DERIVATIVE>(alpha);
         let u = fb[2];
         let k2 = T::one() / (T::one() + u * u); // cos² θ_f
         let k = k2.square_root(); // cos θ_f
@@ -376,7 +459,35 @@ impl<T: Real> Platform<T> for CarLike<T> {
         let h = Matrix3::new(cf, -d1[0], -d2[0], sf, -d1[3], -d2[3], xi_f, -d1[2] * k2, -d2[2] * k2);
         let hbar = hbar_from_h(&h, (f.x, f.y));
         let (hbar_inv, det_h) = inverse3(&hbar)?;
-        Some(CompanionFrame { f, sin_cos_theta_f: (sf, cf), hbar, hbar_inv, det_h, xi_f, dxi_f })
+        // ∂H/∂αᵢ: column 0 (cos θ_f, sin θ_f, ξ_f)' = (−sin θ_f θ_f,ᵢ, cos θ_f θ_f,ᵢ, ξ_f,ᵢ);
+        // columns j: −(x_f,ᵢⱼ, y_f,ᵢⱼ, θ_f,ᵢⱼ) with θ_f,ᵢⱼ = f̄₃,ᵢⱼ k² − 2 f̄₃ f̄₃,ᵢ f̄₃,ⱼ k⁴.
+        let th = |d: &[T; 4]| d[2] * k2;
+        let thh =
+            |di: &[T; 4], dj: &[T; 4], dij: &[T; 4]| dij[2] * k2 - T::of(2.0) * u * di[2] * dj[2] * k2 * k2;
+        let dh_i = |di: &[T; 4], dxi: T, di1: &[T; 4], di2: &[T; 4]| {
+            Matrix3::new(
+                -sf * th(di),
+                -di1[0],
+                -di2[0],
+                cf * th(di),
+                -di1[3],
+                -di2[3],
+                dxi,
+                -thh(di, &d1, di1),
+                -thh(di, &d2, di2),
+            )
+        };
+        let dhbar = if DERIVATIVE {
+            let dh1 = dh_i(&d1, dxi_f[0], &d11, &d12);
+            let dh2 = dh_i(&d2, dxi_f[1], &d12, &d22);
+            [
+                dhbar_from(&h, &dh1, (f.x, f.y), (d1[0], d1[3])),
+                dhbar_from(&h, &dh2, (f.x, f.y), (d2[0], d2[3])),
+            ]
+        } else {
+            [Matrix3::zeros(); 2]
+        };
+        Some(CompanionFrame { f, sin_cos_theta_f: (sf, cf), hbar, hbar_inv, det_h, xi_f, dxi_f, dhbar })
     }
 
     #[inline]
@@ -390,8 +501,8 @@ impl<T: Real> Platform<T> for CarLike<T> {
     }
 
     #[inline]
-    fn steering_rate(&self, c: &CompanionFrame<T>, xi: T, alpha_rate: &Vector2<T>) -> T {
-        -self.k * (xi - c.xi_f) + c.dxi_f.dot(alpha_rate)
+    fn steering_gain(&self) -> T {
+        self.k
     }
 
     #[inline]
@@ -400,9 +511,18 @@ impl<T: Real> Platform<T> for CarLike<T> {
     }
 
     #[inline]
-    fn saturation_ratio(l: &VelocityLimits<T>, w: &Vector3<T>, v_xi: T) -> T {
-        let a = max(ratio(w[1], l.alpha_rate), ratio(w[2], l.alpha_rate));
-        max(max(ratio(w[0], l.forward), a), ratio(v_xi, l.steering_rate))
+    fn body_velocity_of(c: &PlatformCommand<T>, xi: T) -> Vector3<T> {
+        Vector3::new(c.v, T::zero(), c.v * xi)
+    }
+
+    #[inline]
+    fn max_turn_rate(w: &Vector3<T>, xi: T) -> T {
+        max(max(w[1].abs(), w[2].abs()), (w[0] * xi).abs())
+    }
+
+    #[inline]
+    fn saturation_scale(l: &VelocityLimits<T>, w: &Vector3<T>) -> T {
+        within(within(within(T::one(), w[0], l.forward), w[1], l.alpha_rate), w[2], l.alpha_rate)
     }
 }
 
@@ -419,8 +539,8 @@ impl<T: Real> Platform<T> for Omnidirectional {
         Ok(())
     }
 
-    #[inline]
-    fn companion(&self, _alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
+    #[inline(always)]
+    fn companion_frame<const DERIVATIVE: bool>(&self, _alpha: &Vector2<T>) -> Option<CompanionFrame<T>> {
         Some(CompanionFrame {
             f: Pose::identity(),
             sin_cos_theta_f: (T::zero(), T::one()),
@@ -429,6 +549,7 @@ impl<T: Real> Platform<T> for Omnidirectional {
             det_h: T::one(),
             xi_f: T::zero(),
             dxi_f: Vector2::zeros(),
+            dhbar: [Matrix3::zeros(); 2],
         })
     }
 
@@ -443,18 +564,23 @@ impl<T: Real> Platform<T> for Omnidirectional {
     }
 
     #[inline]
-    fn steering_rate(&self, _: &CompanionFrame<T>, _: T, _: &Vector2<T>) -> T {
-        T::zero()
-    }
-
-    #[inline]
     fn command(w: &Vector3<T>, _v_xi: T, _xi: T) -> PlatformCommand<T> {
         PlatformCommand { v: w[0], v_lat: w[1], omega: w[2], v_xi: T::zero() }
     }
 
     #[inline]
-    fn saturation_ratio(l: &VelocityLimits<T>, w: &Vector3<T>, _: T) -> T {
-        max(max(ratio(w[0], l.forward), ratio(w[1], l.lateral)), ratio(w[2], l.angular))
+    fn body_velocity_of(c: &PlatformCommand<T>, _xi: T) -> Vector3<T> {
+        Vector3::new(c.v, c.v_lat, c.omega)
+    }
+
+    #[inline]
+    fn max_turn_rate(w: &Vector3<T>, _xi: T) -> T {
+        w[2].abs()
+    }
+
+    #[inline]
+    fn saturation_scale(l: &VelocityLimits<T>, w: &Vector3<T>) -> T {
+        within(within(within(T::one(), w[0], l.forward), w[1], l.lateral), w[2], l.angular)
     }
 }
 

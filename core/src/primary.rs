@@ -79,23 +79,34 @@ pub fn filter_rate<T: Real, const N: usize>(
     d * (-sigma / (xi + n))
 }
 
-/// Evaluates the primary task at joint positions `q`, target pose `r_bd` seen from the
-/// base, regularisation `Γ = gamma` (with `Γ̇ = gamma_rate`), filtered joints `q̂` and
-/// their rate `q̂̇`. `rot_star = (sin θ*, cos θ*)` of `r*_ed`.
-#[allow(clippy::too_many_arguments, clippy::similar_names)]
-#[inline]
+/// The arguments of the primary task at one point.
+#[derive(Clone, Copy, Debug)]
+pub struct PrimaryPoint<'a, T, const N: usize> {
+    /// Joint positions `q`.
+    pub q: &'a SVector<T, N>,
+    /// The target's pose seen from the base, `r_bd`.
+    pub r_bd: &'a Pose<T>,
+    /// `Γ` of (22) (the scalar of `Γ I`).
+    pub gamma: T,
+    /// `Γ̇`.
+    pub gamma_rate: T,
+    /// The filtered joints `q̂` of (26).
+    pub q_hat: &'a SVector<T, N>,
+    /// Their rate `q̂̇`.
+    pub q_hat_rate: &'a SVector<T, N>,
+}
+
+/// Evaluates the primary task at a point. `rot_star = (sin θ*, cos θ*)` of `r*_ed`.
+#[allow(clippy::similar_names)]
+#[inline(always)]
 pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
     task: &PrimaryTask<T, N>,
     limits: &JointLimits<T, N>,
     arm: &A,
-    q: &SVector<T, N>,
-    r_bd: &Pose<T>,
-    gamma: T,
-    gamma_rate: T,
-    q_hat: &SVector<T, N>,
-    q_hat_rate: &SVector<T, N>,
+    point: &PrimaryPoint<'_, T, N>,
     rot_star: (T, T),
 ) -> PrimaryTerms<T, N> {
+    let PrimaryPoint { q, r_bd, gamma, gamma_rate, q_hat, q_hat_rate } = *point;
     let kin = arm.kinematics(q);
     let r_eb = kin.r_eb;
     let (s, c) = kin.sin_cos_theta;

@@ -26,6 +26,8 @@ pub trait Real: RealField + Copy + Default + core::fmt::Debug {
     fn square_root(self) -> Self;
     /// `self` rounded to the nearest integer, halfway cases away from zero.
     fn round_nearest(self) -> Self;
+    /// The remainder of `self / y` with the sign of `self`, computed exactly (IEEE `fmod`).
+    fn fmod(self, y: Self) -> Self;
     /// Whether `self` is neither infinite nor NaN.
     fn finite(self) -> bool;
     /// Whether `self` is NaN.
@@ -60,6 +62,10 @@ impl Real for f64 {
     #[inline]
     fn round_nearest(self) -> Self {
         libm::round(self)
+    }
+    #[inline]
+    fn fmod(self, y: Self) -> Self {
+        libm::fmod(self, y)
     }
     #[inline]
     fn finite(self) -> bool {
@@ -109,6 +115,10 @@ impl Real for f32 {
         crate::fastmath::round(self)
     }
     #[inline]
+    fn fmod(self, y: Self) -> Self {
+        libm::fmodf(self, y)
+    }
+    #[inline]
     fn finite(self) -> bool {
         self.is_finite()
     }
@@ -127,7 +137,15 @@ impl Real for f32 {
     }
 }
 
-/// Wraps an angle (radians) to (−π, π].
+/// Wraps an angle (radians) to (−π, π], for any finite magnitude (NaN for a non-finite
+/// one).
+///
+/// Up to |a| = 10⁵ the angle is reduced as `a − 2π·round(a/2π)`; beyond, where that
+/// product would lose the result's bits, by the exact remainder `fmod(a, 2π)` (a cold
+/// path). Either way a last correction of ±2π, exact by Sterbenz's lemma, puts the result
+/// on the right side of ±π. (2π here is the scalar type's `2π`, so an angle of
+/// 10¹⁷ rad wraps to its remainder modulo that number: at such magnitudes the angle
+/// itself carries no information, and the point is a value in range.)
 #[inline]
 pub fn wrap_angle<T: Real>(a: T) -> T {
     let two_pi = T::two_pi();
@@ -135,8 +153,9 @@ pub fn wrap_angle<T: Real>(a: T) -> T {
     if a > -pi && a <= pi {
         return a;
     }
-    let mut w = a - two_pi * (a / two_pi).round_nearest();
-    // Rounding can leave the result on the excluded end of the interval.
+    let mut w =
+        if a.abs() <= T::of(1e5) { a - two_pi * (a / two_pi).round_nearest() } else { a.fmod(two_pi) };
+    // Rounding (or fmod's sign convention) can leave the result beyond ±π.
     if w <= -pi {
         w += two_pi;
     } else if w > pi {

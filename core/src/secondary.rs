@@ -142,6 +142,22 @@ pub fn psi_tilde<T: Real, const N: usize>(
     (psi, grad)
 }
 
+/// `Ψ̃(q)` of eq. (52) without its gradient.
+#[inline]
+pub fn psi_tilde_value<T: Real, const N: usize>(
+    q: &SVector<T, N>,
+    lower: &SVector<T, N>,
+    upper: &SVector<T, N>,
+    m: &WeightMargins<T, N>,
+) -> T {
+    let mut psi = T::zero();
+    for i in 0..N {
+        let (s, _) = sigma_tilde_joint(q[i], lower[i], upper[i], m, i);
+        psi += s * s;
+    }
+    psi / T::of(N as f64)
+}
+
 /// The rate of the bounded filters (26), (53), (54): `−λ (x − x̃)/(ξ + |x − x̃|)`.
 #[inline]
 pub fn bounded_filter_rate<T: Real>(x: T, target: T, lambda: T, xi: T) -> T {

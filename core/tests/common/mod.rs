@@ -259,8 +259,25 @@ pub fn omni_law(params: Params<f64, 3>) -> ControlLaw<f64, Omnidirectional, Rpr<
     ControlLaw::new(params, Omnidirectional, Rpr::paper()).expect("valid parameters")
 }
 
+/// The paper's parameters with [`Discretisation::Sampled`](companion_core::Discretisation):
+/// the law evaluated at the measured state, where the tests re-derive its formulas. The
+/// turn-per-step bound (a sampling bound, not in the paper) is as loose as validation
+/// allows, so that random points far from the target rarely meet it; tests that need the
+/// paper's formulas exactly skip points where it acts (`saturation > 1`). The hold-aware
+/// default is tested by its own properties in `hold.rs`.
 pub fn paper(run: PaperRun) -> Params<f64, 3> {
-    Params::paper(run)
+    let mut p = Params::paper(run);
+    p.discretisation = companion_core::Discretisation::Sampled;
+    p.max_turn_per_step = PI;
+    p
+}
+
+/// [`paper`] in `f32`.
+pub fn paper_f32(run: PaperRun) -> Params<f32, 3> {
+    let mut p = Params::paper(run);
+    p.discretisation = companion_core::Discretisation::Sampled;
+    p.max_turn_per_step = core::f32::consts::PI;
+    p
 }
 
 /// The body velocity `u_b` a platform command gives, with steering `ξ` (eqs. 3, 55).

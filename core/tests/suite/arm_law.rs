@@ -128,7 +128,7 @@ fn e_m_rate_is_g_e_m<P: Platform<f64>>(
 }
 
 fn params(k: usize, limits: Option<VelocityLimits<f64>>) -> Params<f64, 3> {
-    let mut p = Params::paper(run(k));
+    let mut p = paper(run(k));
     if let Some(l) = limits {
         p.velocity_limits = l;
     }
@@ -164,7 +164,7 @@ proptest! {
     /// The same with a general gain `G = −diag(gᵢ)` and a general `r*_ed`.
     #[test]
     fn general_gain_and_desired_pose(pt in point(0.02), g in vec3(0.5, 10.0), star in (0.3..0.7, -0.1..0.1, -0.3..0.3f64)) {
-        let mut p = Params::paper(PaperRun::C);
+        let mut p = paper(PaperRun::C);
         p.primary.gain = g;
         p.primary.target_in_effector = companion_core::Pose::new(star.0, star.1, star.2);
         e_m_rate_is_g_e_m(&unicycle_law(p), &pt, None)?;

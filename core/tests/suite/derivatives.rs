@@ -117,18 +117,16 @@ fn task(star: &V3) -> PrimaryTask<f64, 3> {
 /// The core's primary terms at `pt`, with `q`, `r_bd`, `Γ`, `q̂` replaced.
 fn terms(pt: &PrimaryPoint, q: &Q, r_bd: &V3, gamma: f64, q_hat: &Q) -> PrimaryTerms<f64, 3> {
     let t = task(&pt.star);
-    primary_terms(
-        &t,
-        &limits(),
-        &arm(),
+    let r_bd = pose(r_bd);
+    let point = companion_core::primary::PrimaryPoint {
         q,
-        &pose(r_bd),
+        r_bd: &r_bd,
         gamma,
-        pt.gamma_rate,
+        gamma_rate: pt.gamma_rate,
         q_hat,
-        &pt.q_hat_rate,
-        pt.star[2].sin_cos(),
-    )
+        q_hat_rate: &pt.q_hat_rate,
+    };
+    primary_terms(&t, &limits(), &arm(), &point, pt.star[2].sin_cos())
 }
 
 /// Eq. (42) from its definition: `e_p = (r*_ed)⁻¹ r_eb(q) r_bd`, angle wrapped.

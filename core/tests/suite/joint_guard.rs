@@ -15,12 +15,12 @@ proptest! {
         pt in point(0.002),
         kappa in 0.01..1.0f64,
         vmax in 0.5..50.0f64,
-        dt in 1e-4..0.05f64,
+        dt in 1e-4..0.01f64,
     ) {
-        let mut guarded = Params::paper(PaperRun::A);
+        let mut guarded = paper(PaperRun::A);
         guarded.joint_step_fraction = kappa;
         guarded.joint_velocity_limits = SVector::repeat(vmax);
-        let mut free = Params::paper(PaperRun::A);
+        let mut free = paper(PaperRun::A);
         free.joint_step_fraction = 1.0;
         let (mut sa, mut sb) = (pt.state, pt.state);
         let a = unicycle_law(guarded).step(&mut sa, &pt.meas, dt);

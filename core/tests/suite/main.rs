@@ -10,6 +10,7 @@
 //! | [`transverse`] | Lemma 1's determinant, Lemma 2's transversality, `H̄(α)` (13)–(15), (57)–(60), `∂ξ_f/∂α`, (59) |
 //! | [`derivatives`] | every analytic derivative of the arm, `e_p`, `e_m`, `h_s1`, `h_s2`, `h_s` by differences |
 //! | [`arm_law`] | `ė_m = G e_m` through whole steps (30), every platform and run, saturated or not |
+//! | [`hold`] | the hold-aware discretisation: third-order residual over a hold, delays predicted exactly, no lock-out, bounded state, turn bound |
 //! | [`platform_law`] | (36)–(37) with every weight and pre-compensation; the state update; initialisation |
 //! | [`saturation`] | one common factor, direction kept, limits met |
 //! | [`closed_loop`] | exact plant (RK4): `log ‖e_m‖` slope −3; `h_s` non-increasing in run (a) |
@@ -25,6 +26,7 @@ mod common;
 mod arm_law;
 mod closed_loop;
 mod derivatives;
+mod hold;
 mod joint_guard;
 mod params;
 mod platform_law;

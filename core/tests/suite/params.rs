@@ -5,8 +5,8 @@
 //! (`δ₂⁺⁺ = 0.0333 < δ₂ = 0.035`, SPEC §3).
 
 use companion_core::{
-    CarLike, ControlLaw, Omnidirectional, PaperRun, ParamError, Params, Pose, Precompensation, Rpr, Rule,
-    Unicycle, VelocityLimits, Warning, Weight, WeightMargins,
+    Bound, CarLike, ControlLaw, Omnidirectional, PaperRun, ParamError, Params, Pose, Precompensation, Rpr,
+    Rule, Unicycle, VelocityLimits, Warning, Weight, WeightMargins,
 };
 
 type P = Params<f64, 3>;
@@ -42,33 +42,41 @@ fn cases() -> Vec<Case> {
     use Rule::*;
     vec![
         // Joint limits.
-        (A, |p| p.joint_limits.lower[0] = f64::NAN, joint("q_min", 0, NonFinite)),
-        (A, |p| p.joint_limits.upper[2] = f64::INFINITY, joint("q_max", 2, NonFinite)),
-        (A, |p| p.joint_limits.lower[1] = 0.7, joint("q_min", 1, EmptyInterval)),
-        (A, |p| p.joint_limits.lower[2] = 2.0, joint("q_min", 2, EmptyInterval)),
+        (A, |p| p.joint_limits.lower[0] = f64::NAN, joint("joint_limits.lower", 0, NonFinite)),
+        (A, |p| p.joint_limits.upper[2] = f64::INFINITY, joint("joint_limits.upper", 2, NonFinite)),
+        (A, |p| p.joint_limits.lower[1] = 0.7, joint("joint_limits.lower", 1, EmptyInterval)),
+        (A, |p| p.joint_limits.lower[2] = 2.0, joint("joint_limits.lower", 2, EmptyInterval)),
         // Primary task.
-        (A, |p| p.primary.target_in_effector = Pose::new(0.5, f64::NAN, 0.0), scalar("r_ed_star", NonFinite)),
-        (A, |p| p.primary.penalty_weight[1] = 0.0, joint("alpha_i", 1, NotPositive)),
-        (A, |p| p.primary.penalty_weight[2] = f64::NAN, joint("alpha_i", 2, NonFinite)),
-        (A, |p| p.primary.penalty_margin[0] = -0.1, joint("delta_i", 0, NotPositive)),
-        (A, |p| p.primary.penalty_margin[2] = PI / 2.0, joint("delta_i", 2, PenaltyMarginTooWide)),
-        (A, |p| p.primary.penalty_margin[1] = 0.36, joint("delta_i", 1, PenaltyMarginTooWide)),
-        (A, |p| p.primary.regularisation_gain = -0.2, scalar("gamma_0", Negative)),
-        (A, |p| p.primary.regularisation_gain = f64::INFINITY, scalar("gamma_0", NonFinite)),
-        (A, |p| p.primary.regularisation_decay = -1.0, scalar("gamma_decay", Negative)),
-        (A, |p| p.primary.filter_sigma = 0.0, scalar("sigma_qhat", NotPositive)),
-        (A, |p| p.primary.filter_xi = -1.0, scalar("xi_qhat", NotPositive)),
-        (A, |p| p.primary.gain[2] = 0.0, joint("G_gain", 2, NotPositive)),
-        (A, |p| p.primary.gain[0] = -3.0, joint("G_gain", 0, NotPositive)),
+        (
+            A,
+            |p| p.primary.target_in_effector = Pose::new(0.5, f64::NAN, 0.0),
+            scalar("target_in_effector", NonFinite),
+        ),
+        (A, |p| p.primary.penalty_weight[1] = 0.0, joint("penalty_weight", 1, NotPositive)),
+        (A, |p| p.primary.penalty_weight[2] = f64::NAN, joint("penalty_weight", 2, NonFinite)),
+        (A, |p| p.primary.penalty_margin[0] = -0.1, joint("penalty_margin", 0, NotPositive)),
+        (A, |p| p.primary.penalty_margin[2] = PI / 2.0, joint("penalty_margin", 2, PenaltyMarginTooWide)),
+        (A, |p| p.primary.penalty_margin[1] = 0.36, joint("penalty_margin", 1, PenaltyMarginTooWide)),
+        (A, |p| p.primary.regularisation_gain = -0.2, scalar("regularisation_gain", Negative)),
+        (A, |p| p.primary.regularisation_gain = f64::INFINITY, scalar("regularisation_gain", NonFinite)),
+        (A, |p| p.primary.regularisation_decay = -1.0, scalar("regularisation_decay", Negative)),
+        (A, |p| p.primary.filter_sigma = 0.0, scalar("filter_sigma", NotPositive)),
+        (A, |p| p.primary.filter_xi = -1.0, scalar("filter_xi", NotPositive)),
+        (A, |p| p.primary.gain[2] = 0.0, joint("gain", 2, NotPositive)),
+        (A, |p| p.primary.gain[0] = -3.0, joint("gain", 0, NotPositive)),
         // Secondary task.
-        (A, |p| p.secondary.preferred_pose = Pose::new(f64::INFINITY, 0.0, 0.0), scalar("r_star", NonFinite)),
+        (
+            A,
+            |p| p.secondary.preferred_pose = Pose::new(f64::INFINITY, 0.0, 0.0),
+            scalar("preferred_pose", NonFinite),
+        ),
         (A, |p| p.secondary.gamma_1 = 0.0, scalar("gamma_1", NotPositive)),
         (B, |p| p.secondary.gamma_2 = f64::NAN, scalar("gamma_2", NonFinite)),
-        (B, |p| p.secondary.rest_sigma[1] = 0.0, joint("sigma_rest", 1, NotPositive)),
-        (B, |p| p.secondary.rest_xi = 0.0, scalar("xi_rest", NotPositive)),
-        (C, |p| p.secondary.weight = Weight::Constant(1.5), scalar("psi", NotInUnitInterval)),
-        (C, |p| p.secondary.weight = Weight::Constant(-0.1), scalar("psi", NotInUnitInterval)),
-        (C, |p| p.secondary.weight = Weight::Constant(f64::NAN), scalar("psi", NonFinite)),
+        (B, |p| p.secondary.rest_sigma[1] = 0.0, joint("rest_sigma", 1, NotPositive)),
+        (B, |p| p.secondary.rest_xi = 0.0, scalar("rest_xi", NotPositive)),
+        (C, |p| p.secondary.weight = Weight::Constant(1.5), scalar("weight.psi", NotInUnitInterval)),
+        (C, |p| p.secondary.weight = Weight::Constant(-0.1), scalar("weight.psi", NotInUnitInterval)),
+        (C, |p| p.secondary.weight = Weight::Constant(f64::NAN), scalar("weight.psi", NonFinite)),
         (
             B,
             |p| {
@@ -76,7 +84,7 @@ fn cases() -> Vec<Case> {
                     *lambda = 0.0
                 }
             },
-            scalar("lambda", NotPositive),
+            scalar("weight.lambda", NotPositive),
         ),
         (
             B,
@@ -85,19 +93,19 @@ fn cases() -> Vec<Case> {
                     *xi = -1.0
                 }
             },
-            scalar("xi_psi", NotPositive),
+            scalar("weight.xi", NotPositive),
         ),
-        (B, |p| margins_of(p).lower[1] = 0.0, joint("delta_minus", 1, NotPositive)),
-        (B, |p| margins_of(p).lower_inner[0] = f64::NAN, joint("delta_minus_minus", 0, NonFinite)),
-        (B, |p| margins_of(p).upper[2] = -0.1, joint("delta_plus", 2, NotPositive)),
-        (B, |p| margins_of(p).upper_inner[1] = 0.0, joint("delta_plus_plus", 1, NotPositive)),
+        (B, |p| margins_of(p).lower[1] = 0.0, joint("weight.margins.lower", 1, NotPositive)),
+        (B, |p| margins_of(p).lower_inner[0] = f64::NAN, joint("weight.margins.lower_inner", 0, NonFinite)),
+        (B, |p| margins_of(p).upper[2] = -0.1, joint("weight.margins.upper", 2, NotPositive)),
+        (B, |p| margins_of(p).upper_inner[1] = 0.0, joint("weight.margins.upper_inner", 1, NotPositive)),
         (
             B,
             |p| {
                 let m = margins_of(p);
                 m.lower_inner[0] = m.lower[0];
             },
-            joint("delta_minus_minus", 0, WeightMarginOrder),
+            joint("weight.margins.lower_inner", 0, WeightMarginOrder),
         ),
         (
             C,
@@ -105,7 +113,7 @@ fn cases() -> Vec<Case> {
                 let m = margins_of(p);
                 m.upper_inner[1] = 2.0 * m.upper[1];
             },
-            joint("delta_plus_plus", 1, WeightMarginOrder),
+            joint("weight.margins.upper_inner", 1, WeightMarginOrder),
         ),
         (
             D,
@@ -114,13 +122,17 @@ fn cases() -> Vec<Case> {
                 m.lower[2] = 2.0;
                 m.upper[2] = 1.2;
             },
-            joint("delta_minus", 2, WeightMarginOrder),
+            joint("weight.margins.lower", 2, WeightMarginOrder),
         ),
-        (B, |p| p.secondary.k_bar[2] = 0.0, joint("K_bar", 2, NotPositive)),
-        (B, |p| p.secondary.d[0] = -1.0, joint("D", 0, NotPositive)),
+        (B, |p| p.secondary.k_bar[2] = 0.0, joint("k_bar", 2, NotPositive)),
+        (B, |p| p.secondary.d[0] = -1.0, joint("d", 0, NotPositive)),
         (B, |p| p.secondary.mu = 0.0, scalar("mu", NotPositive)),
         (B, |p| p.secondary.mu = f64::INFINITY, scalar("mu", NonFinite)),
-        (B, |p| p.secondary.precompensation = Precompensation::Full40 { nu: 0.0 }, scalar("nu", NotPositive)),
+        (
+            B,
+            |p| p.secondary.precompensation = Precompensation::Full40 { nu: 0.0 },
+            scalar("precompensation.nu", NotPositive),
+        ),
         // Decomposition (51) is exact only for Ψ ≡ 1.
         (
             B,
@@ -133,13 +145,40 @@ fn cases() -> Vec<Case> {
             scalar("precompensation", Decomposition51NeedsPsiOne),
         ),
         // Velocity limits (+∞ means none) and the time step.
-        (A, |p| p.velocity_limits.forward = f64::NAN, scalar("limits.forward", NonFinite)),
-        (A, |p| p.velocity_limits.lateral = 0.0, scalar("limits.lateral", NotPositive)),
-        (A, |p| p.velocity_limits.angular = -1.0, scalar("limits.angular", NotPositive)),
-        (A, |p| p.velocity_limits.alpha_rate = 0.0, scalar("limits.alpha_rate", NotPositive)),
-        (A, |p| p.velocity_limits.steering_rate = f64::NAN, scalar("limits.steering_rate", NonFinite)),
+        (A, |p| p.velocity_limits.forward = f64::NAN, scalar("velocity_limits.forward", NonFinite)),
+        (A, |p| p.velocity_limits.lateral = 0.0, scalar("velocity_limits.lateral", NotPositive)),
+        (A, |p| p.velocity_limits.angular = -1.0, scalar("velocity_limits.angular", NotPositive)),
+        (A, |p| p.velocity_limits.alpha_rate = 0.0, scalar("velocity_limits.alpha_rate", NotPositive)),
+        (
+            A,
+            |p| p.velocity_limits.steering_rate = f64::NAN,
+            scalar("velocity_limits.steering_rate", NonFinite),
+        ),
         (A, |p| p.max_time_step = 0.0, scalar("max_time_step", NotPositive)),
         (A, |p| p.max_time_step = f64::NAN, scalar("max_time_step", NonFinite)),
+        // The period bound: 0.1 / (largest rate) = 10 ms with the paper's rates (σ/ξ = 10/s).
+        (A, |p| p.max_time_step = 0.0101, scalar("max_time_step", PeriodTooLong)),
+        (A, |p| p.max_time_step = 2.0, scalar("max_time_step", TooLarge(Bound::Time))),
+        (A, |p| p.primary.gain[1] = 20.0, scalar("max_time_step", PeriodTooLong)),
+        // Upper bounds that keep every step computable (in f32 too).
+        (
+            A,
+            |p| p.primary.regularisation_gain = 1e300,
+            scalar("regularisation_gain", TooLarge(Bound::Magnitude)),
+        ),
+        (A, |p| p.primary.gain[0] = 1e7, joint("gain", 0, TooLarge(Bound::Magnitude))),
+        (
+            A,
+            |p| p.secondary.preferred_pose = Pose::new(-1e30, 0.0, 0.0),
+            scalar("preferred_pose", TooLarge(Bound::Length)),
+        ),
+        (A, |p| p.joint_limits.upper[1] = 1e4, joint("joint_limits.upper", 1, TooLarge(Bound::Length))),
+        (B, |p| p.secondary.rest_reach = 0.0, scalar("rest_reach", NotPositive)),
+        (B, |p| p.secondary.rest_reach = 1e9, scalar("rest_reach", TooLarge(Bound::Length))),
+        (A, |p| p.max_delay = -1e-3, scalar("max_delay", Negative)),
+        (A, |p| p.max_delay = 5.0, scalar("max_delay", TooLarge(Bound::Time))),
+        (A, |p| p.max_turn_per_step = 0.0, scalar("max_turn_per_step", NotPositive)),
+        (A, |p| p.max_turn_per_step = 4.0, scalar("max_turn_per_step", TooLarge(Bound::Length))),
     ]
 }
 
@@ -171,11 +210,11 @@ fn weight_margins_are_checked_for_every_weight_kind() {
         p.secondary.weight = weight;
         assert_eq!(p.validate(), Ok(()));
         margins_of(&mut p).upper_inner[0] = margins_of(&mut p).upper[0];
-        assert_eq!(p.validate(), Err(joint("delta_plus_plus", 0, Rule::WeightMarginOrder)));
+        assert_eq!(p.validate(), Err(joint("weight.margins.upper_inner", 0, Rule::WeightMarginOrder)));
     }
     let mut p = P::paper(PaperRun::D);
     p.secondary.weight = Weight::PerJoint { margins: m, lambda: -1.0, xi: 1.0 };
-    assert_eq!(p.validate(), Err(scalar("lambda", Rule::NotPositive)));
+    assert_eq!(p.validate(), Err(scalar("weight.lambda", Rule::NotPositive)));
 }
 
 /// Every `Rule` variant is covered by the table above (or by the platform and arm checks
@@ -185,6 +224,7 @@ fn every_rule_is_exercised() {
     let mut seen: Vec<Rule> = cases().iter().map(|c| c.2.rule).collect();
     seen.push(Rule::Transversality); // below and in transverse.rs
     seen.push(Rule::Geometry); // below
+    seen.push(Rule::TooLarge(Bound::TransverseSize)); // below
     for rule in [
         Rule::NonFinite,
         Rule::NotPositive,
@@ -196,6 +236,11 @@ fn every_rule_is_exercised() {
         Rule::Transversality,
         Rule::Decomposition51NeedsPsiOne,
         Rule::Geometry,
+        Rule::TooLarge(Bound::Time),
+        Rule::TooLarge(Bound::Magnitude),
+        Rule::TooLarge(Bound::Length),
+        Rule::TooLarge(Bound::TransverseSize),
+        Rule::PeriodTooLong,
     ] {
         assert!(seen.contains(&rule), "{rule:?} has no case");
         // Exhaustiveness: this match fails to compile when a rule is added.
@@ -209,7 +254,9 @@ fn every_rule_is_exercised() {
             | Rule::WeightMarginOrder
             | Rule::Transversality
             | Rule::Decomposition51NeedsPsiOne
-            | Rule::Geometry => {}
+            | Rule::Geometry
+            | Rule::TooLarge(_)
+            | Rule::PeriodTooLong => {}
         }
         assert!(!format!("{rule}").is_empty());
     }
@@ -221,15 +268,33 @@ fn platform_and_arm_rules() {
     let bad_car = CarLike::new(0.3, [1.0, 1.0, 1.0], 1.0);
     assert_eq!(ControlLaw::new(p, bad_car, Rpr::paper()).unwrap_err(), scalar("eta", Rule::Transversality));
     let arm = |l: f64, l_e: f64| ControlLaw::new(p, Omnidirectional, Rpr { l, l_e }).map(|_| ());
-    assert_eq!(arm(-0.4, 0.15), Err(scalar("L", Rule::Geometry)));
-    assert_eq!(arm(0.4, -0.01), Err(scalar("L_e", Rule::Geometry)));
-    assert_eq!(arm(f64::NAN, 0.15), Err(scalar("L", Rule::NonFinite)));
-    assert_eq!(arm(0.4, f64::INFINITY), Err(scalar("L_e", Rule::NonFinite)));
+    assert_eq!(arm(-0.4, 0.15), Err(scalar("l", Rule::Geometry)));
+    assert_eq!(arm(0.4, -0.01), Err(scalar("l_e", Rule::Geometry)));
+    assert_eq!(arm(f64::NAN, 0.15), Err(scalar("l", Rule::NonFinite)));
+    assert_eq!(arm(0.4, f64::INFINITY), Err(scalar("l_e", Rule::NonFinite)));
     assert_eq!(arm(0.0, 0.0), Ok(()), "zero offsets are a valid geometry");
     assert_eq!(
         ControlLaw::new(p, Unicycle::new(0.0, 0.4), Rpr::paper()).unwrap_err(),
         scalar("epsilon_1", Rule::NotPositive)
     );
+    // Sizes that would overflow a step (ε³ of Lemma 2 in f32) are refused when built.
+    assert_eq!(
+        ControlLaw::new(p, CarLike::new(1e30, [2.0, 3.0, 2.0], 5.0), Rpr::paper()).unwrap_err(),
+        scalar("epsilon", Rule::TooLarge(Bound::TransverseSize))
+    );
+    assert_eq!(
+        ControlLaw::new(p, Unicycle::new(20.0, 0.4), Rpr::paper()).unwrap_err(),
+        scalar("epsilon_1", Rule::TooLarge(Bound::TransverseSize))
+    );
+    assert_eq!(arm(1e30, 0.15), Err(scalar("l", Rule::TooLarge(Bound::Length))));
+    // The period bound follows the rates: halving the fastest rate doubles it.
+    let mut slow = P::paper(PaperRun::B);
+    assert!((slow.period_bound() - 0.01).abs() < 1e-15, "0.1 / (σ/ξ = 10/s)");
+    slow.primary.filter_sigma = 5.0;
+    slow.secondary.rest_sigma = crate::common::V3::repeat(5.0);
+    assert!((slow.period_bound() - 0.02).abs() < 1e-15, "then the gain 3/s and σ/ξ = 5/s: 0.1/5");
+    slow.max_time_step = 0.02;
+    assert_eq!(slow.validate(), Ok(()));
 }
 
 /// The preset holds the values listed in SPEC §4 (read from the SPEC, not from the code).
@@ -277,7 +342,7 @@ fn paper_preset_holds_the_spec_values() {
                 }
                 let want = match run {
                     PaperRun::B => Precompensation::Full40 { nu: 1e-4 },
-                    PaperRun::C => Precompensation::None,
+                    PaperRun::C => Precompensation::Off,
                     _ => Precompensation::Partial,
                 };
                 assert_eq!(s.precompensation, want);

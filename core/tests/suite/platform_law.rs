@@ -51,7 +51,7 @@ fn margins() -> WeightMargins<f64, 3> {
 }
 
 fn params(v: &Variant) -> Params<f64, 3> {
-    let mut p = Params::paper(PaperRun::B);
+    let mut p = paper(PaperRun::B);
     let s = &mut p.secondary;
     let filtered = s.weight;
     let nu = Precompensation::Full40 { nu: 1e-4 };
@@ -61,13 +61,13 @@ fn params(v: &Variant) -> Params<f64, 3> {
     let (weight, pre, psi_dot) = match v.k {
         0 => (Weight::Constant(1.0), Precompensation::Full51, false), // run (a)
         1 => (filtered, nu, false),                                   // run (b)
-        2 => (filtered, Precompensation::None, false),                // run (c)
+        2 => (filtered, Precompensation::Off, false),                 // run (c)
         3 => (filtered, Precompensation::Partial, false),             // run (d)
         4 => (filtered, nu, true),
         5 => (filtered, Precompensation::Partial, true),
         6 => (constant, nu, false),
         7 => (constant, Precompensation::Partial, false),
-        8 => (constant, Precompensation::None, false),
+        8 => (constant, Precompensation::Off, false),
         9 => (per_joint, Precompensation::Partial, true),
         10 => (from_q_hat, Precompensation::Partial, true),
         _ => (Weight::Constant(1.0), nu, false),
@@ -171,7 +171,7 @@ fn check_step<P: Platform<f64>>(
             let n = a.norm_squared() + nu;
             (a * (dh_dt / n), dh_dt * nu / n)
         }
-        Precompensation::None => (V3::zeros(), 0.0),
+        Precompensation::Off => (V3::zeros(), 0.0),
         Precompensation::Partial => (V3::zeros(), dh_dt),
     };
     let coef = (a.dot(&sec.d.component_mul(&a)) + b2) / (a.dot(&(k * a)) + sec.mu);
@@ -208,7 +208,9 @@ fn check_step<P: Platform<f64>>(
     // The state after the step: one Euler step of each filter, α exact (rate held).
     let wrap_all = |v: Vector2<f64>| Vector2::new(wrap(v[0]), wrap(v[1]));
     check_close("α + dt α̇", &next.alpha, &wrap_all(alpha + dg.alpha_rate * DT), 1e-12, 1.0)?;
-    check_close("q̂ + dt q̂̇", &next.q_hat, &(st.q_hat + q_hat_rate * DT), 1e-12, 1.0)?;
+    // q̂ is kept within the joint limits (a state bound; q̂ filters q, which is inside them).
+    let q_hat_next = Q::from_fn(|i, _| (st.q_hat[i] + q_hat_rate[i] * DT).clamp(LOWER[i], UPPER[i]));
+    check_close("q̂ + dt q̂̇", &next.q_hat, &q_hat_next, 1e-12, 1.0)?;
     match &sec.weight {
         Weight::Filtered { .. } => {
             check_close_scalar("Ψ + dt Ψ̇", next.psi, (st.psi + psi_dot * DT).clamp(0.0, 1.0), 1e-12, 1e-12)?;
@@ -225,9 +227,15 @@ fn check_step<P: Platform<f64>>(
         Weight::Constant(_) | Weight::FromFilteredJoints { .. } => prop_assert_eq!(next.psi, st.psi),
     }
     if rest {
-        // (28) driven by the ū_b actually applied.
+        // (28) driven by the companion frame's velocity actually applied: ū_b, and for the car
+        // also the part [I₂ −S p_f; 0 1] (0, 0, v (ξ − ξ_f)) of (57).
         let q_mat = Matrix3::new(1.0, 0.0, -r_tilde[1], 0.0, 1.0, r_tilde[0], 0.0, 0.0, 1.0);
-        let rate = rbar(r_tilde[2]) * u_hat - q_mat * dg.u_bar;
+        let mut applied = dg.u_bar;
+        if P::KIND == PlatformKind::Car {
+            let z = c.v * (m.steering - xi_f_reference(&alpha));
+            applied += V3::new(frame.f.y * z, -frame.f.x * z, z);
+        }
+        let rate = rbar(r_tilde[2]) * u_hat - q_mat * applied;
         let want = r_tilde + rate * DT;
         check_close(
             "r̃_b + dt ṙ̃_b",
@@ -265,7 +273,7 @@ proptest! {
     /// which changes the command of Choice 3 whenever `Ψ̇ ≠ 0` (checked in value above).
     #[test]
     fn psi_rate_term_changes_the_command(pt in point(0.01)) {
-        let mut p = Params::paper(PaperRun::D);
+        let mut p = paper(PaperRun::D);
         let without = step_point(&unicycle_law(p), &pt, DT)?.0;
         p.secondary.psi_rate_in_drift = true;
         let with = step_point(&unicycle_law(p), &pt, DT)?.0;
@@ -317,6 +325,7 @@ fn check_implicit<P: Platform<f64>>(
     rtol: f64,
 ) -> Result<(), TestCaseError> {
     let (out, _) = step_point(law, pt, DT)?;
+    prop_assume!(out.diagnostics.saturation == 1.0);
     let sec = &law.params().secondary;
     let r_tilde = v3(&pt.state.r_tilde);
     let u0 = u_bar_choice2_reference(law, pt, &r_tilde);
@@ -346,12 +355,12 @@ proptest! {
 
     #[test]
     fn implicit_rest_filter_unicycle(pt in point(0.01)) {
-        check_implicit(&unicycle_law(Params::paper(PaperRun::C)), &pt, 1e-4)?;
+        check_implicit(&unicycle_law(paper(PaperRun::C)), &pt, 1e-4)?;
     }
 
     #[test]
     fn implicit_rest_filter_car(pt in point(0.01)) {
-        let mut p = Params::paper(PaperRun::C);
+        let mut p = paper(PaperRun::C);
         p.secondary.k_bar = V3::new(1.0, 10.0, 10.0);
         // The car's K = H̄ K̄ H̄ᵀ has a condition number up to ~1e5 (det H ≈ 1e−3), which
         // multiplies the rounding of the reference's difference-of-a-difference J: 1e−3.
@@ -360,7 +369,7 @@ proptest! {
 
     #[test]
     fn implicit_rest_filter_omni(pt in point(0.01)) {
-        check_implicit(&omni_law(Params::paper(PaperRun::C)), &pt, 1e-4)?;
+        check_implicit(&omni_law(paper(PaperRun::C)), &pt, 1e-4)?;
     }
 }
 

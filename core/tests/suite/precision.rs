@@ -27,8 +27,7 @@
 use crate::common::*;
 use companion_core::nalgebra::Matrix3;
 use companion_core::{
-    CarLike, Command, ControlLaw, Measurement, Omnidirectional, PaperRun, Params, Platform, Pose, Rpr, State,
-    Unicycle,
+    CarLike, Command, ControlLaw, Measurement, Omnidirectional, PaperRun, Platform, Rpr, State, Unicycle,
 };
 use proptest::prelude::*;
 use proptest::test_runner::TestCaseError;
@@ -36,27 +35,11 @@ use proptest::test_runner::TestCaseError;
 const U32: f64 = 6e-8;
 
 fn state_f32(s: &State<f64, 3>) -> State<f32, 3> {
-    State {
-        alpha: s.alpha.map(|x| x as f32),
-        q_hat: s.q_hat.map(|x| x as f32),
-        psi: s.psi as f32,
-        sigma: s.sigma.map(|x| x as f32),
-        r_tilde: Pose::new(s.r_tilde.x as f32, s.r_tilde.y as f32, s.r_tilde.theta as f32),
-        t0: s.t0 as f32,
-        initialized: s.initialized,
-    }
+    s.cast()
 }
 
 fn state_f64(s: &State<f32, 3>) -> State<f64, 3> {
-    State {
-        alpha: s.alpha.map(f64::from),
-        q_hat: s.q_hat.map(f64::from),
-        psi: f64::from(s.psi),
-        sigma: s.sigma.map(f64::from),
-        r_tilde: Pose::new(f64::from(s.r_tilde.x), f64::from(s.r_tilde.y), f64::from(s.r_tilde.theta)),
-        t0: f64::from(s.t0),
-        initialized: s.initialized,
-    }
+    s.cast()
 }
 
 fn platform_vec(c: &Command<f64, 3>) -> V3 {
@@ -110,23 +93,23 @@ proptest! {
 
     #[test]
     fn single_steps_unicycle(pt in point(0.02), k in 0usize..4) {
-        let l64 = ControlLaw::new(Params::<f64, 3>::paper(run(k)), Unicycle::paper(), Rpr::paper()).expect("valid");
-        let l32 = ControlLaw::new(Params::<f32, 3>::paper(run(k)), Unicycle::paper(), Rpr::paper()).expect("valid");
+        let l64 = ControlLaw::new(paper(run(k)), Unicycle::paper(), Rpr::paper()).expect("valid");
+        let l32 = ControlLaw::new(paper_f32(run(k)), Unicycle::paper(), Rpr::paper()).expect("valid");
         compare_step(&l64, &l32, &pt)?;
     }
 
     #[test]
     fn single_steps_car(pt in point(0.02), k in 0usize..4) {
-        let l64 = ControlLaw::new(Params::<f64, 3>::paper(run(k)), car(), Rpr::paper()).expect("valid");
-        let l32 = ControlLaw::new(Params::<f32, 3>::paper(run(k)), CarLike::new(0.4f32, [1.0, 2.0, 1.0], 10.0), Rpr::paper())
+        let l64 = ControlLaw::new(paper(run(k)), car(), Rpr::paper()).expect("valid");
+        let l32 = ControlLaw::new(paper_f32(run(k)), CarLike::new(0.4f32, [1.0, 2.0, 1.0], 10.0), Rpr::paper())
             .expect("valid");
         compare_step(&l64, &l32, &pt)?;
     }
 
     #[test]
     fn single_steps_omnidirectional(pt in point(0.02), k in 0usize..4) {
-        let l64 = ControlLaw::new(Params::<f64, 3>::paper(run(k)), Omnidirectional, Rpr::paper()).expect("valid");
-        let l32 = ControlLaw::new(Params::<f32, 3>::paper(run(k)), Omnidirectional, Rpr::paper()).expect("valid");
+        let l64 = ControlLaw::new(paper(run(k)), Omnidirectional, Rpr::paper()).expect("valid");
+        let l32 = ControlLaw::new(paper_f32(run(k)), Omnidirectional, Rpr::paper()).expect("valid");
         compare_step(&l64, &l32, &pt)?;
     }
 }
@@ -161,13 +144,13 @@ fn closed_loop_deviation<P64: Platform<f64>, P32: Platform<f32>>(
 fn closed_loop_runs_a_and_c_track_point_by_point() {
     for r in [PaperRun::A, PaperRun::C] {
         let d = closed_loop_deviation(
-            &ControlLaw::new(Params::<f64, 3>::paper(r), Unicycle::paper(), Rpr::paper()).expect("valid"),
-            &ControlLaw::new(Params::<f32, 3>::paper(r), Unicycle::paper(), Rpr::paper()).expect("valid"),
+            &ControlLaw::new(paper(r), Unicycle::paper(), Rpr::paper()).expect("valid"),
+            &ControlLaw::new(paper_f32(r), Unicycle::paper(), Rpr::paper()).expect("valid"),
         );
         assert!(d < 2e-5, "unicycle {r:?}: f32 and f64 runs differ by {d:e}");
         let d = closed_loop_deviation(
-            &ControlLaw::new(Params::<f64, 3>::paper(r), Omnidirectional, Rpr::paper()).expect("valid"),
-            &ControlLaw::new(Params::<f32, 3>::paper(r), Omnidirectional, Rpr::paper()).expect("valid"),
+            &ControlLaw::new(paper(r), Omnidirectional, Rpr::paper()).expect("valid"),
+            &ControlLaw::new(paper_f32(r), Omnidirectional, Rpr::paper()).expect("valid"),
         );
         assert!(d < 2e-5, "omni {r:?}: f32 and f64 runs differ by {d:e}");
     }

@@ -91,14 +91,16 @@ fn case() -> impl Strategy<Value = Case> {
             Just(s),
             Just(State::new()),
             (maybe(s.alpha[0]), maybe3(s.q_hat), maybe(s.psi), maybe_pose(s.r_tilde), maybe(s.t0)).prop_map(
-                move |(a, q_hat, psi, r_tilde, t0)| State {
-                    alpha: Vector2::new(a, s.alpha[1]),
-                    q_hat,
-                    psi,
-                    sigma: SVector::repeat(psi),
-                    r_tilde,
-                    t0,
-                    initialized: true,
+                move |(a, q_hat, psi, r_tilde, t0)| {
+                    let mut st = s;
+                    st.alpha = Vector2::new(a, s.alpha[1]);
+                    st.q_hat = q_hat;
+                    st.psi = psi;
+                    st.sigma = SVector::repeat(psi);
+                    st.r_tilde = r_tilde;
+                    st.t0 = t0;
+                    st.initialized = true;
+                    st
                 }
             ),
         ];
@@ -121,15 +123,7 @@ fn bits<T: Real>(s: &State<T, 3>) -> Vec<u64> {
 }
 
 fn cast_state<T: Real>(s: &State<f64, 3>) -> State<T, 3> {
-    State {
-        alpha: s.alpha.map(T::of),
-        q_hat: s.q_hat.map(T::of),
-        psi: T::of(s.psi),
-        sigma: s.sigma.map(T::of),
-        r_tilde: Pose::new(T::of(s.r_tilde.x), T::of(s.r_tilde.y), T::of(s.r_tilde.theta)),
-        t0: T::of(s.t0),
-        initialized: s.initialized,
-    }
+    s.cast()
 }
 
 fn never_panics_never_non_finite<T: Real, P: Platform<T>>(

@@ -250,3 +250,39 @@ fn transverse_function_parameters_are_validated() {
     assert_eq!(err, ParamError::new("epsilon_2", Rule::NotPositive));
     assert_eq!(Platform::<f64>::validate(&Omnidirectional), Ok(()));
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(256))]
+
+    /// `∂H̄/∂α` (used to advance `α` linearly implicitly over a hold) against central
+    /// differences of `H̄(α)`, for both transverse functions.
+    #[test]
+    fn hbar_derivative_matches_finite_differences(
+        a1 in -PI..PI, a2 in -PI..PI,
+        e1 in 0.05..1.0f64, e2 in 0.05..2.0f64,
+        eps in 0.05..0.5f64, n1 in 0.5..3.0f64, n3 in 0.5..3.0f64, k in 0.5..10.0f64,
+    ) {
+        let uni = Unicycle::new(e1, e2);
+        let c = uni.companion_with_derivative(&Vector2::new(a1, 0.0)).expect("transverse");
+        let hp = uni.companion(&Vector2::new(a1 + H, 0.0)).expect("transverse").hbar;
+        let hm = uni.companion(&Vector2::new(a1 - H, 0.0)).expect("transverse").hbar;
+        check_close("unicycle ∂H̄/∂α", &c.dhbar[0], &((hp - hm) / (2.0 * H)), FD_TOL, 1.0)?;
+        check_close("unicycle ∂H̄/∂α₂", &c.dhbar[1], &Matrix3::zeros(), 0.0, 1.0)?;
+
+        // η₂ chosen inside Lemma 2's region: 6η₂η₃ > 8η₃ + η₁η₂ ⇔ η₂ (6η₃ − η₁) > 8η₃.
+        prop_assume!(6.0 * n3 > n1);
+        let n2 = 1.5 * 8.0 * n3 / (6.0 * n3 - n1);
+        let car = CarLike::new(eps, [n1, n2, n3], k);
+        let alpha = Vector2::new(a1, a2);
+        let c = car.companion_with_derivative(&alpha).expect("transverse");
+        for i in 0..2 {
+            let mut ap = alpha;
+            let mut am = alpha;
+            ap[i] += H;
+            am[i] -= H;
+            let hp = car.companion(&ap).expect("transverse").hbar;
+            let hm = car.companion(&am).expect("transverse").hbar;
+            check_close("car ∂H̄/∂αᵢ", &c.dhbar[i], &((hp - hm) / (2.0 * H)), FD_TOL, 1.0)?;
+        }
+    }
+}

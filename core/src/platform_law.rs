@@ -1,0 +1,373 @@
+//! The platform law — §3.4.2, §4.2, §5 — as one phase of a step.
+//!
+//! ```text
+//! r̄   = r_*⁻¹ r_d⁻¹ r̄_b,   r̄_b = r_b f(α)⁻¹                                   (11), (49)
+//! a    = Ψ a₁ + (1 − Ψ) a₂,  ∂h_s/∂t = Ψ a₁ᵀb₁ + (1 − Ψ) ∂h_s2/∂t               (29), (51)
+//! ū_b  = −b̂₁ − (aᵀDa + b̂₂)/(aᵀKa + μ) K a,   K = H̄ K̄ H̄ᵀ                      (36)–(37)
+//! w    = H̄(α)⁻¹ ū_b   (unicycle (v, ω, α̇); car (v, α̇₁, α̇₂); omni (v₁, v₂, ω))   (14), (60)
+//! v_ξ  = ξ̇_f(α) − k_h (ξ − ξ_f(α)),  k_h = (1 − e^{−k h})/h                    (59)
+//! ```
+//!
+//! **Linearly implicit over the hold.** `ū_e` is (37) at the state predicted with the
+//! previous command as a guess (`ū_g`); the law at the point reached after `θh` with the new
+//! command is, to first order in the companion frame's displacement `δ` (body coordinates),
+//!
+//! ```text
+//! ū = ū_e + J (θh ū − h/2 ū_g) + (θh − h/2) G_a (D₁ b₁ + D₂ ρ)
+//! J  = G_a (D₁ − D₂ Q),   G_a = ∂ū/∂a = −∂b̂₁/∂a − K a (∂coef/∂a)ᵀ − coef K
+//! D₁ = Ψ ∂a₁/∂δ = Ψ (diag(1, 1, γ cos θ̃) + [0 0 a₁,y; 0 0 −a₁,x; 0 0 0])
+//! D₂ = (1 − Ψ) ∂a₂/∂r̃_b = −2 (1 − Ψ) diag(1, 1, γ cos θ̃_b),   ṙ̃_b = ρ − Q ū     (28)
+//! ```
+//!
+//! (`b₁` of (51) is the drift of `r̄` due to the target, `ρ = R̄(θ̃_b) û` that of `r̃_b`), one
+//! 3×3 solve `(I − θhJ) ū = ū_e − h/2 J ū_g + …`. `θ = ½` is the midpoint rule (second
+//! order); when the loops are stiff over one period (`z = h‖J‖∞` large: the rest filter's
+//! gain reaches 2·10³/s with `K̄ = diag(1, 1, 100)`, the pre-compensation (40) `1/ν = 10⁴/s`
+//! near `a = 0`) the weight moves towards implicit Euler, `θ = ½ + ½ z/(1 + z)`, which damps
+//! them instead of letting them ring at the Nyquist frequency. `θ` is halved (down to the
+//! explicit step) if `det(I − θhJ) < ½`, which happens only when the pre-compensation makes
+//! a mode unstable (`∂h_s/∂t < 0` in (40)) — then growth is the continuous law's own.
+//! [`Discretisation::Sampled`] keeps the earlier treatment:
+//! only the rest filter, `θ = 1`, from the measured state ([`RestFilter`]).
+//!
+//! **One common saturation factor** (end of §3.4.2) `ρ ∈ (0, 1]` multiplies `w`, `ū_b` and
+//! the feed-forward of `v_ξ`: the smallest of `limit/|component|` over the velocity limits,
+//! `φ_max/(h |rate|)` over the rates of `α` and of the heading (the turn-per-step bound,
+//! [`Params::max_turn_per_step`](crate::Params::max_turn_per_step)), and for the car the
+//! factor that keeps `|v_ξ|` within its limit. Computed as a ratio `limit/|x|`, it never
+//! overflows: an enormous command is scaled to the limit, not zeroed. The steering's
+//! feedback `−k_h (ξ − ξ_f)` is not scaled (it is not a velocity of the companion frame); if
+//! it alone exceeds the steering limit the platform waits (`ρ = 0`) while the wheels turn
+//! at their limit.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::arm::Arm;
+use crate::params::{Discretisation, Precompensation, RestFilter};
+use crate::platform::{CompanionFrame, Platform, PlatformKind};
+use crate::scalar::Real;
+use crate::se2::{inverse3, PoseSc};
+use crate::secondary::{tracking_cost_sc, RestCost};
+use crate::ControlLaw;
+
+/// Where the platform law is evaluated.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PlatformPoint<'a, T> {
+    /// The target seen from the base.
+    pub r_bd: &'a PoseSc<T>,
+    /// The companion frame at `α`.
+    pub frame: &'a CompanionFrame<T>,
+    /// The target's body velocity.
+    pub u_d: &'a Vector3<T>,
+    /// The weight `Ψ` and its rate.
+    pub psi: T,
+    /// `Ψ̇`.
+    pub psi_rate: T,
+    /// The rest filter's cost at `r̃_b` (when `Ψ ≢ 1`).
+    pub rest: Option<&'a RestCost<T>>,
+    /// Car-like: the steering error `ξ − ξ_f(α)` when the command starts to act.
+    pub xi_error: T,
+    /// Car-like: the steering state when the command starts to act (for the heading rate).
+    pub xi: T,
+}
+
+/// The hold the command is computed for.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Hold<T> {
+    /// The period `h` (s).
+    pub period: T,
+    /// How far into the hold the point is (`h/2` for the midpoint, 0 for `Sampled`).
+    pub half: T,
+    /// The previous command's `ū_b` (the guess the point was predicted with).
+    pub guess_u_bar: Vector3<T>,
+    /// The previous command's generalised inputs `w` (its `α̇` is the guess of `α`).
+    pub guess_w: Vector3<T>,
+}
+
+/// The platform part of a step.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PlatformStep<T> {
+    /// Generalised inputs `w` (after saturation).
+    pub w: Vector3<T>,
+    /// `ū_b = H̄ w` commanded (after saturation).
+    pub u_bar: Vector3<T>,
+    /// The companion frame's actual velocity: `ū_b` plus, for the car, the part
+    /// `[I −S p_f; 0 1] (0, 0, v (ξ − ξ_f))` of (57) (drives the rest filter).
+    pub u_bar_actual: Vector3<T>,
+    /// The car's steering rate (0 otherwise).
+    pub v_xi: T,
+    /// `1/ρ ≥ 1`, finite.
+    pub saturation: T,
+    /// The implicit weight `θ` (0 when explicit).
+    pub theta: T,
+    /// `h_s`, `h_s1`, `h_s2`.
+    pub h_s: T,
+    /// `h_s1`.
+    pub h_s1: T,
+    /// `h_s2`.
+    pub h_s2: T,
+    /// `f(α)⁻¹`.
+    pub f_inv: PoseSc<T>,
+}
+
+/// The largest saturation factor reported (the platform stopped).
+const STOPPED: f64 = 3.0e38;
+
+impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+    /// (37) at `pt`, corrected over the hold, mapped to the platform's inputs and saturated.
+    #[inline(always)]
+    pub(crate) fn platform_step(&self, pt: &PlatformPoint<'_, T>, hold: &Hold<T>) -> PlatformStep<T> {
+        let sec = &self.params.secondary;
+        let frame = pt.frame;
+        let (sf, cf) = frame.sin_cos_theta_f;
+        let f_inv = PoseSc { pose: frame.f.inverse_sc(sf, cf), sc: (-sf, cf) };
+        // m = r_d⁻¹ r̄_b = r_db f(α)⁻¹ (the companion frame seen from the target), r̄ = r_*⁻¹ m.
+        let m = pt.r_bd.inverse().compose(&f_inv);
+        let r_bar = self.r_star_inv.compose(&m);
+        let track = tracking_cost_sc(&r_bar.pose, r_bar.sc, &m.pose, m.sc, pt.u_d, sec.gamma_1);
+
+        // The secondary cost (29): h_s1 always; h_s2 with the rest filter unless Ψ ≡ 1.
+        let psi = pt.psi;
+        let (h_s, a, dh_dt, h_s2) = match pt.rest {
+            Some(rest) => {
+                let one_m = T::one() - psi;
+                let mut dh = psi * track.dh_dt + one_m * rest.dh_dt;
+                if sec.psi_rate_in_drift {
+                    dh += pt.psi_rate * (track.h - rest.h);
+                }
+                (psi * track.h + one_m * rest.h, track.a * psi + rest.a * one_m, dh, rest.h)
+            }
+            None => (track.h, track.a, track.dh_dt, T::zero()),
+        };
+
+        // Pre-compensation (b̂₁, b̂₂).
+        let zero3 = Vector3::zeros();
+        let (b1, b2) = match sec.precompensation {
+            Precompensation::Full51 => (track.b1, T::zero()),
+            Precompensation::Full40 { nu } => {
+                let n = T::one() / (a.dot(&a) + nu);
+                (a * (dh_dt * n), dh_dt * nu * n)
+            }
+            Precompensation::Off => (zero3, T::zero()),
+            Precompensation::Partial => (zero3, dh_dt),
+        };
+
+        // (37) with K = H̄ K̄ H̄ᵀ (36): K a = H̄ (K̄ ∘ H̄ᵀa).
+        let hbar = &frame.hbar;
+        let z = hbar.transpose() * a;
+        let kz = z.component_mul(&sec.k_bar);
+        let denom = z.dot(&kz) + sec.mu;
+        let coef = (a.component_mul(&sec.d).dot(&a) + b2) / denom;
+        let k_a = hbar * kz;
+        let u_e = -(k_a * coef) - b1;
+
+        let lin =
+            Linearisation { a: &a, k_a: &k_a, coef, denom, dh_dt, track_a: &track.a, track_b1: &track.b1 };
+        let (u_bar, theta) = self.implicit_correction(pt, hold, &lin, u_e, r_bar.sc.1);
+        let mut w = frame.hbar_inv * u_bar;
+        if hold.half > T::zero() && P::ALPHA_DIM > 0 {
+            w = self.implicit_alpha(frame, w, hold);
+        }
+
+        // The car's steering (59), exact over the hold for the feedback part.
+        let (fb, ff) = if P::KIND == PlatformKind::Car {
+            let k = self.platform.steering_gain();
+            let kh = if hold.half > T::zero() && k * hold.period > T::zero() {
+                (T::one() - (-k * hold.period).exponential()) / hold.period
+            } else {
+                k
+            };
+            (-kh * pt.xi_error, frame.dxi_f.dot(&P::alpha_rate(&w)))
+        } else {
+            (T::zero(), T::zero())
+        };
+
+        // One common factor ρ ∈ [0, 1], as ratios that cannot overflow.
+        let prm = &self.params;
+        let mut rho = P::saturation_scale(&prm.velocity_limits, &w);
+        let turn = P::max_turn_rate(&w, pt.xi) * hold.period;
+        if turn > prm.max_turn_per_step {
+            rho = rho.min(prm.max_turn_per_step / turn);
+        }
+        let lim_xi = prm.velocity_limits.steering_rate;
+        let mut v_xi = fb + ff;
+        if P::KIND == PlatformKind::Car && v_xi.abs() > lim_xi {
+            // The smallest scaling of the feed-forward that puts |fb + ρ ff| on the limit:
+            // ff along fb leaves L − |fb| for it, against fb L + |fb|.
+            let same_sign = fb * ff >= T::zero();
+            if same_sign && fb.abs() >= lim_xi {
+                rho = T::zero();
+            } else {
+                let room = if same_sign { lim_xi - fb.abs() } else { lim_xi + fb.abs() };
+                rho = rho.min(room / ff.abs());
+            }
+        }
+        w *= rho;
+        let u_bar = u_bar * rho;
+        if P::KIND == PlatformKind::Car {
+            v_xi = fb + ff * rho;
+            if v_xi.abs() > lim_xi {
+                v_xi = if v_xi > T::zero() { lim_xi } else { -lim_xi };
+            }
+        }
+        let saturation = if rho > T::of(1.0 / STOPPED) { T::one() / rho } else { T::of(STOPPED) };
+
+        // The car's companion frame also moves with v (ξ − ξ_f) (57); mean error over the hold.
+        let u_bar_actual = if P::KIND == PlatformKind::Car {
+            let e_mid = pt.xi_error + fb * hold.half;
+            let c = w[0] * e_mid;
+            let (px, py) = (frame.f.x, frame.f.y);
+            u_bar + Vector3::new(py * c, -px * c, c)
+        } else {
+            u_bar
+        };
+        PlatformStep { w, u_bar, u_bar_actual, v_xi, saturation, theta, h_s, h_s1: track.h, h_s2, f_inv }
+    }
+
+    /// `ū` from `ū_e` by the linearly implicit step of the module docs; returns `(ū, θ)`.
+    #[inline(always)]
+    fn implicit_correction(
+        &self,
+        pt: &PlatformPoint<'_, T>,
+        hold: &Hold<T>,
+        lin: &Linearisation<'_, T>,
+        u_e: Vector3<T>,
+        cos_r_bar: T,
+    ) -> (Vector3<T>, T) {
+        let sec = &self.params.secondary;
+        let midpoint = self.params.discretisation == Discretisation::Midpoint;
+        if !midpoint && (pt.rest.is_none() || sec.rest_filter == RestFilter::Explicit) {
+            return (u_e, T::zero());
+        }
+        let two = T::of(2.0);
+        let (a, k_a, coef, denom) = (lin.a, lin.k_a, lin.coef, lin.denom);
+        let hk = Matrix3::from_fn(|r, c| pt.frame.hbar[(r, c)] * sec.k_bar[c]);
+        let k = hk * pt.frame.hbar.transpose();
+
+        // G_a = ∂ū/∂a.
+        let mut dcoef = (a.component_mul(&sec.d) - k_a * coef) * (two / denom);
+        let mut db1 = Matrix3::zeros();
+        if midpoint {
+            if let Precompensation::Full40 { nu } = sec.precompensation {
+                let mm = T::one() / (a.dot(a) + nu);
+                db1 = (Matrix3::identity() - a * a.transpose() * (two * mm)) * (lin.dh_dt * mm);
+                dcoef -= a * (two * lin.dh_dt * nu * mm * mm / denom);
+            }
+        }
+        let g_a = -db1 - k_a * dcoef.transpose() - k * coef;
+
+        // D₁ (tracking, midpoint only) and D₂ (rest filter) with Q.
+        let psi = pt.psi;
+        let mut d1 = Matrix3::zeros();
+        if midpoint {
+            let ta = lin.track_a;
+            d1 = Matrix3::new(
+                T::one(),
+                T::zero(),
+                ta[1],
+                T::zero(),
+                T::one(),
+                -ta[0],
+                T::zero(),
+                T::zero(),
+                sec.gamma_1 * cos_r_bar,
+            ) * psi;
+        }
+        let mut d_disp = d1;
+        let mut drift_term = d1 * lin.track_b1;
+        if let Some(rest) = pt.rest {
+            let s = -two * (T::one() - psi);
+            let d2 = Vector3::new(s, s, s * sec.gamma_2 * rest.cos_theta);
+            // D₁ − D₂ Q, with D₂ diagonal.
+            for r in 0..3 {
+                for c in 0..3 {
+                    d_disp[(r, c)] -= d2[r] * rest.q[(r, c)];
+                }
+            }
+            drift_term += rest.drift.component_mul(&d2);
+        }
+        let j = g_a * d_disp;
+        let (h, half) = (hold.period, hold.half);
+        let mut theta = T::one();
+        if midpoint {
+            let mut norm = T::zero();
+            for r in 0..3 {
+                let row = j[(r, 0)].abs() + j[(r, 1)].abs() + j[(r, 2)].abs();
+                if row > norm {
+                    norm = row;
+                }
+            }
+            let zz = h * norm;
+            theta = T::of(0.5) + T::of(0.5) * zz / (T::one() + zz);
+        }
+        let base = u_e - j * hold.guess_u_bar * half;
+        for _ in 0..4 {
+            let m = Matrix3::identity() - j * (theta * h);
+            if let Some((inv, det)) = inverse3(&m) {
+                // (`Sampled` keeps the earlier rest-filter step as it was: any invertible M.)
+                if det >= T::of(0.5) || !midpoint {
+                    let rhs = base + g_a * drift_term * (theta * h - half);
+                    return (inv * rhs, theta);
+                }
+            }
+            theta *= T::of(0.5);
+        }
+        (u_e, T::zero())
+    }
+}
+
+impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+    /// `w = H̄(α)⁻¹ ū` with `α` advanced linearly implicitly over the hold: `H̄⁻¹` was taken
+    /// at `α_e` (predicted with the guess `α̇_g`); at `α + θh α̇`,
+    /// `w ≈ w_e + c (θh α̇ − h/2 α̇_g)`, `c = ∂(H̄⁻¹ū)/∂α = −H̄⁻¹ (∂H̄/∂α) w_e`, solved for `α̇`
+    /// (one or two unknowns). Without it the loop `α → H̄(α)⁻¹ → α̇` (gain `~|ū|/det H`)
+    /// rings at the Nyquist frequency at long periods.
+    #[inline(always)]
+    fn implicit_alpha(&self, frame: &CompanionFrame<T>, w_e: Vector3<T>, hold: &Hold<T>) -> Vector3<T> {
+        let (h, half) = (hold.period, hold.half);
+        let g = P::alpha_rate(&hold.guess_w);
+        let c0 = -(frame.hbar_inv * (frame.dhbar[0] * w_e));
+        let c1 = if P::ALPHA_DIM > 1 { -(frame.hbar_inv * (frame.dhbar[1] * w_e)) } else { Vector3::zeros() };
+        // α̇ as components of w: unicycle w[2]; car w[1], w[2].
+        let idx = if P::ALPHA_DIM == 1 { [2, 2] } else { [1, 2] };
+        let mut stiff = c0[idx[0]].abs();
+        if P::ALPHA_DIM > 1 {
+            stiff = stiff.max(c0[idx[1]].abs() + c1[idx[0]].abs()).max(c1[idx[1]].abs());
+        }
+        let z = h * stiff;
+        let theta = T::of(0.5) + T::of(0.5) * z / (T::one() + z);
+        // Unknown α̇ (2-vector; the second unused for one α): α̇ᵢ = w_e[idx_i] + Σ_j c_j[idx_i] (θh α̇_j − half g_j).
+        let m00 = T::one() - theta * h * c0[idx[0]];
+        let (mut m01, mut m10, mut m11) = (T::zero(), T::zero(), T::one());
+        let mut r0 = w_e[idx[0]] - half * c0[idx[0]] * g[0];
+        let mut r1 = T::zero();
+        if P::ALPHA_DIM > 1 {
+            m01 = -theta * h * c1[idx[0]];
+            m10 = -theta * h * c0[idx[1]];
+            m11 = T::one() - theta * h * c1[idx[1]];
+            r0 -= half * c1[idx[0]] * g[1];
+            r1 = w_e[idx[1]] - half * (c0[idx[1]] * g[0] + c1[idx[1]] * g[1]);
+        }
+        let det = m00 * m11 - m01 * m10;
+        if det.nan() || det <= T::of(0.5) {
+            return w_e;
+        }
+        let a0 = (r0 * m11 - m01 * r1) / det;
+        let a1 = (m00 * r1 - m10 * r0) / det;
+        let d0 = theta * h * a0 - half * g[0];
+        let d1 = theta * h * a1 - half * g[1];
+        w_e + c0 * d0 + c1 * d1
+    }
+}
+
+/// The quantities of (37) that its linearisation needs.
+#[derive(Clone, Copy, Debug)]
+struct Linearisation<'a, T> {
+    a: &'a Vector3<T>,
+    k_a: &'a Vector3<T>,
+    coef: T,
+    denom: T,
+    dh_dt: T,
+    track_a: &'a Vector3<T>,
+    track_b1: &'a Vector3<T>,
+}
