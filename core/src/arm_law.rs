@@ -86,15 +86,17 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         let (s, c) = pt.r_bd.sc;
         let r_bd_rate = rbar_sc(s, c) * pt.u_d - base_to_relative(&pt.r_bd.pose) * pt.u_b;
         let mut rhs = -prim.e_m.component_mul(&p.gain) - prim.de_m_dr_bd * r_bd_rate - prim.de_m_dt_explicit;
-        // ∂rhs/∂u_b = ∂e_m/∂r_bd [I₂ S p_bd; 0 1].
-        let (x, y) = (pt.r_bd.pose.x, pt.r_bd.pose.y);
-        let b = &prim.de_m_dr_bd;
-        let mut drhs = SMatrix::<T, N, 3>::from_fn(|i, j| match j {
-            0 => b[(i, 0)],
-            1 => b[(i, 1)],
-            _ => b[(i, 2)] - y * b[(i, 0)] + x * b[(i, 1)],
-        });
+        let inv;
+        let mut sensitivity = SMatrix::<T, N, 3>::zeros();
         if half > T::zero() {
+            // ∂rhs/∂u_b = ∂e_m/∂r_bd [I₂ S p_bd; 0 1], for the next step's guess.
+            let (x, y) = (pt.r_bd.pose.x, pt.r_bd.pose.y);
+            let b = &prim.de_m_dr_bd;
+            let mut drhs = SMatrix::<T, N, 3>::from_fn(|i, j| match j {
+                0 => b[(i, 0)],
+                1 => b[(i, 1)],
+                _ => b[(i, 2)] - y * b[(i, 0)] + x * b[(i, 1)],
+            });
             rhs += (prim.de_m_dq * pt.guess).component_mul(&p.gain) * half;
             for i in 0..N {
                 let d = T::one() / (T::one() + p.gain[i] * half);
@@ -103,11 +105,12 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
                     drhs[(i, j)] *= d;
                 }
             }
+            inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
+            sensitivity = inv * drhs;
+        } else {
+            inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
         }
-        let inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
         let mut u_q = inv * rhs;
-        // Only the hold-aware discretisation guesses with it.
-        let mut sensitivity = if half > T::zero() { inv * drhs } else { SMatrix::zeros() };
         let condition = one_norm(&prim.de_m_dq) * one_norm(&inv);
         let joint_scale = self.joint_guard(pt.q_start, &u_q, period);
         if joint_scale > T::one() {

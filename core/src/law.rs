@@ -160,7 +160,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     /// # Errors
     /// A bad measurement, period or delay: a [`Rejected`] with the reason and the safe
     /// command; the state is left as it was.
-    #[inline]
+    #[inline(always)]
     pub fn step_delayed(
         &self,
         state: &mut State<T, N>,
@@ -334,6 +334,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
 
     /// `Ψ` and its rate (or the `σᵢ` rates) for filter values `psi`/`sigma` at joints `q`,
     /// filtered joints `q̂` moving at `q̂̇`.
+    #[inline(always)]
     fn weight_at(
         &self,
         psi: T,
@@ -497,7 +498,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         } else {
             guess.joints
         };
-        let q_e = advance_inside(&start.q, &(guess_joints * half), lim, half_t);
+        let q_e = if half > T::zero() { advance_inside(&start.q, &(guess_joints * half), lim, half_t) } else { start.q };
         let gamma = if p.regularisation_gain > T::zero() {
             p.regularisation_gain * (-p.regularisation_decay * t_e).exponential()
         } else {
