@@ -33,12 +33,13 @@
 //! Times depend on the machine and its load; instruction counts do not (they move only when
 //! the code does), so decisions are better made on the counts.
 
-use clap::Parser;
 use companion_core::{
-    CarLike, ControlLaw, Measurement, Omnidirectional, Platform, Real, Rpr, State, Unicycle,
+    CarLike, ControlLaw, Measurement, Omnidirectional, PaperRun, Platform, PlatformKind, Real, Rpr, State,
+    Unicycle,
 };
-use companion_runtime::control::{command_f64, measurement_in};
-use companion_runtime::scenario::{ControllerSpec, Scenario, ScenarioArgs};
+use companion_plant::PaperTrajectory;
+use companion_runtime::controller::{command_f64, measurement_in, ControllerSpec, Scalar};
+use companion_runtime::scenario::Scenario;
 
 /// The arm's joint count (the paper's RPR arm).
 pub const JOINTS: usize = 3;
@@ -161,39 +162,28 @@ impl Config {
     /// velocity limits.
     ///
     /// # Panics
-    /// If the runtime rejects the flags (a bug here).
-    pub fn scenario(&self, trajectory: u8) -> Scenario {
-        let duration = if trajectory == 1 { "40" } else { "120" };
-        let traj = trajectory.to_string();
-        scenario(&[
-            "--trajectory",
-            &traj,
-            "--duration",
-            duration,
-            "--platform",
-            self.platform_flag(),
-            "--scalar",
-            self.scalar_flag(),
-            "--choice",
-            self.choice_flag(),
-        ])
+    /// If the runtime rejects the paper's parameters (a bug).
+    pub fn scenario(&self, trajectory: PaperTrajectory) -> Scenario {
+        let platform = match self.platform {
+            PlatformName::Unicycle => PlatformKind::Unicycle,
+            PlatformName::Car => PlatformKind::Car,
+            PlatformName::Omni => PlatformKind::Omni,
+        };
+        let choice = match self.choice {
+            ChoiceName::A => PaperRun::A,
+            ChoiceName::B => PaperRun::B,
+            ChoiceName::C => PaperRun::C,
+            ChoiceName::D => PaperRun::D,
+        };
+        let scalar = match self.scalar {
+            ScalarName::F64 => Scalar::F64,
+            ScalarName::F32 => Scalar::F32,
+        };
+        Scenario::builder(trajectory, choice, platform)
+            .scalar(scalar)
+            .build()
+            .unwrap_or_else(|e| panic!("the paper's scenario {}: {e}", self.name()))
     }
-}
-
-#[derive(Parser, Debug)]
-struct Flags {
-    #[command(flatten)]
-    scenario: ScenarioArgs,
-}
-
-/// A scenario from `companion sim`-style flags, e.g. `["--trajectory", "2"]`.
-///
-/// # Panics
-/// If the flags do not parse or describe an invalid scenario (a bug in the caller).
-pub fn scenario(flags: &[&str]) -> Scenario {
-    let parsed = Flags::try_parse_from(std::iter::once("bench").chain(flags.iter().copied()))
-        .unwrap_or_else(|e| panic!("bad flags {flags:?}: {e}"));
-    Scenario::from_args(&parsed.scenario).unwrap_or_else(|e| panic!("bad scenario {flags:?}: {e:#}"))
 }
 
 /// A platform that can be built from the runtime's controller description.
@@ -270,7 +260,7 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
     let mut rejected = 0;
     let mut the_law = None;
     let mut dt = T::zero();
-    for trajectory in [1, 2] {
+    for trajectory in [PaperTrajectory::One, PaperTrajectory::Two] {
         let s = config.scenario(trajectory);
         let law = law::<T, P>(&s);
         dt = T::of(s.dt);
@@ -398,15 +388,15 @@ mod tests {
 
     #[test]
     fn the_car_gets_the_runtimes_k_bar_and_limits() {
-        let s = PLATFORM_CONFIGS[2].scenario(1);
+        let s = PLATFORM_CONFIGS[2].scenario(PaperTrajectory::One);
         let p = s.controller.params::<f64>();
         assert_eq!(
             p.secondary.k_bar,
-            companion_core::nalgebra::Vector3::from(companion_runtime::scenario::CAR_K_BAR)
+            companion_core::nalgebra::Vector3::from(companion_runtime::controller::CAR_K_BAR)
         );
         assert_eq!(p.velocity_limits, companion_plant::realistic_limits());
         assert_eq!((s.dt, s.duration), (1e-3, 40.0));
-        assert_eq!(PLATFORM_CONFIGS[2].scenario(2).duration, 120.0);
+        assert_eq!(PLATFORM_CONFIGS[2].scenario(PaperTrajectory::Two).duration, 120.0);
     }
 
     /// The recorded inputs are the same on every run (the closed loop is deterministic)
