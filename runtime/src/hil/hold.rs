@@ -2,8 +2,6 @@
 //! `--hold-periods` periods, then stop the robot (every velocity zero) until fresh commands
 //! arrive again.
 
-use companion_core::Command;
-
 use crate::controller::StepReport;
 use crate::record::CommandSource;
 
@@ -63,6 +61,8 @@ impl HoldPolicy {
 
 #[cfg(test)]
 mod tests {
+    use companion_core::Command;
+
     use super::*;
 
     fn report(v: f64) -> StepReport {
