@@ -8,8 +8,9 @@ use std::sync::{Arc, OnceLock};
 use anyhow::{Context, Result};
 
 /// The last termination signal received (0: none), shared with the handlers.
+static FLAG: OnceLock<Arc<AtomicUsize>> = OnceLock::new();
+
 fn flag() -> &'static Arc<AtomicUsize> {
-    static FLAG: OnceLock<Arc<AtomicUsize>> = OnceLock::new();
     FLAG.get_or_init(|| Arc::new(AtomicUsize::new(0)))
 }
 
@@ -28,13 +29,19 @@ pub fn install_termination_handler() -> Result<()> {
     Ok(())
 }
 
+/// The last termination signal received (0: none, or no handler installed). One atomic load;
+/// never allocates (the flag is made by [`install_termination_handler`]).
+fn last_signal() -> usize {
+    FLAG.get().map_or(0, |f| f.load(Ordering::Acquire))
+}
+
 /// Whether SIGINT or SIGTERM arrived since [`install_termination_handler`].
 #[inline]
 pub fn termination_requested() -> bool {
-    flag().load(Ordering::Acquire) != 0
+    last_signal() != 0
 }
 
 /// The last termination signal received (0 if none).
 pub fn termination_signal() -> i32 {
-    i32::try_from(flag().load(Ordering::Acquire)).unwrap_or(0)
+    i32::try_from(last_signal()).unwrap_or(0)
 }

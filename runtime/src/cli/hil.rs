@@ -514,8 +514,8 @@ mod tests {
 
     #[test]
     fn a_startup_timeout_that_is_not_a_duration_is_an_error() {
-        for bad in ["nan", "-1", "inf"] {
-            let t = T::parse_from(["x", "--startup-timeout", bad]);
+        for bad in ["--startup-timeout=nan", "--startup-timeout=-1", "--startup-timeout=inf"] {
+            let t = T::parse_from(["x", bad]);
             let e = t.a.resolve().unwrap_err().to_string();
             assert!(e.contains("--startup-timeout"), "{bad}: {e}");
         }
