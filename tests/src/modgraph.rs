@@ -375,8 +375,10 @@ mod tests {
     use super::*;
 
     fn crate_of(files: &[(&str, &str)]) -> BTreeMap<ModPath, Module> {
-        let dir =
-            std::env::temp_dir().join(format!("companion-modgraph-{}-{}", std::process::id(), files.len()));
+        // One folder per call: the tests run in parallel.
+        static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let n = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let dir = std::env::temp_dir().join(format!("companion-modgraph-{}-{n}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         for (name, text) in files {
             let p = dir.join(name);
