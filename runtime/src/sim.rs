@@ -14,8 +14,9 @@ use companion_plant::{PaperTrajectory, Plant};
 use crate::controller::{AnyController, StepReport, JOINTS};
 use crate::observe::Observer;
 pub use crate::plant_setup::build as build_plant;
+use crate::record::recorder::{summary_for, Log};
 use crate::record::{
-    write_summary, CommandSource, PlantSample, RecordWriter, Recorder, Row, RowSink, RunOutcome,
+    write_summary, CommandSource, PlantSample, RecordWriter, Row, RowSink, RunOutcome, SummaryAccumulator,
 };
 use crate::scenario::{Scenario, ScenarioBuilder, ScenarioError};
 
@@ -96,8 +97,31 @@ pub fn run_loop<E: Exchange, R: RowSink>(
     Ok(())
 }
 
-/// The ring between the simulation and its CSV writer thread (rows).
+/// The ring between the simulation and its CSV writer thread (logged rows).
 const WRITER_RING: usize = 1 << 14;
+
+/// The simulation's recording: the summary over every step on the loop's thread, the logged
+/// rows to the writer thread (which formats the CSV, a quarter of the work of a run, in
+/// parallel).
+struct Background {
+    summary: SummaryAccumulator,
+    log: RecordWriter<Log>,
+}
+
+impl RowSink for Background {
+    fn log_every(&self) -> u64 {
+        self.log.log_every()
+    }
+
+    #[inline]
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+        self.summary.add(row);
+        if self.logs(n, last) {
+            self.log.record(n, row, last)?;
+        }
+        Ok(())
+    }
+}
 
 /// Runs one scenario in process and writes its files into `dir`.
 ///
@@ -107,16 +131,15 @@ pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunO
     let mut plant = build_plant(s)?;
     let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
     let mut exchange = InProcess { controller, dt: s.dt };
-    // The CSV is formatted on a thread of its own (a quarter of the work of a run).
-    let recorder = Recorder::for_scenario(s, dir)?;
-    let mut writer = RecordWriter::spawn(recorder, WRITER_RING, Duration::from_secs(1))?;
+    let log = RecordWriter::spawn(Log::for_scenario(s, dir)?, WRITER_RING, Duration::from_secs(1))?;
+    let mut sink = Background { summary: summary_for(s), log };
     let start = Instant::now();
-    let looped = run_loop(s, &mut plant, &mut exchange, &mut writer, observer);
-    let mut recorder = writer.finish()?;
+    let looped = run_loop(s, &mut plant, &mut exchange, &mut sink, observer);
+    let log = sink.log.finish()?;
     looped?;
-    let summary = recorder.summary.finish(start.elapsed().as_secs_f64());
+    let summary = sink.summary.finish(start.elapsed().as_secs_f64());
     write_summary(dir, s, &summary)?;
-    Ok(RunOutcome { scenario: s.clone(), summary, rows: std::mem::take(&mut recorder.rows) })
+    Ok(RunOutcome { scenario: s.clone(), summary, rows: log.rows })
 }
 
 /// The scenarios of `companion sim --all`: every paper run (trajectories 1 and 2 × a–d), b and

@@ -1,7 +1,6 @@
 //! The plant process: publishes measurements, applies commands, owns time, writes the run's
 //! files (`timeseries.csv`, `summary.json`, `scenario.json`, `latency.json`, plots).
 
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
@@ -15,7 +14,7 @@ use super::stats::{LiveFigures, PlantStats};
 use crate::clock::MonotonicClock;
 use crate::ipc::{PlantEndpoint, Role};
 use crate::observe::Observer;
-use crate::record::{write_summary, LogItem, RecordWriter, Recorder, Row, RunOutcome};
+use crate::record::{write_summary, LogItem, RecordWriter, Recorder, Row, RowSink, RunOutcome};
 use crate::scenario::Scenario;
 use crate::sim;
 use crate::wire::fnv1a;
@@ -50,7 +49,7 @@ pub struct PlantOutcome {
 pub fn run(
     cfg: &HilConfig,
     s: &Scenario,
-    live: &Arc<LiveFigures>,
+    live: &LiveFigures,
     observer: &dyn Observer,
 ) -> Result<PlantOutcome> {
     let timing = cfg.timing;
@@ -127,7 +126,7 @@ pub fn run(
     if let Err(e) = report::write_svg(dir, &stats, &latency) {
         observer.warn(&format!("latency plot: {e:#}"));
     }
-    let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.rows) };
+    let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
     let run = RunOutcome { scenario: s.clone(), summary, rows };
     if !cfg.no_plots {
         if let Err(e) = crate::plots::render_run(dir, &run) {

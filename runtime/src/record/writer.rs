@@ -1,12 +1,14 @@
-//! The one recording thread: a [`Recorder`] on a thread of its own, fed with rows through a
-//! lock-free single-producer ring allocated once (`rtrb`), flushing `timeseries.csv` at a
-//! fixed interval.
+//! The one recording thread: a [`RowSink`] (a [`Recorder`](super::Recorder) or a
+//! [`Log`](super::recorder::Log)) on a thread of its own, fed with rows through a lock-free
+//! single-producer ring allocated once (`rtrb`), flushing `timeseries.csv` at a fixed
+//! interval.
 //!
-//! The HIL plant's real-time loop pushes without ever waiting ([`RecordWriter::try_push`]:
-//! a full ring drops the row, and the caller counts it); the in-process simulation pushes
-//! and waits for room ([`RecordWriter`] as a [`RowSink`]), so that formatting the CSV runs in
-//! parallel with the simulation and no row is lost. Either way the bytes written are those of
-//! a [`Recorder`] on the calling thread.
+//! The HIL plant's real-time loop pushes every row without ever waiting
+//! ([`RecordWriter::try_push`]: a full ring drops the row, and the caller counts it), and the
+//! thread accumulates the summary too; the in-process simulation keeps the summary itself
+//! and pushes only the logged rows, waiting for room if it must ([`RecordWriter`] as a
+//! [`RowSink`]), so that formatting the CSV runs in parallel with the simulation and no row
+//! is lost. Either way the bytes written are those of the same sink on the calling thread.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -15,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, bail, Context, Result};
 
-use super::recorder::{Recorder, RowSink};
+use super::recorder::RowSink;
 use super::row::Row;
 
 /// One row on its way to the writer thread.
@@ -34,22 +36,22 @@ const IDLE: Duration = Duration::from_millis(2);
 /// How long a waiting producer sleeps when the ring is full.
 const BACKOFF: Duration = Duration::from_micros(50);
 
-/// A [`Recorder`] running on its own thread.
+/// A [`RowSink`] running on its own thread.
 #[derive(Debug)]
-pub struct RecordWriter {
+pub struct RecordWriter<S> {
     tx: rtrb::Producer<LogItem>,
     done: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<Recorder>>>,
+    thread: Option<JoinHandle<Result<S>>>,
     log_every: u64,
 }
 
-impl RecordWriter {
+impl<S: RowSink + Send + 'static> RecordWriter<S> {
     /// Starts the thread with a ring of `capacity` rows; it flushes the file every
     /// `flush_every` (and at the end).
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub fn spawn(mut recorder: Recorder, capacity: usize, flush_every: Duration) -> Result<Self> {
+    pub fn spawn(mut recorder: S, capacity: usize, flush_every: Duration) -> Result<Self> {
         let (tx, mut rx) = rtrb::RingBuffer::<LogItem>::new(capacity);
         let done = Arc::new(AtomicBool::new(false));
         let finish = Arc::clone(&done);
@@ -89,25 +91,24 @@ impl RecordWriter {
         self.tx.push(item).is_ok()
     }
 
-    /// Waits for the thread to write everything and returns the recorder.
+    /// Waits for the thread to write everything and returns the sink.
     ///
     /// # Errors
     /// Writing the file failed, or the thread panicked.
-    pub fn finish(mut self) -> Result<Recorder> {
+    pub fn finish(mut self) -> Result<S> {
         self.join()
     }
 
-    fn join(&mut self) -> Result<Recorder> {
+    fn join(&mut self) -> Result<S> {
         self.done.store(true, Ordering::Release);
         let thread = self.thread.take().ok_or_else(|| anyhow!("writing timeseries.csv failed earlier"))?;
         thread.join().map_err(|_| anyhow!("the CSV writer thread panicked"))?
     }
 }
 
-impl RowSink for RecordWriter {
-    #[inline]
-    fn logs(&self, n: u64, last: bool) -> bool {
-        n % self.log_every == 0 || last
+impl<S: RowSink + Send + 'static> RowSink for RecordWriter<S> {
+    fn log_every(&self) -> u64 {
+        self.log_every
     }
 
     /// Hands the row to the thread, waiting while the ring is full.
@@ -130,7 +131,7 @@ impl RowSink for RecordWriter {
     }
 }
 
-impl Drop for RecordWriter {
+impl<S> Drop for RecordWriter<S> {
     fn drop(&mut self) {
         self.done.store(true, Ordering::Release);
     }
@@ -145,7 +146,8 @@ mod tests {
 
     use super::*;
     use crate::controller::{StepReport, JOINTS};
-    use crate::record::{CommandSource, PlantSample, SummaryAccumulator};
+    use crate::record::recorder::Log;
+    use crate::record::{CommandSource, PlantSample, Recorder, SummaryAccumulator};
 
     fn row(k: u32) -> Row {
         let x = f64::from(k);
@@ -182,8 +184,8 @@ mod tests {
     }
 
     fn recorder(d: &Path, kind: PlatformKind) -> Recorder {
-        let acc = SummaryAccumulator::new("test", [-1.0, 0.0, -1.5], [1.0, 0.7, 1.5]);
-        Recorder::create(d, kind, 3, acc, 0).expect("creating the CSV")
+        let summary = SummaryAccumulator::new("test", [-1.0, 0.0, -1.5], [1.0, 0.7, 1.5]);
+        Recorder { log: Log::create(d, kind, 3, 0).expect("creating the CSV"), summary }
     }
 
     #[test]
@@ -207,7 +209,7 @@ mod tests {
             assert_eq!(a, b, "{kind:?}");
             assert!(String::from_utf8_lossy(&a).contains(",rejected:SingularArm\n"));
             // Debug strings: rejected rows hold NaN.
-            assert_eq!(format!("{:?}", direct.rows), format!("{:?}", background.rows));
+            assert_eq!(format!("{:?}", direct.log.rows), format!("{:?}", background.log.rows));
             assert_eq!(
                 format!("{:?}", direct.summary.finish(0.0)),
                 format!("{:?}", background.summary.finish(0.0))
@@ -236,13 +238,7 @@ mod tests {
         // `timeseries.csv` -> /dev/full: every write fails with "no space left on device".
         let d = dir("full");
         std::os::unix::fs::symlink("/dev/full", d.join("timeseries.csv")).expect("symlink");
-        let r = Recorder::create(
-            &d,
-            PlatformKind::Unicycle,
-            1,
-            SummaryAccumulator::new("test", [-1.0; 3], [1.0; 3]),
-            0,
-        );
+        let r = Log::create(&d, PlatformKind::Unicycle, 1, 0);
         // The header may already fail (it is buffered: usually not).
         let Ok(r) = r else { return };
         let mut w = RecordWriter::spawn(r, 16, Duration::from_millis(1)).unwrap();
