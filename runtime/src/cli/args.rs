@@ -109,9 +109,9 @@ pub struct ScenarioArgs {
     /// The controller's scalar type.
     #[arg(long, value_enum, default_value = "f64")]
     pub scalar: ScalarArg,
-    /// A TOML file overriding parameters: tables [controller], [unicycle], [car],
-    /// [velocity_limits], [plant]; each key is the name of the field it sets in companion-core
-    /// (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
+    /// A TOML file overriding parameters, in tables `controller`, `unicycle`, `car`,
+    /// `velocity_limits` and `plant`; each key is the name of the field it sets in
+    /// companion-core (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
     /// Put the Ψ̇ (h_s1 − h_s2) term in the pre-compensated drift ∂h_s/∂t (the paper preset

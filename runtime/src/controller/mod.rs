@@ -1,5 +1,5 @@
 //! Everything the runtime knows about `companion-core`'s controller, in one place: how a
-//! controller is described and built ([`spec`]), one controller of any platform × scalar type
+//! controller is described and built ([`ControllerSpec`]), one controller of any platform × scalar type
 //! behind one concrete type ([`AnyController`]), and the report of one step that both the
 //! simulation and the HIL loop record ([`StepReport`]). A change of the law's inputs or
 //! parameters is merged here.

@@ -13,7 +13,7 @@ use serde::Serialize;
 use super::config::{HilConfig, WaitMode};
 use super::end::ControlEnd;
 use super::fault::{Corruption, Injecting};
-use super::plant::scenario_hash;
+use super::messages::scenario_hash;
 use super::serve::{serve, ServeOptions};
 use super::stats::ControlStats;
 use crate::clock::MonotonicClock;

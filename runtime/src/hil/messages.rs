@@ -5,7 +5,14 @@
 use companion_core::{Command, Measurement};
 
 use crate::controller::{StepReport, JOINTS};
-use crate::wire::{decode_status, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+use crate::scenario::Scenario;
+use crate::wire::{decode_status, fnv1a, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+
+/// The scenario hash both roles compute: FNV-1a of the controller's specification (a
+/// controller refuses a plant whose hash differs).
+pub fn scenario_hash(s: &Scenario) -> u64 {
+    serde_json::to_vec(&s.controller).map_or(0, |b| fnv1a(&b)).max(1)
+}
 
 /// What the plant stamps on every measurement of a run.
 #[derive(Clone, Copy, Debug, PartialEq)]

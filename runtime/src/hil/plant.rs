@@ -7,7 +7,7 @@ use anyhow::Result;
 
 use super::config::{HilConfig, WaitMode};
 use super::end::PlantEnd;
-use super::messages::Stamp;
+use super::messages::{scenario_hash, Stamp};
 use super::plant_loop::{run_real_time, Lockstep, Lost, PlantSide};
 use super::report::{self, LatencyReport};
 use super::stats::{LiveFigures, PlantStats};
@@ -17,17 +17,11 @@ use crate::observe::Observer;
 use crate::record::{write_summary, LogItem, RecordWriter, Recorder, Row, RowSink, RunOutcome};
 use crate::scenario::Scenario;
 use crate::sim;
-use crate::wire::fnv1a;
 
 /// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
 const LOG_RING: usize = 1 << 15;
 /// How often the writer thread flushes `timeseries.csv`.
 const FLUSH_EVERY: Duration = Duration::from_millis(50);
-
-/// The scenario hash both roles compute: FNV-1a of the controller's specification.
-pub fn scenario_hash(s: &Scenario) -> u64 {
-    serde_json::to_vec(&s.controller).map_or(0, |b| fnv1a(&b)).max(1)
-}
 
 /// What a plant run produced.
 #[derive(Debug)]

@@ -138,8 +138,7 @@ pub(crate) mod tests {
     use super::*;
     use crate::clock::FakeClock;
     use crate::hil::fault::{Corruption, Injecting};
-    use crate::hil::messages::Stamp;
-    use crate::hil::plant::scenario_hash;
+    use crate::hil::messages::{scenario_hash, Stamp};
     use crate::link::{Link, PeerState};
     use crate::scenario::Scenario;
     use crate::wire::CommandMsg;
