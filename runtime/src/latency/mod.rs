@@ -312,3 +312,58 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     }
     Ok(bench)
 }
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::hil::end::PlantEnd;
+    use crate::hil::report::LatencyReport;
+    use crate::hil::stats::PlantStats;
+    use crate::hil::{HilConfig, Timing};
+
+    fn report_json() -> serde_json::Value {
+        let s = Scenario::paper(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
+        let timing = Timing {
+            period_ns: 1_000_000,
+            deadline_ns: 500_000,
+            hold_periods: 20,
+            wait: WaitMode::Spin,
+            spin_margin_ns: 0,
+            silence_ns: 1,
+            peer_timeout_ns: 1,
+            lockstep: false,
+        };
+        let cfg = HilConfig {
+            name: "t".into(),
+            out: PathBuf::new(),
+            timing,
+            startup_timeout: Duration::from_secs(1),
+            rt: None,
+            no_plots: true,
+        };
+        let mut st = PlantStats { cycles: 7, deadline_misses: 2, ..PlantStats::default() };
+        st.round_trip.record(5_000);
+        let r = LatencyReport::new(&s, &cfg, &st, None, &PlantEnd::Completed, 1.0);
+        serde_json::to_value(&r).unwrap()
+    }
+
+    #[test]
+    fn the_benchmark_reads_back_what_the_plant_writes() {
+        let f: HilFigures = serde_json::from_value(report_json()).unwrap();
+        assert_eq!((f.cycles, f.deadline_misses, f.round_trip_ns.count), (7, 2, 1));
+        assert!(!f.rt.fifo);
+    }
+
+    #[test]
+    fn a_missing_key_in_latency_json_is_an_error_not_a_zero() {
+        let mut v = report_json();
+        v.as_object_mut().unwrap().remove("deadline_misses");
+        let e = serde_json::from_value::<HilFigures>(v).unwrap_err();
+        assert!(e.to_string().contains("deadline_misses"), "{e}");
+        let mut v = report_json();
+        v["round_trip_ns"].as_object_mut().unwrap().remove("p99.99");
+        assert!(serde_json::from_value::<HilFigures>(v).is_err());
+    }
+}
