@@ -26,6 +26,16 @@ pub enum Scalar {
     F32,
 }
 
+impl Scalar {
+    /// `f64` or `f32`, as written in files and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::F64 => "f64",
+            Self::F32 => "f32",
+        }
+    }
+}
+
 /// How the rest filter (28) is advanced, as written in a config file (`companion-core`'s
 /// `RestFilter`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]

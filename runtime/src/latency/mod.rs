@@ -227,8 +227,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                 let _rt = a.rt.then(|| RtScope::enter(own_cpu, observer));
                 controller_step(platform, scalar, a.cycles, a.warmup)?
             };
-            let scalar_name = if scalar == Scalar::F64 { "f64" } else { "f32" };
-            push("1", format!("controller step {} {scalar_name}", platform_name(platform)), h, &mut rows);
+            push("1", format!("controller step {} {}", platform_name(platform), scalar.name()), h, &mut rows);
         }
     }
     observer.note(&format!("(2) iceoryx2 ping-pong, {} round trips", a.cycles));
