@@ -126,7 +126,7 @@ pub fn serve<C: Clock, L: ControlLink>(
 }
 
 #[cfg(test)]
-pub(crate) mod tests {
+mod tests {
     use std::collections::VecDeque;
     use std::rc::Rc;
     use std::time::Duration;
@@ -144,12 +144,12 @@ pub(crate) mod tests {
     use crate::wire::CommandMsg;
 
     /// A plant whose measurements arrive at given times on a fake clock.
-    pub(crate) struct Fake {
-        pub(crate) inbox: VecDeque<(u64, MeasurementMsg)>,
-        pub(crate) sent: Vec<CommandMsg>,
-        pub(crate) clock: Rc<FakeClock>,
-        pub(crate) peer: PeerState,
-        pub(crate) checks: u32,
+    struct Fake {
+        inbox: VecDeque<(u64, MeasurementMsg)>,
+        sent: Vec<CommandMsg>,
+        clock: Rc<FakeClock>,
+        peer: PeerState,
+        checks: u32,
     }
 
     impl Link for Fake {
