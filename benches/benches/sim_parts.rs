@@ -69,7 +69,7 @@ fn plant(c: &mut Criterion) {
         b.iter(|| {
             let p = &snaps[i].0;
             i = (i + 1) % snaps.len();
-            black_box((black_box(p).measure(), sample(p)))
+            black_box((black_box(p).measure(), sample(p, &companion_core::Pose::new(0.5, 0.0, 0.0))))
         });
     });
 

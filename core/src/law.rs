@@ -498,7 +498,11 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         } else {
             guess.joints
         };
-        let q_e = if half > T::zero() { advance_inside(&start.q, &(guess_joints * half), lim, half_t) } else { start.q };
+        let q_e = if half > T::zero() {
+            advance_inside(&start.q, &(guess_joints * half), lim, half_t)
+        } else {
+            start.q
+        };
         let gamma = if p.regularisation_gain > T::zero() {
             p.regularisation_gain * (-p.regularisation_decay * t_e).exponential()
         } else {

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
-use companion_core::{Measurement, PaperRun, PlatformKind, Pose, Rpr};
+use companion_core::{Command, Measurement, PaperRun, PlatformKind, Pose, Rpr};
 use companion_plant::{PaperTrajectory, Plant};
 
 use crate::controller::{AnyController, StepReport, JOINTS};
@@ -36,24 +36,86 @@ pub struct InProcess {
     pub controller: AnyController,
     /// The control period (s).
     pub dt: f64,
+    /// The delay the controller is told (s): the scenario's, or 0 without compensation.
+    pub delay: f64,
+}
+
+impl InProcess {
+    /// The controller of a scenario.
+    ///
+    /// # Errors
+    /// An invalid parameter.
+    pub fn new(s: &Scenario) -> Result<Self, ScenarioError> {
+        let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
+        Ok(Self { controller, dt: s.dt, delay: if s.delay_compensation { s.delay } else { 0.0 } })
+    }
 }
 
 impl Exchange for InProcess {
     #[inline]
     fn exchange(&mut self, _n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
-        Ok(self.controller.step(meas, self.dt))
+        Ok(self.controller.step(meas, self.dt, self.delay))
     }
 }
 
-/// The plant's state as recorded.
-pub fn sample(plant: &Plant<Rpr<f64>, JOINTS>) -> PlantSample {
-    PlantSample { end_effector: plant.end_effector(), ..summary_sample(plant) }
+/// A pure delay between the controller and the plant: the commands sent, and which of them
+/// act over a period. Command `k` (answering measurement `k`) acts over
+/// `[t_k + τ, t_{k+1} + τ)`; with `τ = m·dt + r`, period `n` sees command `n − m − 1` for
+/// its first `r` seconds and command `n − m` for the rest. Before the first command the
+/// robot is at rest. A fixed ring: nothing allocates in the loop.
+#[derive(Clone, Debug)]
+pub struct DelayLine {
+    ring: [Command<f64, JOINTS>; DELAY_RING],
+    whole: usize,
+    rest: f64,
+}
+
+/// Commands the delay line remembers: a delay spans at most `HISTORY` periods.
+const DELAY_RING: usize = companion_core::HISTORY + 2;
+
+impl DelayLine {
+    /// A delay of `delay` seconds at period `dt` (`0 ≤ delay ≤ HISTORY·dt`, checked by the
+    /// scenario).
+    pub fn new(delay: f64, dt: f64) -> Self {
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let whole = ((delay / dt).floor() as usize).min(DELAY_RING - 2);
+        #[allow(clippy::cast_precision_loss)]
+        let mut rest = delay - whole as f64 * dt;
+        if rest < dt * 1e-9 {
+            rest = 0.0;
+        }
+        Self { ring: [Command::zero(); DELAY_RING], whole, rest }
+    }
+
+    /// Remembers command `n` and returns `(previous, current, delay within the period)` for
+    /// period `n`.
+    #[inline]
+    pub fn push(
+        &mut self,
+        n: u64,
+        command: &Command<f64, JOINTS>,
+    ) -> (Command<f64, JOINTS>, Command<f64, JOINTS>, f64) {
+        #[allow(clippy::cast_possible_truncation)]
+        let slot = |k: u64| (k % DELAY_RING as u64) as usize;
+        self.ring[slot(n)] = *command;
+        let at = |back: usize| {
+            let k = n.checked_sub(back as u64);
+            k.map_or(Command::zero(), |k| self.ring[slot(k)])
+        };
+        (at(self.whole + 1), at(self.whole), self.rest)
+    }
+}
+
+/// The plant's state as recorded, with the true tracking error for the desired pose
+/// `target_in_effector` (`r*_ed`).
+pub fn sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
+    PlantSample { end_effector: plant.end_effector(), ..summary_sample(plant, target_in_effector) }
 }
 
 /// The plant's state for a step that is not logged: what the summary reads, without the
 /// end effector's pose (its forward kinematics cost four sin/cos; the pose is left at the
 /// identity).
-fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>) -> PlantSample {
+fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
     let x = plant.truth();
     PlantSample {
         t: plant.time(),
@@ -62,6 +124,7 @@ fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>) -> PlantSample {
         joints: x.joints,
         end_effector: Pose::identity(),
         target: x.target,
+        ep_norm: plant.tracking_error(target_in_effector).norm(),
     }
 }
 
@@ -80,15 +143,24 @@ pub fn run_loop<E: Exchange, R: RowSink>(
     observer: &dyn Observer,
 ) -> Result<()> {
     let steps = s.steps();
+    let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
+    let star = s.controller.params::<f64>().primary.target_in_effector;
     for n in 0..=steps {
         let meas = plant.measure();
         let report = exchange.exchange(n, &meas)?;
         let last = n == steps;
-        let plant_sample = if sink.logs(n, last) { sample(plant) } else { summary_sample(plant) };
+        let plant_sample =
+            if sink.logs(n, last) { sample(plant, &star) } else { summary_sample(plant, &star) };
         let row = Row { plant: plant_sample, report, source: CommandSource::Fresh };
         sink.record(n, &row, last)?;
         if n < steps {
-            plant.advance(&report.command, s.dt);
+            match &mut delay {
+                None => plant.advance(&report.command, s.dt),
+                Some(line) => {
+                    let (previous, current, within) = line.push(n, &report.command);
+                    plant.try_advance_delayed(&previous, &current, within, s.dt)?;
+                }
+            }
         }
         if n % PROGRESS_EVERY == 0 {
             observer.advance(PROGRESS_EVERY.min(steps + 1 - n));
@@ -129,8 +201,7 @@ impl RowSink for Background {
 /// A bad scenario or an I/O failure.
 pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunOutcome> {
     let mut plant = build_plant(s)?;
-    let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
-    let mut exchange = InProcess { controller, dt: s.dt };
+    let mut exchange = InProcess::new(s)?;
     let log = RecordWriter::spawn(Log::for_scenario(s, dir)?, WRITER_RING, Duration::from_secs(1))?;
     let mut sink = Background { summary: summary_for(s), log };
     let start = Instant::now();

@@ -302,6 +302,7 @@ pub fn encode_status(e: Option<StepError>) -> u32 {
         Some(StepError::SingularArm) => 0x400,
         Some(StepError::SingularTaskJacobian) => 0x500,
         Some(StepError::NumericalFailure) => 0x600,
+        Some(StepError::BadDelay) => 0x700,
     }
 }
 
@@ -330,6 +331,7 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
         0x400 => Some(StepError::SingularArm),
         0x500 => Some(StepError::SingularTaskJacobian),
         0x600 => Some(StepError::NumericalFailure),
+        0x700 => Some(StepError::BadDelay),
         _ => return Err(WireError::Status(code)),
     })
 }

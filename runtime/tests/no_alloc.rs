@@ -157,7 +157,7 @@ impl Link for InstantController {
     type Tx = MeasurementMsg;
     type Rx = CommandMsg;
     fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
-        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt);
+        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
         let mut c = answer(m, &r, 0, 0);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
@@ -202,6 +202,7 @@ fn the_plant_loop_allocates_nothing() {
             stamp,
             stats: &mut stats,
             live: &live,
+            target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
         };
         run_real_time(&mut side, &mut plant, steps, &mut sink)
     });

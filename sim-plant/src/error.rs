@@ -80,4 +80,10 @@ pub enum AdvanceError {
     /// A commanded velocity is NaN or infinite.
     #[error("the command has a non-finite velocity")]
     NonFiniteCommand,
+    /// The delay within a step is not finite or not in `[0, dt)`.
+    #[error("the delay within a step {delay} s must lie in [0, dt)")]
+    BadDelay {
+        /// The delay given (s).
+        delay: f64,
+    },
 }

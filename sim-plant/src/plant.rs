@@ -193,6 +193,17 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         self.state.base.compose(&r_eb.inverse())
     }
 
+    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
+    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
+    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
+    pub fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
+        let s = &self.state;
+        let r_bd = s.base.between(&s.target);
+        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
+        let e = target_in_effector.between(&r_ed);
+        Vector3::new(e.x, e.y, e.theta)
+    }
+
     /// What the controller sees at the current step: time, platform pose, steering,
     /// joints, target pose and target velocity `u_d(t)`.
     ///
@@ -241,6 +252,24 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// A time step that is not finite and `> 0`, or differs from the plant's fixed step
     /// (set by the first step), or a non-finite command; the state is left as it was.
     pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        self.try_advance_delayed(command, command, 0.0, dt)
+    }
+
+    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
+    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
+    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
+    /// `delay = 0` this is [`try_advance`](Self::try_advance), to the bit.
+    ///
+    /// # Errors
+    /// As [`try_advance`](Self::try_advance), and a delay that is not finite or not in
+    /// `[0, dt)`; the state is left as it was.
+    pub fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(AdvanceError::BadTimeStep { dt });
         }
@@ -249,8 +278,11 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
                 return Err(AdvanceError::TimeStepChanged { fixed, dt });
             }
         }
-        if !command.is_finite() {
+        if !command.is_finite() || !previous.is_finite() {
             return Err(AdvanceError::NonFiniteCommand);
+        }
+        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
+            return Err(AdvanceError::BadDelay { delay });
         }
         self.dt = Some(dt);
         let model = Self::model(&self.config, &self.trajectory);
@@ -258,7 +290,13 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         let t0 = n as f64 * dt;
         let t1 = (n + 1) as f64 * dt;
         let trig = &mut self.trig;
-        let x = model.rk4(t0, t1, dt, &self.x, command, trig);
+        let x = if delay > 0.0 {
+            let t_switch = t0 + delay;
+            let x = model.rk4(t0, t_switch, delay, &self.x, previous, trig);
+            model.rk4(t_switch, t1, t1 - t_switch, &x, command, trig)
+        } else {
+            model.rk4(t0, t1, dt, &self.x, command, trig)
+        };
         let applied = model.applied(&x, command);
         // u_d(t₁⁺): the piece the target follows over the next step.
         let target_velocity =

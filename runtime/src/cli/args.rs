@@ -7,7 +7,7 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::{RestFilterConfig, Scalar};
+use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
 use companion_runtime::scenario::{ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target};
 
 /// The wheeled platform.
@@ -73,6 +73,24 @@ impl From<ScalarArg> for Scalar {
     }
 }
 
+/// The discretisation on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DiscretisationArg {
+    /// The law at the state predicted for the middle of the hold (the default).
+    Midpoint,
+    /// The law at the measured state (the literal sampling; first order in the period).
+    Sampled,
+}
+
+impl From<DiscretisationArg> for DiscretisationConfig {
+    fn from(d: DiscretisationArg) -> Self {
+        match d {
+            DiscretisationArg::Midpoint => DiscretisationConfig::Midpoint,
+            DiscretisationArg::Sampled => DiscretisationConfig::Sampled,
+        }
+    }
+}
+
 /// Velocity limits on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LimitsArg {
@@ -123,6 +141,12 @@ pub struct ScenarioArgs {
     /// transients. The default is linearly implicit (see companion-core's `RestFilter`).
     #[arg(long)]
     pub explicit_rest_filter: bool,
+    /// How the control law becomes a command held over one period: `midpoint` evaluates it
+    /// at the state predicted for the middle of the hold (second order in the period,
+    /// compensates the measurement delay; the default); `sampled` at the measured state
+    /// (first order: the literal sampling of the paper's continuous law).
+    #[arg(long, value_enum)]
+    pub discretisation: Option<DiscretisationArg>,
     /// Platform velocity limits, met by one common scale factor.
     #[arg(long, value_enum)]
     pub limits: Option<LimitsArg>,
@@ -188,6 +212,9 @@ impl ScenarioArgs {
         }
         if self.explicit_rest_filter {
             b = b.rest_filter(RestFilterConfig::Explicit);
+        }
+        if let Some(d) = self.discretisation {
+            b = b.discretisation(d.into());
         }
         match self.limits {
             Some(LimitsArg::Realistic) => b = b.limits(LimitsChoice::Realistic),

@@ -29,6 +29,15 @@ pub struct SimArgs {
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// Simulate a pure delay between a measurement and the moment its command takes effect
+    /// (compute and transport; a bridge over a network adds 0.1–5 ms), in seconds: from 0 to
+    /// 8 periods (and at most the law's max_delay, 50 ms). The controller is told it and
+    /// predicts over it.
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub delay: f64,
+    /// With --delay: do not tell the controller (to see what the delay does uncompensated).
+    #[arg(long)]
+    pub no_delay_compensation: bool,
 }
 
 /// `sim`'s duration when `--duration` is not given (s).
@@ -44,8 +53,11 @@ pub fn run(args: &SimArgs) -> Result<()> {
         // platform, duration and the Ψ̇ term.
         let a = &args.scenario;
         let file = a.config_file()?;
-        let list =
-            all_scenarios(&|t, c, p| a.builder(file.clone(), Target::Paper(t), c, p, DEFAULT_DURATION))?;
+        let list = all_scenarios(&|t, c, p| {
+            a.builder(file.clone(), Target::Paper(t), c, p, DEFAULT_DURATION)
+                .delay(args.delay)
+                .delay_compensation(!args.no_delay_compensation)
+        })?;
         let total: u64 = list.iter().map(|s| s.steps() + 1).sum();
         let term = Terminal::bar(total, false);
         let outcomes: Vec<RunOutcome> = list
@@ -62,7 +74,9 @@ pub fn run(args: &SimArgs) -> Result<()> {
             println!("open {}", args.out.join("index.html").display());
         }
     } else {
-        let s = args.scenario.scenario(DEFAULT_DURATION)?;
+        let a = &args.scenario;
+        let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
+        let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
         let term = Terminal::bar(s.steps() + 1, false);
         let outcome = run_one(&s, &args.out, &term)?;
         term.finish();

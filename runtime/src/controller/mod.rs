@@ -7,8 +7,8 @@
 mod spec;
 
 pub use spec::{
-    platform_name, run_name, CarConfig, ControllerConfig, ControllerSpec, LimitsConfig, RestFilterConfig,
-    Scalar, UnicycleConfig, CAR_K_BAR,
+    platform_name, run_name, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig, LimitsConfig,
+    RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR,
 };
 
 use companion_core::nalgebra::Vector3;
@@ -109,16 +109,19 @@ impl AnyController {
         })
     }
 
-    /// One step on an f64 measurement (converted to f32 for the f32 controllers).
+    /// One step on an f64 measurement (converted to f32 for the f32 controllers): the command
+    /// to hold for `period` seconds, taking effect `delay` seconds after the measurement.
     #[inline]
-    pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, dt: f64) -> StepReport {
+    pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, period: f64, delay: f64) -> StepReport {
+        #[allow(clippy::cast_possible_truncation)]
+        let (p32, d32) = (period as f32, delay as f32);
         match self {
-            Self::UnicycleF64(c) => report(c.step(meas, dt)),
-            Self::UnicycleF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
-            Self::CarF64(c) => report(c.step(meas, dt)),
-            Self::CarF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
-            Self::OmniF64(c) => report(c.step(meas, dt)),
-            Self::OmniF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
+            Self::UnicycleF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::UnicycleF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
+            Self::CarF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::CarF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
+            Self::OmniF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::OmniF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
         }
     }
 

@@ -10,8 +10,8 @@
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    CarLike, PaperRun, Params, PlatformKind, Pose, Precompensation, Real, RestFilter, Rpr, Unicycle,
-    VelocityLimits, Weight,
+    CarLike, Discretisation, PaperRun, Params, PlatformKind, Pose, Precompensation, Real, RestFilter, Rpr,
+    TargetMotion, Unicycle, VelocityLimits, Weight,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -52,6 +52,48 @@ impl From<RestFilterConfig> for RestFilter {
         match r {
             RestFilterConfig::Explicit => RestFilter::Explicit,
             RestFilterConfig::LinearlyImplicit => RestFilter::LinearlyImplicit,
+        }
+    }
+}
+
+/// How the law becomes a held command, as written in a config file and on the command line
+/// (`companion-core`'s `Discretisation`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DiscretisationConfig {
+    /// The law at the measured state, held (first order in the period).
+    Sampled,
+    /// Hold-aware: the law at the state predicted for the middle of the hold (the default;
+    /// second order in the period, compensates the measurement delay).
+    #[default]
+    Midpoint,
+}
+
+impl From<DiscretisationConfig> for Discretisation {
+    fn from(d: DiscretisationConfig) -> Self {
+        match d {
+            DiscretisationConfig::Sampled => Discretisation::Sampled,
+            DiscretisationConfig::Midpoint => Discretisation::Midpoint,
+        }
+    }
+}
+
+/// How the target's motion is extrapolated, as written in a config file
+/// (`companion-core`'s `TargetMotion`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TargetMotionConfig {
+    /// The measured velocity held.
+    Held,
+    /// Extrapolated to second order from the last three measured velocities (the default).
+    Extrapolated,
+}
+
+impl From<TargetMotionConfig> for TargetMotion {
+    fn from(t: TargetMotionConfig) -> Self {
+        match t {
+            TargetMotionConfig::Held => TargetMotion::Held,
+            TargetMotionConfig::Extrapolated => TargetMotion::Extrapolated,
         }
     }
 }
@@ -127,6 +169,16 @@ pub struct ControllerConfig {
     /// `|q̇ᵢ|` limits (rad/s or m/s).
     #[serde(default, deserialize_with = "exact")]
     pub joint_velocity_limits: Option<[f64; 3]>,
+    /// How the law becomes a held command: `"midpoint"` (default) or `"sampled"`.
+    pub discretisation: Option<DiscretisationConfig>,
+    /// How the target's motion is extrapolated: `"extrapolated"` (default) or `"held"`.
+    pub target_motion: Option<TargetMotionConfig>,
+    /// The largest measurement delay the law accepts (s).
+    pub max_delay: Option<f64>,
+    /// The largest turn of `α` or the heading within one period (rad).
+    pub max_turn_per_step: Option<f64>,
+    /// How far the rest filter's virtual frame may lag (m).
+    pub rest_reach: Option<f64>,
 }
 
 /// Lemma 1's parameters (`companion-core`'s `Unicycle`).
@@ -368,6 +420,21 @@ impl ControllerSpec {
         }
         if let Some(x) = o.joint_velocity_limits {
             p.joint_velocity_limits = v3(x);
+        }
+        if let Some(d) = o.discretisation {
+            p.discretisation = d.into();
+        }
+        if let Some(m) = o.target_motion {
+            p.target_motion = m.into();
+        }
+        if let Some(x) = o.max_delay {
+            p.max_delay = t(x);
+        }
+        if let Some(x) = o.max_turn_per_step {
+            p.max_turn_per_step = t(x);
+        }
+        if let Some(x) = o.rest_reach {
+            p.secondary.rest_reach = t(x);
         }
         if let Some(l) = self.limits {
             p.velocity_limits = l.to_limits();

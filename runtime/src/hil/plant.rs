@@ -48,6 +48,7 @@ pub fn run(
 ) -> Result<PlantOutcome> {
     let timing = cfg.timing;
     let mut plant = sim::build_plant(s)?;
+    let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
     let mut ep = PlantEndpoint::plant(&cfg.name, timing.wait == WaitMode::Event)?;
     let stamp = Stamp {
         session: crate::ipc::new_session_id(),
@@ -71,7 +72,15 @@ pub fn run(
         if let Some(rt) = cfg.rt_config(Role::Plant) {
             rt_report = Some(crate::rt::apply(&rt));
         }
-        let side = PlantSide { clock: &clock, link: &mut ep, timing, stamp, stats: &mut stats, live };
+        let side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            target_in_effector,
+        };
         let mut ex = Lockstep { side, steps };
         let r = sim::run_loop(s, &mut plant, &mut ex, &mut recorder, observer);
         let end = match r {
@@ -94,7 +103,15 @@ pub fn run(
             rt_report = Some(r);
         }
         let mut sink = |n: u64, row: &Row, last: bool| writer.try_push(LogItem { n, row: *row, last });
-        let mut side = PlantSide { clock: &clock, link: &mut ep, timing, stamp, stats: &mut stats, live };
+        let mut side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            target_in_effector,
+        };
         let r = run_real_time(&mut side, &mut plant, steps, &mut sink);
         crate::rt::reset_thread();
         live.finish();

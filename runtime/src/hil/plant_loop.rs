@@ -6,7 +6,7 @@
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
-use companion_core::{Measurement, Rpr};
+use companion_core::{Measurement, Pose, Rpr};
 use companion_plant::Plant;
 
 use super::config::Timing;
@@ -40,6 +40,8 @@ pub struct PlantSide<'a, C: Clock, L: PlantLink> {
     pub stats: &'a mut PlantStats,
     /// Live figures.
     pub live: &'a LiveFigures,
+    /// `r*_ed`, for the true tracking error recorded with each row.
+    pub target_in_effector: Pose<f64>,
 }
 
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
@@ -173,7 +175,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
             CommandSource::Stopped => stats.stopped_periods += 1,
             CommandSource::Fresh => {}
         }
-        let row = Row { plant: sim::sample(plant), report, source };
+        let row = Row { plant: sim::sample(plant, &side.target_in_effector), report, source };
         let last = n == last_step;
         if !sink(n, &row, last) {
             stats.log_rows_dropped += 1;

@@ -81,11 +81,9 @@ pub fn serve<C: Clock, L: ControlLink>(
                 stats.invalid += 1;
                 continue;
             };
-            // The controller integrates its state over the time since the previous answer.
-            let k = last_seq.map_or(1, |l| m.seq - l);
-            #[allow(clippy::cast_precision_loss)]
-            let dt = if k == 1 { m.dt } else { m.dt * k as f64 };
-            let report = ctrl.step(&meas, dt);
+            // The command is held for one period. (Delay compensation: the HIL passes 0 for
+            // now; see the wire's delay field.)
+            let report = ctrl.step(&meas, m.dt, 0.0);
             if report.error.is_some() {
                 stats.rejected += 1;
             }

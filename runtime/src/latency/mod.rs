@@ -74,7 +74,7 @@ pub fn controller_step(
     for n in 0..cycles + warmup {
         let meas = plant.measure();
         let t0 = clock.now_ns();
-        let r = ctrl.step(&meas, s.dt);
+        let r = ctrl.step(&meas, s.dt, 0.0);
         let t1 = clock.now_ns();
         if n >= warmup {
             h.record(t1 - t0);

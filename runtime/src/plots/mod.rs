@@ -175,7 +175,7 @@ fn render_figures(dir: &Path, run: &RunOutcome) -> Result<()> {
     }
     let name = &run.scenario.name;
     path_plot(&dir.join("path.svg"), name, rows).map_err(err)?;
-    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.report.ep_norm).map_err(err)?;
+    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.plant.ep_norm).map_err(err)?;
     log_plot(&dir.join("hs.svg"), &format!("{name}: h_s"), rows, |r| r.report.h_s).map_err(err)?;
     velocity_plot(&dir.join("velocities.svg"), name, rows, run.scenario.controller.platform).map_err(err)?;
     joints_plot(&dir.join("joints.svg"), name, rows).map_err(err)?;

@@ -86,7 +86,7 @@ impl<W: Write> CsvFile<W> {
             p.target.x,
             p.target.y,
             p.target.theta,
-            r.ep_norm,
+            p.ep_norm,
             r.h_s,
             r.psi,
             c.v,

@@ -20,6 +20,9 @@ pub struct PlantSample {
     pub end_effector: Pose<f64>,
     /// Target pose (world).
     pub target: Pose<f64>,
+    /// The true tracking error `‖e_p‖`, eq. (42), from the plant's exact state (what the
+    /// summary and the `ep_norm` column report: the robot's error, not the law's estimate).
+    pub ep_norm: f64,
 }
 
 /// How the command of a step was obtained (HIL adds hold/stop).

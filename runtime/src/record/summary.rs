@@ -135,15 +135,18 @@ impl SummaryAccumulator {
         if s.steps == 1 {
             s.initial_h_s = r.h_s;
         }
-        if r.ep_norm.is_finite() {
-            s.final_ep_norm = r.ep_norm;
-            if r.ep_norm >= 1e-3 {
+        // The robot's true tracking error (from the plant's exact state), whether or not
+        // the controller accepted the step.
+        let ep = p.ep_norm;
+        if ep.is_finite() {
+            s.final_ep_norm = ep;
+            if ep >= 1e-3 {
                 s.ep_settling_time_s = p.t;
             }
             if p.t >= 20.0 {
                 self.after20 += 1;
-                s.max_ep_norm_after_20s = s.max_ep_norm_after_20s.max(r.ep_norm);
-                if r.ep_norm < 1e-3 {
+                s.max_ep_norm_after_20s = s.max_ep_norm_after_20s.max(ep);
+                if ep < 1e-3 {
                     self.below += 1;
                 }
             }

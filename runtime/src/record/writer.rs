@@ -172,6 +172,7 @@ mod tests {
             joints: SVector::<f64, JOINTS>::new(0.1, 0.35 + 1e-5 * x, -0.2),
             end_effector: Pose::new(1.0 / 3.0, x * 1e-7, -x),
             target: Pose::new(2.5, 1.0, 0.0),
+            ep_norm: 1.0 / (x + 3.0),
         };
         Row { plant, report, source: CommandSource::Fresh }
     }

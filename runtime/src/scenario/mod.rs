@@ -31,8 +31,8 @@ use serde::{Serialize, Serializer};
 
 pub use self::config::{ConfigError, ConfigFile, NoiseConfig, PlantFileConfig};
 use crate::controller::{
-    platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, LimitsConfig, RestFilterConfig,
-    Scalar,
+    platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
+    LimitsConfig, RestFilterConfig, Scalar,
 };
 
 /// The target's motion.
@@ -82,9 +82,32 @@ pub enum LimitsChoice {
 /// A scenario that cannot be run: which parameter, and why.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    /// `dt` is not a number of seconds in (0, 0.1].
-    #[error("dt must be a number of seconds in (0, 0.1], got {0}")]
+    /// `dt` is not a positive number of seconds.
+    #[error("dt must be a positive number of seconds, got {0}")]
     TimeStep(f64),
+    /// `dt` is longer than the law admits (`max_time_step`, at most its period bound).
+    #[error(
+        "dt = {dt} s is longer than the law's largest admitted period, max_time_step = {max} s \
+         (at most 0.1 / the largest rate of the law's gains and filters: {bound} s here)"
+    )]
+    PeriodTooLong {
+        /// The period asked (s).
+        dt: f64,
+        /// `max_time_step` (s).
+        max: f64,
+        /// The period bound derived from the gains (s).
+        bound: f64,
+    },
+    /// `delay` is not in `[0, min(max_delay, 8 periods)]`.
+    #[error(
+        "delay must be a number of seconds in [0, {max}] (at most max_delay and 8 periods), got {delay}"
+    )]
+    Delay {
+        /// The delay asked (s).
+        delay: f64,
+        /// The largest admitted (s).
+        max: f64,
+    },
     /// `duration` is not a positive number of seconds.
     #[error("duration must be a positive number of seconds, got {0}")]
     Duration(f64),
@@ -116,6 +139,11 @@ pub struct Scenario {
     pub plant: PlantFileConfig,
     /// Log every N steps.
     pub log_every: u64,
+    /// A pure delay (s) between a measurement and the moment its command takes effect
+    /// (simulated by the in-process simulation; 0: none).
+    pub delay: f64,
+    /// Whether the controller is told the delay (the law then predicts over it).
+    pub delay_compensation: bool,
 }
 
 /// Builds a [`Scenario`]: the paper's parameters plus what is set, checked by
@@ -132,9 +160,29 @@ pub struct ScenarioBuilder {
     log_every: u64,
     config: ConfigFile,
     limits: Option<LimitsChoice>,
+    delay: f64,
+    delay_compensation: bool,
 }
 
 impl ScenarioBuilder {
+    /// A pure delay (s) from a measurement to the moment its command takes effect; default 0.
+    pub fn delay(mut self, delay: f64) -> Self {
+        self.delay = delay;
+        self
+    }
+
+    /// Whether the controller is told the delay (default: yes).
+    pub fn delay_compensation(mut self, on: bool) -> Self {
+        self.delay_compensation = on;
+        self
+    }
+
+    /// How the law becomes a held command (default: the hold-aware midpoint).
+    pub fn discretisation(mut self, d: DiscretisationConfig) -> Self {
+        self.config.controller.discretisation = Some(d);
+        self
+    }
+
     /// The control period and integration step (s); default 1 ms.
     pub fn dt(mut self, dt: f64) -> Self {
         self.dt = dt;
@@ -228,7 +276,7 @@ impl ScenarioBuilder {
     /// breaks a rule (named, with the rule).
     pub fn build(self) -> Result<Scenario, ScenarioError> {
         let dt = self.dt;
-        if !(dt.is_finite() && dt > 0.0 && dt <= 0.1) {
+        if !(dt.is_finite() && dt > 0.0) {
             return Err(ScenarioError::TimeStep(dt));
         }
         let duration = self.duration.unwrap_or(match self.target {
@@ -264,6 +312,19 @@ impl ScenarioBuilder {
         };
         // Build once to report a bad parameter now, with its name and rule.
         AnyController::new(&controller).map_err(ScenarioError::Param)?;
+        let params = controller.params::<f64>();
+        if dt > params.max_time_step {
+            return Err(ScenarioError::PeriodTooLong {
+                dt,
+                max: params.max_time_step,
+                bound: params.period_bound(),
+            });
+        }
+        #[allow(clippy::cast_precision_loss)]
+        let max_delay = params.max_delay.min(dt * companion_core::HISTORY as f64);
+        if !(self.delay.is_finite() && self.delay >= 0.0 && self.delay <= max_delay) {
+            return Err(ScenarioError::Delay { delay: self.delay, max: max_delay });
+        }
         let mut s = Scenario {
             name: String::new(),
             target: self.target,
@@ -272,6 +333,8 @@ impl ScenarioBuilder {
             duration,
             plant,
             log_every: self.log_every,
+            delay: self.delay,
+            delay_compensation: self.delay_compensation,
         };
         s.name = s.default_name();
         Ok(s)
@@ -291,6 +354,8 @@ impl Scenario {
             log_every: 10,
             config: ConfigFile::default(),
             limits: None,
+            delay: 0.0,
+            delay_compensation: true,
         }
     }
 
@@ -321,6 +386,9 @@ impl Scenario {
         }
         if c.overrides.rest_filter.map(RestFilter::from) == Some(RestFilter::Explicit) {
             name.push_str("-explicit");
+        }
+        if c.overrides.discretisation == Some(DiscretisationConfig::Sampled) {
+            name.push_str("-sampled");
         }
         name
     }
@@ -373,6 +441,10 @@ mod tests {
     fn bad_values_are_refused_with_the_parameters_name() {
         let b = || Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
         assert!(matches!(b().dt(0.0).build(), Err(ScenarioError::TimeStep(_))));
+        assert!(matches!(b().dt(0.02).build(), Err(ScenarioError::PeriodTooLong { .. })));
+        assert!(matches!(b().delay(-1e-3).build(), Err(ScenarioError::Delay { .. })));
+        assert!(matches!(b().delay(9e-3).build(), Err(ScenarioError::Delay { .. })));
+        assert!(b().delay(2e-3).build().is_ok());
         assert!(matches!(b().dt(f64::NAN).build(), Err(ScenarioError::TimeStep(_))));
         assert!(matches!(b().duration(-1.0).build(), Err(ScenarioError::Duration(_))));
         assert!(matches!(b().dt(1e-9).duration(10.0).build(), Err(ScenarioError::TooManySteps)));
