@@ -33,11 +33,10 @@ use nalgebra::{SMatrix, SVector, Vector3};
 
 use crate::arm::Arm;
 use crate::error::StepError;
-use crate::platform::Platform;
+use crate::params::Params;
 use crate::primary::{base_to_relative, primary_terms, PrimaryPoint, PrimaryTerms};
 use crate::scalar::Real;
 use crate::se2::{rbar_sc, PoseSc};
-use crate::ControlLaw;
 
 /// Where the arm law is evaluated.
 #[derive(Clone, Copy, Debug)]
@@ -56,6 +55,15 @@ pub(crate) struct ArmPoint<'a, T, const N: usize> {
     pub guess: &'a SVector<T, N>,
 }
 
+/// The arm law of a [`ControlLaw`](crate::ControlLaw): its parameters, its arm and the
+/// constant `(sin θ*, cos θ*)` of `r*_ed` (borrowed for one step).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ArmLaw<'a, T, A, const N: usize> {
+    pub params: &'a Params<T, N>,
+    pub arm: &'a A,
+    pub rot_star: (T, T),
+}
+
 /// The arm part of a step.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct ArmStep<T, const N: usize> {
@@ -72,7 +80,7 @@ pub(crate) struct ArmStep<T, const N: usize> {
     pub sensitivity: SMatrix<T, N, 3>,
 }
 
-impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+impl<T: Real, A: Arm<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
     /// (30) at `pt` for a hold of `period` seconds, `half` into it.
     #[inline(always)]
     pub(crate) fn arm_step(
@@ -82,7 +90,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         half: T,
     ) -> Result<ArmStep<T, N>, StepError> {
         let p = &self.params.primary;
-        let prim = primary_terms(p, &self.params.joint_limits, &self.arm, &pt.primary, self.rot_star);
+        let prim = primary_terms(p, &self.params.joint_limits, self.arm, &pt.primary, self.rot_star);
         let (s, c) = pt.r_bd.sc;
         let r_bd_rate = rbar_sc(s, c) * pt.u_d - base_to_relative(&pt.r_bd.pose) * pt.u_b;
         let mut rhs = -prim.e_m.component_mul(&p.gain) - prim.de_m_dr_bd * r_bd_rate - prim.de_m_dt_explicit;

@@ -30,14 +30,14 @@
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
 use crate::arm::Arm;
-use crate::arm_law::ArmPoint;
+use crate::arm_law::{ArmLaw, ArmPoint};
 use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
 use crate::hold::{self, advance_inside, Start};
 use crate::measurement::Measurement;
 use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
 use crate::platform::{Platform, PlatformKind};
-use crate::platform_law::{Hold, PlatformPoint};
+use crate::platform_law::{Hold, PlatformLaw, PlatformPoint};
 use crate::primary::{filter_rate, PrimaryPoint};
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
@@ -47,13 +47,13 @@ use crate::state::{wrap_alpha, Sent, State, HISTORY};
 /// The validated law for platform `P` and arm `A` with `N` joints.
 #[derive(Clone, Copy, Debug)]
 pub struct ControlLaw<T: Real, P, A, const N: usize> {
-    pub(crate) params: Params<T, N>,
-    pub(crate) platform: P,
-    pub(crate) arm: A,
+    params: Params<T, N>,
+    platform: P,
+    arm: A,
     /// `(sin θ*, cos θ*)` of `r*_ed`.
-    pub(crate) rot_star: (T, T),
+    rot_star: (T, T),
     /// `r_*⁻¹` with its sine and cosine.
-    pub(crate) r_star_inv: PoseSc<T>,
+    r_star_inv: PoseSc<T>,
     /// Whether `Ψ ≢ 1`, so that `h_s2` and the rest filter are needed.
     rest_needed: bool,
     /// `h/2` is used (the midpoint discretisation).
@@ -475,8 +475,10 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             xi_error,
             xi: start.xi,
         };
-        let plat = self
-            .platform_step(&point, &Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w });
+        let platform_law =
+            PlatformLaw { params: prm, platform: &self.platform, r_star_inv: &self.r_star_inv };
+        let hold = Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w };
+        let plat = platform_law.platform_step(&point, &hold);
 
         // 5. The arm law at t_e, along the new platform command.
         let xi_mid = start.xi + plat.v_xi * half;
@@ -509,7 +511,8 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             T::zero()
         };
         let q_hat_rate_e = filter_rate(&q_hat_e, &q_e, p.filter_sigma, p.filter_xi);
-        let arm = self.arm_step(
+        let arm_law = ArmLaw { params: prm, arm: &self.arm, rot_star: self.rot_star };
+        let arm = arm_law.arm_step(
             &ArmPoint {
                 primary: PrimaryPoint {
                     q: &q_e,
