@@ -6,7 +6,7 @@
 //! with Rust's shortest round-trip formatting (deterministic, exact).
 //!
 //! - [`row`]: one recorded step; [`outcome`]: a run's outcome and its JSON files;
-//! - [`summary`]: the figures of `summary.json`;
+//! - [`summary`]: the figures of `summary.json`; [`digest`]: the trajectory's fingerprint;
 //! - [`csv`]: the columns of `timeseries.csv`;
 //! - [`recorder`]: both, on the calling thread;
 //! - [`writer`]: a recorder on a thread of its own, fed through a lock-free ring (the HIL
@@ -14,12 +14,14 @@
 //!   parallel with the run).
 
 pub mod csv;
+pub mod digest;
 pub mod outcome;
 pub mod recorder;
 pub mod row;
 pub mod summary;
 pub mod writer;
 
+pub use self::digest::TrajectoryDigest;
 pub use self::outcome::{write_summary, RunOutcome};
 pub use self::recorder::{Recorder, RowSink};
 pub use self::row::{CommandSource, PlantSample, Row};

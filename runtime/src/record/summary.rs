@@ -2,6 +2,7 @@
 
 use serde::Serialize;
 
+use super::digest::TrajectoryDigest;
 use super::row::Row;
 use crate::controller::JOINTS;
 
@@ -60,6 +61,9 @@ pub struct Summary {
     pub rejected_steps: u64,
     /// Wall-clock time of the run (s).
     pub wall_time_s: f64,
+    /// The [`TrajectoryDigest`] of every step (16 hex digits): equal for two runs only if
+    /// they are bit-identical.
+    pub trajectory_digest: String,
 }
 
 /// The speed below which `v` has no sign for counting sign changes (m/s).
@@ -87,6 +91,7 @@ pub struct SummaryAccumulator {
     extremum: f64,
     lower: [f64; JOINTS],
     upper: [f64; JOINTS],
+    digest: TrajectoryDigest,
 }
 
 impl SummaryAccumulator {
@@ -114,6 +119,7 @@ impl SummaryAccumulator {
             extremum: 0.0,
             lower,
             upper,
+            digest: TrajectoryDigest::default(),
         }
     }
 
@@ -126,6 +132,7 @@ impl SummaryAccumulator {
         let s = &mut self.s;
         let p = &row.plant;
         let r = &row.report;
+        self.digest.add(row);
         s.steps += 1;
         if r.error.is_some() {
             s.rejected_steps += 1;
@@ -223,6 +230,7 @@ impl SummaryAccumulator {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
         s.wall_time_s = wall_time_s;
+        s.trajectory_digest = self.digest.hex();
         #[allow(clippy::cast_precision_loss)]
         if s.steps > 0 {
             s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();
