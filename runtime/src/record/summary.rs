@@ -4,6 +4,7 @@ use serde::Serialize;
 
 use super::digest::TrajectoryDigest;
 use super::row::Row;
+use super::verdict::{Failure, Rejections};
 use crate::controller::JOINTS;
 
 /// The run's figures (`summary.json`). "After 20 s" means `t ≥ 20 s`.
@@ -59,11 +60,21 @@ pub struct Summary {
     pub steps: u64,
     /// Steps the controller rejected (safe command sent).
     pub rejected_steps: u64,
+    /// The rejected steps by reason.
+    pub rejections: Rejections,
+    /// The time of the first rejected step (s).
+    pub first_rejection_at_s: Option<f64>,
+    /// Steps with `t ≥ 20 s` and a finite `‖e_p‖` (0: the figures "after 20 s" say nothing).
+    pub steps_after_20s: u64,
     /// Wall-clock time of the run (s).
     pub wall_time_s: f64,
     /// The [`TrajectoryDigest`] of every step (16 hex digits): equal for two runs only if
     /// they are bit-identical.
     pub trajectory_digest: String,
+    /// Whether the run ended before its last step (SIGINT/SIGTERM, or a lost peer).
+    pub ended_early: bool,
+    /// Why the run failed (empty: it did what a run must; see `record::verdict`).
+    pub failures: Vec<Failure>,
 }
 
 /// The speed below which `v` has no sign for counting sign changes (m/s).
@@ -134,8 +145,10 @@ impl SummaryAccumulator {
         let r = &row.report;
         self.digest.add(row);
         s.steps += 1;
-        if r.error.is_some() {
+        if let Some(e) = r.error {
             s.rejected_steps += 1;
+            s.rejections.count(e);
+            s.first_rejection_at_s.get_or_insert(p.t);
         }
         let mut moved = 0.0;
         if let Some((x, y)) = self.last_pos {
@@ -229,6 +242,7 @@ impl SummaryAccumulator {
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
+        s.steps_after_20s = self.after20;
         s.wall_time_s = wall_time_s;
         s.trajectory_digest = self.digest.hex();
         #[allow(clippy::cast_precision_loss)]
