@@ -1,7 +1,9 @@
 //! The HIL cycle allocates nothing of its own: a counting global allocator around (1) the
 //! iceoryx2 exchange of one measurement and one command between the two endpoints — where
 //! the only allocations are iceoryx2 0.10's own, one per `send` — (2) the plant's real-time
-//! loop and (3) the controller's serve loop, each over thousands of cycles after a warm-up.
+//! loop and (3) the controller's serve loop, each over thousands of cycles after a warm-up
+//! (the controller's law is built once, at the handshake: a run of 5 001 cycles allocates
+//! exactly what a run of 2 does).
 #![allow(unsafe_code)]
 
 use std::alloc::{GlobalAlloc, Layout, System};
@@ -14,7 +16,6 @@ use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use companion_runtime::clock::{Clock, FakeClock};
 use companion_runtime::controller::AnyController;
-use companion_runtime::hil::config::adapt_scenario;
 use companion_runtime::hil::messages::{answer, Stamp};
 use companion_runtime::hil::plant_loop::{run_real_time, PlantSide};
 use companion_runtime::hil::serve::{serve, ServeOptions};
@@ -24,7 +25,10 @@ use companion_runtime::ipc::{ControlEndpoint, PlantEndpoint};
 use companion_runtime::link::{Link, PeerState};
 use companion_runtime::record::Row;
 use companion_runtime::scenario::Scenario;
-use companion_runtime::wire::{flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+use companion_runtime::wire::{
+    flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
+    MeasurementMsg,
+};
 
 struct Counting;
 
@@ -84,17 +88,32 @@ const TIMING: Timing = Timing {
 
 /// The HIL demo's scenario: trajectory 1, run (a), unicycle, `duration` s.
 fn scenario(duration: f64) -> Scenario {
-    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+    Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
         .duration(duration)
         .build()
-        .unwrap();
-    adapt_scenario(s, &TIMING)
+        .unwrap()
+}
+
+/// The command header of a controller of the paper's unicycle.
+fn command_header() -> CommandHeader {
+    let identity =
+        ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 0.01 };
+    CommandHeader { identity, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 }
 }
 
 fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
     let s = scenario(30.0);
     let plant = companion_runtime::sim::build_plant(&s).unwrap();
-    let header = MeasurementHeader { seq, flags: fl, session: 9, dt: 1e-3, ..MeasurementHeader::default() };
+    let header = MeasurementHeader {
+        seq,
+        flags: fl,
+        session: 9,
+        dt: 1e-3,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+        period_ns: TIMING.period_ns,
+        ..MeasurementHeader::default()
+    };
     MeasurementMsg::new(header, &plant.measure())
 }
 
@@ -102,14 +121,14 @@ fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
 fn the_iceoryx2_exchange_allocates_nothing() {
     for events in [false, true] {
         let name = format!("noalloc-{}-{events}", std::process::id());
-        let plant = PlantEndpoint::plant(&name, events).unwrap();
-        let control = ControlEndpoint::control(&name, events).unwrap();
+        let mut plant = PlantEndpoint::plant(&name, events).unwrap();
+        let mut control = ControlEndpoint::control(&name, events).unwrap();
         plant.wait_for_peer(Duration::from_secs(5), || None).unwrap();
         control.wait_for_peer(Duration::from_secs(5), || None).unwrap();
         let m = measurement(0, 0);
         let diag =
             LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
-        let cycle = |seq: u64| {
+        let cycle = |plant: &mut PlantEndpoint, control: &mut ControlEndpoint, seq: u64| {
             let mut msg = m;
             msg.seq = seq;
             plant.send(&msg).unwrap();
@@ -117,7 +136,13 @@ fn the_iceoryx2_exchange_allocates_nothing() {
                 control.wait_event(Duration::from_millis(100)).unwrap();
             }
             let got = control.try_receive().unwrap().expect("the measurement");
-            let c = CommandMsg::answer::<3>(&got, &companion_core::Command::zero(), None, &diag, 0, 0);
+            let c = CommandMsg::answer::<3>(
+                &got,
+                &command_header(),
+                &companion_core::Command::zero(),
+                None,
+                &diag,
+            );
             control.send(&c).unwrap();
             if events {
                 plant.wait_event(Duration::from_millis(100)).unwrap();
@@ -125,20 +150,26 @@ fn the_iceoryx2_exchange_allocates_nothing() {
             assert_eq!(plant.try_receive().unwrap().expect("the command").seq, seq);
         };
         for seq in 0..200 {
-            cycle(seq);
+            cycle(&mut plant, &mut control, seq);
         }
         // Per operation: iceoryx2 0.10's `loan_uninit` (and so `send_copy`) puts the sample's
         // bookkeeping in an `Rc` — one 48-byte allocation, freed again by `send`; `receive`
         // allocates nothing.
         let (a, ()) = allocations_in(|| plant.send(&m).unwrap());
         let (b, got) = allocations_in(|| control.try_receive().unwrap());
-        let c = CommandMsg::answer::<3>(&got.unwrap(), &companion_core::Command::zero(), None, &diag, 0, 0);
+        let c = CommandMsg::answer::<3>(
+            &got.unwrap(),
+            &command_header(),
+            &companion_core::Command::zero(),
+            None,
+            &diag,
+        );
         let (d, ()) = allocations_in(|| control.send(&c).unwrap());
         let (e, _) = allocations_in(|| plant.try_receive().unwrap());
         assert_eq!((a, b, d, e), (1, 0, 1, 0), "allocations of send, receive, send, receive");
         let (n, ()) = allocations_in(|| {
             for seq in 200..5_200 {
-                cycle(seq);
+                cycle(&mut plant, &mut control, seq);
             }
         });
         // Nothing but the transport's own allocation in each of the two sends.
@@ -158,7 +189,7 @@ impl Link for InstantController {
     type Rx = CommandMsg;
     fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
         let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
-        let mut c = answer(m, &r, 0, 0);
+        let mut c = answer(m, &command_header(), &r);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
         self.pending = Some(c);
@@ -192,7 +223,15 @@ fn the_plant_loop_allocates_nothing() {
         rows.push(*r);
         true
     };
-    let stamp = Stamp { session: 1, scenario_hash: 0, period_ns: TIMING.period_ns, dt: s.dt };
+    let stamp = Stamp {
+        session: 1,
+        scenario_hash: 0,
+        period_ns: TIMING.period_ns,
+        dt: s.dt,
+        flags: 0,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+    };
     let steps = s.steps();
     let (n, end) = allocations_in(|| {
         let mut side = PlantSide {
@@ -203,6 +242,7 @@ fn the_plant_loop_allocates_nothing() {
             stats: &mut stats,
             live: &live,
             target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
+            last_sent: None,
         };
         run_real_time(&mut side, &mut plant, steps, &mut sink)
     });
@@ -244,16 +284,19 @@ impl Link for Script {
     }
 }
 
-#[test]
-fn the_controller_loop_allocates_nothing() {
-    let s = scenario(30.0);
-    let mut ctrl = AnyController::new(&s.controller).unwrap();
+/// Allocations of one `serve` over measurements `0..=last` (the last one ends the run).
+fn serve_allocations(s: &Scenario, last: u64) -> u64 {
     let m = measurement(0, 0);
     let mut inbox = VecDeque::with_capacity(5_001);
-    for seq in 0..5_000 {
+    for seq in 0..last {
         inbox.push_back(MeasurementMsg { seq, plant_time_ns: seq * 1_000_000, ..m });
     }
-    inbox.push_back(MeasurementMsg { seq: 5_000, flags: flags::END_OF_RUN, ..m });
+    inbox.push_back(MeasurementMsg {
+        seq: last,
+        flags: flags::END_OF_RUN,
+        plant_time_ns: last * 1_000_000,
+        ..m
+    });
     let mut link = Script { inbox, sent: Vec::with_capacity(5_001), ready: true };
     let opt = ServeOptions {
         wait: WaitMode::Spin,
@@ -261,13 +304,28 @@ fn the_controller_loop_allocates_nothing() {
         silence_ns: 20_000_000,
         peer_timeout_ns: 2_000_000_000,
         startup_timeout_ns: 2_000_000_000,
-        scenario_hash: 0,
+        delay_compensation: true,
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
-    let (n, end) = allocations_in(|| serve(&clock, &mut link, &mut ctrl, &opt, &mut stats));
-    assert_eq!(n, 0, "{n} allocations in {} controller cycles", stats.answered);
+    let silent = companion_runtime::observe::Silent;
+    let (n, end) = allocations_in(|| serve(&clock, &mut link, &s.controller, &opt, &mut stats, &silent));
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
-    assert_eq!(link.sent.len(), 5_001);
-    let _ = clock.now_ns();
+    assert_eq!(link.sent.len() as u64, last + 1);
+    n
+}
+
+#[test]
+fn the_controller_loop_allocates_nothing() {
+    let s = scenario(30.0);
+    // The handshake builds the law (a few allocations, once); the cycles after it none.
+    let handshake = serve_allocations(&s, 1);
+    let long = serve_allocations(&s, 5_000);
+    assert_eq!(
+        long,
+        handshake,
+        "{} allocations in 4 999 controller cycles after the handshake",
+        long - handshake
+    );
+    assert!(handshake > 0, "the law is built at the handshake");
 }

@@ -235,14 +235,4 @@ impl ScenarioArgs {
         }
         b
     }
-
-    /// The scenario the flags describe (`default_duration` if `--duration` is not given).
-    ///
-    /// # Errors
-    /// A bad flag value or config file, with a message saying which and why.
-    pub fn scenario(&self, default_duration: f64) -> Result<Scenario> {
-        let file = self.config_file()?;
-        let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
-        Ok(b.build()?)
-    }
 }

@@ -8,5 +8,8 @@ pub const EXIT_PEER_LOST: u8 = 3;
 pub const EXIT_PEER_HUNG: u8 = 4;
 /// Exit code: a demo with the same `--name` is running.
 pub const EXIT_NAME_IN_USE: u8 = 5;
+/// Exit code: the run reached its end, but the plant stopped the robot on the way (commands
+/// missed their deadlines for longer than the hold): the controller did not drive the run.
+pub const EXIT_ROBOT_STOPPED: u8 = 6;
 /// Exit code: ended early by SIGINT or SIGTERM (files are written).
 pub const EXIT_INTERRUPTED: u8 = 130;

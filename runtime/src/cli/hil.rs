@@ -10,7 +10,6 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
-use companion_runtime::hil::config::adapt_scenario;
 use companion_runtime::hil::control::{run_as_parent, session, ParentOutcome, Session};
 use companion_runtime::hil::fault::Corruption;
 use companion_runtime::hil::report::LatencyReport;
@@ -22,7 +21,9 @@ use companion_runtime::process::ChildGuard;
 use companion_runtime::scenario::Scenario;
 
 use super::args::ScenarioArgs;
-use super::exit::{EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG, EXIT_PEER_LOST};
+use super::exit::{
+    EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG, EXIT_PEER_LOST, EXIT_ROBOT_STOPPED,
+};
 use super::sim::print_table;
 use super::terminal::Terminal;
 
@@ -110,6 +111,16 @@ pub struct HilArgs {
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// Lockstep only: the plant simulates a pure delay between a measurement and the moment
+    /// its command takes effect (s, 0 to 8 periods and at most the law's max_delay), and
+    /// announces it to the controller — the same run as `companion sim --delay`. In real
+    /// time the plant measures the delay itself.
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub delay: f64,
+    /// The controller ignores the delay the plant announces (predicts over 0), to see what the
+    /// delay does uncompensated.
+    #[arg(long)]
+    pub no_delay_compensation: bool,
     /// No live progress line.
     #[arg(long)]
     pub quiet: bool,
@@ -165,12 +176,20 @@ impl HilArgs {
         })
     }
 
-    /// The typed configuration and the scenario (adapted to the HIL: see `adapt_scenario`).
+    /// The typed configuration and the scenario.
     ///
     /// # Errors
     /// A bad flag value or config file.
     pub fn resolve(&self) -> Result<(HilConfig, Scenario)> {
-        let s = self.scenario.scenario(DEFAULT_DURATION)?;
+        if self.delay != 0.0 && !self.lockstep {
+            bail!(
+                "--delay simulates a pure delay in lockstep (--lockstep); in real time the plant measures the \
+                 delay of every command itself"
+            );
+        }
+        let a = &self.scenario;
+        let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
+        let s = b.delay(self.delay).delay_compensation(!self.no_delay_compensation).build()?;
         let timing = self.timing(&s)?;
         let startup_timeout = Duration::try_from_secs_f64(self.startup_timeout).map_err(|_| {
             anyhow!("--startup-timeout must be a number of seconds, got {}", self.startup_timeout)
@@ -189,7 +208,7 @@ impl HilArgs {
             rt,
             no_plots: self.no_plots,
         };
-        Ok((cfg, adapt_scenario(s, &timing)))
+        Ok((cfg, s))
     }
 
     /// `--inject`, parsed.
@@ -230,6 +249,7 @@ fn plant_exit_code(end: &PlantEnd) -> u8 {
         PlantEnd::Interrupted { .. } => EXIT_INTERRUPTED,
         PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. } => EXIT_PEER_LOST,
         PlantEnd::ControllerHung { .. } => EXIT_PEER_HUNG,
+        PlantEnd::Refused(_) => EXIT_ERROR,
     }
 }
 
@@ -318,10 +338,12 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     Ok(ExitCode::from(match run_as_parent(&cfg, &s, &inject, ChildGuard::new(child), &term)? {
         ParentOutcome::PlantExitedEarly(st) => code_of(Some(st)),
         ParentOutcome::Failed(_) => EXIT_ERROR,
-        ParentOutcome::Finished { end, plant } => {
+        ParentOutcome::Finished { end, plant, failure } => {
             let code = code_of(plant);
             if end == ControlEnd::Interrupted && code == 0 {
                 EXIT_INTERRUPTED
+            } else if failure.is_some() && code == 0 {
+                EXIT_ROBOT_STOPPED
             } else {
                 code
             }
@@ -401,7 +423,15 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
     let (cfg, s) = a.resolve()?;
     let inject = a.injections()?;
-    eprintln!("controller: demo '{}' waiting for its plant (companion plant --name {})", cfg.name, cfg.name);
+    eprintln!(
+        "controller: demo '{}' waiting for its plant (companion plant --name {}); protocol version {}, services {}, \
+         scenario hash {:#018x}",
+        cfg.name,
+        cfg.name,
+        companion_runtime::wire::PROTOCOL_VERSION,
+        ipc::service_name(&cfg.name, "{measurement,command}"),
+        companion_runtime::hil::handshake::controller_hash(&s.controller)
+    );
     let Session { end, stats } = match session(&cfg, &s, &inject, &Terminal::lines(), || None) {
         Ok(x) => x,
         Err(e) => return name_in_use_or(e),
@@ -409,6 +439,9 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     eprintln!("{}", stats.line());
     if end != ControlEnd::EndOfRun {
         eprintln!("controller: {}", end.describe());
+    } else if let Some(f) = stats.failure() {
+        eprintln!("controller: {f}");
+        return Ok(ExitCode::from(EXIT_ROBOT_STOPPED));
     }
     Ok(ExitCode::from(control_exit_code(&end)))
 }
@@ -497,8 +530,9 @@ mod tests {
             if companion_runtime::rt::online_cpus() >= 2 { WaitMode::Spin } else { WaitMode::Hybrid };
         assert_eq!(tm.wait, expected);
         assert!(!tm.lockstep);
-        // The joint guard leaves room for the held periods.
-        assert_eq!(s.controller.overrides.joint_step_fraction, Some(1.0 / 22.0));
+        // The scenario is the one the flags describe (the joint guard is the plant's business,
+        // announced on the wire: see hil::handshake).
+        assert_eq!(s.controller.overrides.joint_step_fraction, None);
         let t = T::parse_from(["x", "--rt"]);
         assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Hybrid);
         let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
@@ -510,6 +544,18 @@ mod tests {
         let t = T::parse_from(["x", "--rate", "2000", "--deadline-us", "600"]);
         let e = t.a.resolve().unwrap_err().to_string();
         assert!(e.contains("--deadline-us"), "{e}");
+    }
+
+    #[test]
+    fn a_delay_is_for_lockstep_and_compensation_can_be_switched_off() {
+        let t = T::parse_from(["x", "--delay", "0.002"]);
+        let e = t.a.resolve().unwrap_err().to_string();
+        assert!(e.contains("--delay") && e.contains("--lockstep"), "{e}");
+        let t = T::parse_from(["x", "--lockstep", "--delay", "0.002", "--no-delay-compensation"]);
+        let (_, s) = t.a.resolve().unwrap();
+        assert_eq!((s.delay, s.delay_compensation), (0.002, false));
+        let t = T::parse_from(["x", "--lockstep", "--delay", "0.5"]);
+        assert!(t.a.resolve().is_err());
     }
 
     #[test]

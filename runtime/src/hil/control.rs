@@ -13,16 +13,17 @@ use serde::Serialize;
 use super::config::{HilConfig, WaitMode};
 use super::end::ControlEnd;
 use super::fault::{Corruption, Injecting};
-use super::messages::scenario_hash;
 use super::serve::{serve, ServeOptions};
 use super::stats::ControlStats;
 use crate::clock::MonotonicClock;
-use crate::controller::AnyController;
 use crate::histogram::fmt_ns;
 use crate::ipc::{ControlEndpoint, Role};
 use crate::observe::Observer;
 use crate::process::{exit_text, ChildGuard};
-use crate::scenario::{Scenario, ScenarioError};
+use crate::scenario::Scenario;
+
+/// How long the controller waits for the plant to read its last message.
+const LINGER: Duration = Duration::from_secs(1);
 
 /// The options of [`serve`] for a configuration and scenario.
 pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
@@ -35,7 +36,7 @@ pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
         silence_ns: t.silence_ns,
         peer_timeout_ns: t.peer_timeout_ns,
         startup_timeout_ns: startup.max(t.peer_timeout_ns),
-        scenario_hash: scenario_hash(s),
+        delay_compensation: s.delay_compensation,
     }
 }
 
@@ -52,7 +53,8 @@ pub struct Session {
 /// waiting whether to give up), serves it. `inject`: corrupted commands to add (tests).
 ///
 /// # Errors
-/// A bad parameter, a transport failure, or a plant running another scenario.
+/// A bad parameter, a transport failure, or a plant this controller refused
+/// ([`super::serve::Refused`]).
 pub fn session(
     cfg: &HilConfig,
     s: &Scenario,
@@ -61,7 +63,6 @@ pub fn session(
     abort: impl FnMut() -> Option<String>,
 ) -> Result<Session> {
     let opt = serve_options(cfg, s);
-    let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
     let ep = ControlEndpoint::control(&cfg.name, cfg.timing.wait == WaitMode::Event)?;
     ep.wait_for_peer(cfg.startup_timeout, abort)?;
     let rt = cfg.rt_config(Role::Control).map(|c| crate::rt::apply(&c));
@@ -71,14 +72,19 @@ pub fn session(
     let mut stats = ControlStats::default();
     let (r, ep) = if inject.is_empty() {
         let mut ep = ep;
-        (serve(&MonotonicClock, &mut ep, &mut ctrl, &opt, &mut stats), ep)
+        (serve(&MonotonicClock, &mut ep, &s.controller, &opt, &mut stats, observer), ep)
     } else {
         // Testing: corrupted commands go out before the real ones.
         let mut link = Injecting::new(ep, inject.to_vec());
-        (serve(&MonotonicClock, &mut link, &mut ctrl, &opt, &mut stats), link.into_inner())
+        (serve(&MonotonicClock, &mut link, &s.controller, &opt, &mut stats, observer), link.into_inner())
     };
     if rt.is_some() {
         crate::rt::reset_thread();
+    }
+    // The last message (the answer to the end of the run, or a refusal) must reach the plant
+    // before this process exits and its samples with it.
+    if matches!(&r, Ok(ControlEnd::EndOfRun)) || r.as_ref().is_err_and(|e| e.is::<super::serve::Refused>()) {
+        ep.linger(LINGER);
     }
     let end = r?;
     if matches!(end, ControlEnd::PlantDied { .. }) {
@@ -91,17 +97,40 @@ impl ControlStats {
     /// One line: answers, skips, drops, rejections and compute times.
     pub fn line(&self) -> String {
         let p = self.compute.percentiles();
-        format!(
+        let d = self.delay.percentiles();
+        let mut line = format!(
             "controller: answered {} measurements ({} skipped as superseded, {} dropped as malformed, {} rejected \
-             by the law); compute p50 {} p99 {} max {}",
+             by the law); compute p50 {} p99 {} max {}; delay predicted over p50 {} max {}",
             self.answered,
             self.skipped,
             self.invalid,
             self.rejected,
             fmt_ns(p.p50),
             fmt_ns(p.p99),
-            fmt_ns(p.max)
-        )
+            fmt_ns(p.max),
+            fmt_ns(d.p50),
+            fmt_ns(d.max)
+        );
+        if self.delay_clamped > 0 {
+            line.push_str(&format!(
+                " ({} announced delays clamped to what the law admits)",
+                self.delay_clamped
+            ));
+        }
+        line
+    }
+
+    /// Why the run must not count as a success although it reached its end: the plant
+    /// stopped the robot (`None` if it never did).
+    pub fn failure(&self) -> Option<String> {
+        (self.stop_events > 0).then(|| {
+            format!(
+                "the plant stopped the robot {} time(s), first at cycle {} (commands missed their deadlines for \
+                 more than the plant's hold periods); the run did not follow the controller",
+                self.stop_events,
+                self.first_stop_seq.unwrap_or(0)
+            )
+        })
     }
 }
 
@@ -119,6 +148,8 @@ pub enum ParentOutcome {
         end: ControlEnd,
         /// The plant's status.
         plant: Option<ExitStatus>,
+        /// Why the run failed although it ended ([`ControlStats::failure`]).
+        failure: Option<String>,
     },
     /// The plant died, left or hung during the run.
     PlantLost(ControlEnd),
@@ -188,7 +219,11 @@ pub fn run_as_parent(
             // The plant writes its files and plots, then exits with the run's status.
             let plant = child.finish(Duration::from_secs(600))?;
             observer.note(&stats.line());
-            Ok(ParentOutcome::Finished { end, plant })
+            let failure = stats.failure();
+            if let Some(f) = &failure {
+                observer.note(&format!("controller: {f}"));
+            }
+            Ok(ParentOutcome::Finished { end, plant, failure })
         }
         ControlEnd::PlantDied { .. } | ControlEnd::PlantGone { .. } | ControlEnd::PlantHung { .. } => {
             let status = if matches!(end, ControlEnd::PlantHung { .. }) {
