@@ -22,6 +22,7 @@ import json
 import math
 import random
 import signal
+import statistics
 import struct
 import sys
 import time
@@ -460,6 +461,7 @@ class Summary:
     def __init__(self):
         self.final_ep = float("nan")
         self.max_ep_after_20 = 0.0
+        self.ep_after_20 = []
         self.after20 = self.below = 0
         self.path = 0.0
         self.last_pos = None
@@ -480,6 +482,7 @@ class Summary:
                 self.after20 += 1
                 self.max_ep_after_20 = max(self.max_ep_after_20, ep)
                 self.below += ep < 1e-3
+                self.ep_after_20.append(ep)
         v, w = cmd[0], cmd[1]
         if abs(v) > SIGN_SPEED:
             sign = 1 if v > 0 else -1
@@ -730,6 +733,8 @@ class Bridge:
             "v_sign_changes": self.summary.v_sign_changes,
             "max_abs_v": self.summary.max_v,
             "max_abs_omega": self.summary.max_w,
+            "max_ep_norm_after_20s": self.summary.max_ep_after_20,
+            "median_ep_norm_after_20s": statistics.median(self.summary.ep_after_20) if self.summary.ep_after_20 else None,
             "steps": self.summary.steps,
             "counts": self.counts,
             "invalid": self.invalid,
