@@ -51,6 +51,12 @@ pub trait Link {
     /// # Errors
     /// The peer's state cannot be read.
     fn peer_state(&mut self) -> Result<PeerState>;
+
+    /// Whether this side notifies the peer's event after each message (so that the peer may
+    /// sleep on it; announced on the wire as `flags::NOTIFIES`).
+    fn notifies(&self) -> bool {
+        false
+    }
 }
 
 /// The plant's side: sends measurements, receives commands.

@@ -1,122 +1,133 @@
-//! The two messages of the HIL loop — the interface a bridge to real hardware implements.
+//! The two messages of the HIL loop — the interface a bridge to real hardware implements —
+//! and the rules that decide whether a message is used.
+//!
+//! The complete protocol (services and their settings, start-up, events, silence, end of
+//! run, versioning) is `docs/protocol.md` in the repository: a bridge author needs nothing
+//! else. This module is its implementation; a test checks the layouts below against the
+//! document's.
 //!
 //! Every control period the plant publishes one [`MeasurementMsg`] and the controller answers
 //! it with one [`CommandMsg`]. Both are `#[repr(C)]`, fixed size, made only of `u32`, `u64`
-//! and `f64` fields laid out without padding, and travel by iceoryx2 publish–subscribe in
-//! shared memory (zero copy: the bytes below *are* the message). A bridge written in another
-//! language opens the same services (see [`crate::ipc`] for their names and settings) with a
-//! struct of the same layout and the same iceoryx2 type name ([`MEASUREMENT_TYPE_NAME`],
-//! [`COMMAND_TYPE_NAME`]); a bridge over another transport sends the same bytes
-//! ([`MeasurementMsg::to_bytes`], little-endian).
+//! and `f64` fields laid out without padding (alignment 8), little-endian, and travel by
+//! iceoryx2 publish–subscribe in shared memory with the type names
+//! [`MEASUREMENT_TYPE_NAME`] and [`COMMAND_TYPE_NAME`] (see [`crate::ipc`]); a transport that
+//! carries bytes sends [`MeasurementMsg::to_bytes`].
 //!
-//! ## Rules of the exchange
+//! ## Rules of the exchange (protocol version 2)
 //!
-//! - The plant owns time. It numbers measurements `seq = 0, 1, 2, …` (one per period, never
-//!   reused within a session) and stamps them with `plant_time_ns`, its `CLOCK_MONOTONIC` at
-//!   publication.
-//! - The controller answers measurement `seq` with a command carrying the same `seq`, the same
-//!   `session`, and `plant_time_ns` copied unchanged, so that the plant measures the round trip
-//!   on its own clock. If several measurements are waiting it answers only the newest one and
+//! - **The plant owns time.** It numbers measurements `seq = 0, 1, 2, …` within a `session`
+//!   (a random non-zero id per plant run), stamps each with `plant_time_ns` (its
+//!   `CLOCK_MONOTONIC` when the values were measured) and says how long a command is held
+//!   (`dt`, on the time scale of `sim_time`) and how often it publishes (`period_ns`).
+//! - **The plant announces everything the commands depend on** besides the measured values:
+//!   `platform`, `joint_count`, `dt`, `period_ns`, `hold_periods`, the [`flags::LOCKSTEP`]
+//!   and [`flags::NOTIFIES`] bits and the `scenario_hash` ([`Announcement`]). The controller
+//!   checks them on the first measurement of a session ([`ControllerIdentity::admit`]) and
+//!   refuses a plant it cannot serve with a [`Refusal`] command that names the mismatch;
+//!   later measurements of the session must announce the same ([`WireError::Changed`]).
+//! - **The plant measures the delay**: `delay` is the time (s, time scale of `dt`) from a
+//!   measurement's timestamp to the moment its answer takes effect, as the plant expects it
+//!   (the reference plant: what it measured for the previous command; 0 in lockstep). The
+//!   controller predicts over it ([`crate::controller::AnyController::step`]).
+//! - The controller answers measurement `seq` with a command carrying the same `seq`,
+//!   `session` and `plant_time_ns`, its own `platform`, `joint_count` and `scenario_hash`, and
+//!   the `delay` it used. If several measurements are waiting it answers only the newest and
 //!   reports how many it skipped (`skipped`).
-//! - A command is applied only if it answers the measurement of the current period (same
-//!   `session`, same `seq`), has this `version`, the expected `joint_count`, a known `status`
-//!   and finite velocities; anything else is counted and dropped, never applied
-//!   ([`check_command`]). A command for an earlier period (it arrived after its deadline) is
-//!   counted as late and dropped.
-//! - A measurement is used only if it has this `version` and `joint_count`, comes from the
-//!   session the controller is serving, and is newer than the last one ([`check_measurement`]).
-//!   Non-finite *values* in a well-formed measurement are the control law's business: it
-//!   answers them with a typed error and the safe command (all velocities zero), reported in
-//!   `status`.
-//! - `flags` of the measurement: [`flags::END_OF_RUN`] on the last one (the controller answers
-//!   it, then exits), [`flags::LOCKSTEP`] when the plant waits for every command (no period),
-//!   [`flags::STOPPED`] while the plant has stopped the robot because commands were missing.
+//! - A command is applied only if it answers the measurement of the current period, has this
+//!   `version`, the expected `joint_count`, a known `status` and finite velocities
+//!   ([`check_command`]); anything else is counted and dropped. A refusal (`status` `0x80nn`)
+//!   ends the run.
+//! - Non-finite *values* in a well-formed measurement are the law's business: it answers them
+//!   with the safe command (all velocities zero) and a `status` saying why.
+//!
+//! ## Layout of [`MeasurementMsg`] (232 bytes)
+//!
+//! ```text
+//! offset type      field            meaning
+//!      0 u32       version          PROTOCOL_VERSION (2)
+//!      4 u32       flags            END_OF_RUN 1, LOCKSTEP 2, STOPPED 4, NOTIFIES 8
+//!      8 u64       seq              period number, from 0
+//!     16 u64       session          random non-zero id of this plant run
+//!     24 u64       scenario_hash    canonical hash of the controller's scenario; 0 = unchecked
+//!     32 u64       plant_time_ns    plant's CLOCK_MONOTONIC when measured (ns)
+//!     40 u64       period_ns        publication period (ns); 0 in lockstep
+//!     48 f64       sim_time         the plant's time t (s)
+//!     56 f64       dt               how long each command is held (s)
+//!     64 f64       delay            expected measurement-to-effect delay of the answer (s)
+//!     72 u32       platform         1 unicycle, 2 car-like, 3 omnidirectional
+//!     76 u32       hold_periods     periods the plant holds a command after a miss
+//!     80 u32       joint_count      joints used (3 for the paper's arm)
+//!     84 u32       reserved         0
+//!     88 f64[3]    base             platform pose r_b = (x, y, θ) (m, m, rad)
+//!    112 f64       steering         car-like steering ξ (1/m); 0 otherwise
+//!    120 f64[3]    target           target pose r_d = (x, y, θ) (m, m, rad)
+//!    144 f64[3]    target_velocity  target body velocity u_d (m/s, m/s, rad/s)
+//!    168 f64[8]    joints           joint positions q (rad or m)
+//! ```
+//!
+//! ## Layout of [`CommandMsg`] (224 bytes)
+//!
+//! ```text
+//! offset type      field            meaning
+//!      0 u32       version          PROTOCOL_VERSION (2)
+//!      4 u32       status           0 ok; 0x100–0x7ff the law's rejection; 0x80nn refusal
+//!      8 u64       seq              the measurement this answers
+//!     16 u64       session          copied from the measurement
+//!     24 u64       plant_time_ns    copied from the measurement
+//!     32 u64       compute_ns       receipt of the measurement to publication (ns)
+//!     40 u64       received_ns      controller's CLOCK_MONOTONIC at receipt (ns)
+//!     48 u32       skipped          newer-measurement skips since the previous answer
+//!     52 u32       joint_count      the controller's joint count
+//!     56 u32       flags            NOTIFIES 8
+//!     60 u32       platform         the controller's platform (codes as above)
+//!     64 u64       scenario_hash    the controller's scenario hash
+//!     72 f64       delay            the delay the law predicted over (s)
+//!     80 f64       v                forward speed (m/s)
+//!     88 f64       v_lat            lateral speed (m/s), omnidirectional platform
+//!     96 f64       omega            angular speed (rad/s)
+//!    104 f64       v_xi             steering rate (1/(m·s)), car-like platform
+//!    112 f64[8]    joints           joint velocities u_q (rad/s or m/s)
+//!    176 f64       ep_norm          ‖e_p‖ (logged; NaN when rejected)
+//!    184 f64       h_s              h_s (logged; NaN when rejected)
+//!    192 f64       psi              Ψ (logged; NaN when rejected)
+//!    200 f64       saturation       common saturation factor ≥ 1 (logged; NaN when rejected)
+//!    208 f64[2]    alpha_rate       α̇ (logged; NaN when rejected)
+//! ```
+//!
+//! `status` codes. The law answered with the safe command (all velocities zero): `0x100 + f`
+//! a non-finite measured field `f` (0 time, 1 base pose, 2 steering, 3 joints, 4 target pose,
+//! 5 target velocity); `0x200` bad time step; `0x300 + j` joint `j` (from 0) at or beyond its
+//! limit; `0x400` singular arm; `0x500` singular task Jacobian; `0x600` numerical failure;
+//! `0x700` bad delay. The controller refuses the run ([`Refusal`]; velocities zero, the
+//! controller exits after sending it): `0x8001` protocol version, `0x8002` joint count,
+//! `0x8003` platform, `0x8004` scenario, `0x8005` period (`dt`).
 //!
 //! ## Joints
 //!
 //! Both messages have room for [`MAX_JOINTS`] = 8 joints and a `joint_count` saying how many
-//! are used (the rest are zero). The paper's arm has 3; a bridge for another arm keeps the
-//! layout and the protocol version, and a controller built for `N` joints rejects messages
-//! whose `joint_count` is not `N`.
-//!
-//! ## Units
-//!
-//! SI throughout: metres, radians, seconds; velocities in m/s and rad/s; the car's steering
-//! state `ξ = tan φ / ℓ` in 1/m and its rate `v_ξ` in 1/(m·s). Poses are `(x, y, θ)` in the
-//! fixed frame; the target velocity is the *body* velocity `u_d` (`ṙ_d = R̄(θ_d) u_d`).
-//!
-//! ## Layout of [`MeasurementMsg`] (216 bytes)
-//!
-//! ```text
-//! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (1)
-//!      4 u32       flags            END_OF_RUN = 1, LOCKSTEP = 2, STOPPED = 4
-//!      8 u64       seq              period number, from 0
-//!     16 u64       session          random id of this plant run, echoed by the controller
-//!     24 u64       scenario_hash    FNV-1a of the scenario (a controller built for another
-//!                                   scenario refuses to run); 0 = not checked
-//!     32 u64       plant_time_ns    CLOCK_MONOTONIC at publication (ns), echoed
-//!     40 u64       period_ns        the control period in real-time mode; 0 in lockstep
-//!     48 f64       sim_time         simulated time t (s)
-//!     56 f64       dt               the step the controller integrates over per period (s)
-//!     64 f64[3]    base             platform pose r_b = (x, y, θ)
-//!     88 f64       steering         car-like steering ξ (1/m); 0 otherwise
-//!     96 f64[3]    target           target pose r_d = (x, y, θ)
-//!    120 f64[3]    target_velocity  target body velocity u_d (m/s, m/s, rad/s)
-//!    144 u32       joint_count      joints used (3 for the paper's arm)
-//!    148 u32       reserved         0
-//!    152 f64[8]    joints           joint positions q (rad or m)
-//! ```
-//!
-//! ## Layout of [`CommandMsg`] (200 bytes)
-//!
-//! ```text
-//! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (1)
-//!      4 u32       status           0 = ok; else the law's rejection reason (see below)
-//!      8 u64       seq              the measurement this answers
-//!     16 u64       session          copied from the measurement
-//!     24 u64       plant_time_ns    copied from the measurement
-//!     32 u64       compute_ns       controller time from receiving the measurement to
-//!                                   publishing this command (ns)
-//!     40 u64       received_ns      controller's CLOCK_MONOTONIC when the measurement arrived
-//!     48 u32       skipped          newer-measurement skips since the previous answer
-//!     52 u32       joint_count      joints used
-//!     56 f64       v                forward speed (m/s)
-//!     64 f64       v_lat            lateral speed (m/s), omnidirectional platform
-//!     72 f64       omega            angular speed (rad/s)
-//!     80 f64       v_xi             steering rate (1/(m·s)), car-like platform
-//!     88 f64[8]    joints           joint velocities u_q (rad/s or m/s)
-//!    152 f64       ep_norm          ‖e_p‖ (logged; NaN when rejected)
-//!    160 f64       h_s              h_s (logged; NaN when rejected)
-//!    168 f64       psi              Ψ (logged; NaN when rejected)
-//!    176 f64       saturation       common saturation factor ≥ 1 (logged; NaN when rejected)
-//!    184 f64[2]    alpha_rate       α̇ (logged; NaN when rejected)
-//! ```
-//!
-//! `status` codes (the law answered with the safe command, all velocities zero):
-//! `0x100 + f` a non-finite measured field `f` (0 time, 1 base pose, 2 steering, 3 joints,
-//! 4 target pose, 5 target velocity); `0x200` bad time step; `0x300 + j` joint `j` (from 0)
-//! at or beyond its limit; `0x400` singular arm; `0x500` singular task Jacobian; `0x600`
-//! numerical failure.
+//! are used (the rest are zero); a controller built for `N` joints refuses another count.
+
+pub mod canonical;
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{Command, Field, Measurement, PlatformCommand, Pose, StepError};
 use iceoryx2::prelude::ZeroCopySend;
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
-/// The protocol version both messages carry. Changed whenever the layout or meaning changes.
-pub const PROTOCOL_VERSION: u32 = 1;
+/// The protocol version both messages carry. Changed whenever the layout or meaning changes;
+/// it is also part of the service names ([`crate::ipc`]), so that peers of different
+/// versions never open each other's services.
+pub const PROTOCOL_VERSION: u32 = 2;
 
 /// Room for joints in both messages.
 pub const MAX_JOINTS: usize = 8;
 
 /// The iceoryx2 type name of [`MeasurementMsg`] (what a bridge in another language declares).
-pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV1";
+pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV2";
 /// The iceoryx2 type name of [`CommandMsg`].
-pub const COMMAND_TYPE_NAME: &str = "companion::CommandV1";
+pub const COMMAND_TYPE_NAME: &str = "companion::CommandV2";
 
-/// Bits of [`MeasurementMsg::flags`].
+/// Bits of [`MeasurementMsg::flags`] (and [`flags::NOTIFIES`] of [`CommandMsg::flags`]).
 pub mod flags {
     /// The last measurement of the run: answer it, then exit.
     pub const END_OF_RUN: u32 = 1;
@@ -124,6 +135,51 @@ pub mod flags {
     pub const LOCKSTEP: u32 = 2;
     /// The plant has stopped the robot (commands missed too many deadlines).
     pub const STOPPED: u32 = 4;
+    /// The sender notifies its `-ready` event after each message: the peer may sleep on it.
+    pub const NOTIFIES: u32 = 8;
+    /// The flags that announce the plant's mode (constant within a session).
+    pub const ANNOUNCED: u32 = LOCKSTEP | NOTIFIES;
+}
+
+/// The `platform` codes of both messages.
+pub mod platform {
+    use companion_core::PlatformKind;
+
+    /// Unicycle-like (differential drive).
+    pub const UNICYCLE: u32 = 1;
+    /// Car-like.
+    pub const CAR: u32 = 2;
+    /// Omnidirectional.
+    pub const OMNI: u32 = 3;
+
+    /// The code of a platform.
+    pub fn code(k: PlatformKind) -> u32 {
+        match k {
+            PlatformKind::Unicycle => UNICYCLE,
+            PlatformKind::Car => CAR,
+            PlatformKind::Omni => OMNI,
+        }
+    }
+
+    /// The platform of a code.
+    pub fn kind(code: u32) -> Option<PlatformKind> {
+        match code {
+            UNICYCLE => Some(PlatformKind::Unicycle),
+            CAR => Some(PlatformKind::Car),
+            OMNI => Some(PlatformKind::Omni),
+            _ => None,
+        }
+    }
+
+    /// A code in words (`unicycle`, `car-like`, `omnidirectional`, or `unknown (n)`).
+    pub fn describe(code: u32) -> String {
+        match code {
+            UNICYCLE => "unicycle".into(),
+            CAR => "car-like".into(),
+            OMNI => "omnidirectional".into(),
+            n => format!("unknown ({n})"),
+        }
+    }
 }
 
 // The derives below generate `unsafe impl`s (`ZeroCopySend`; zerocopy's byte conversions,
@@ -133,7 +189,7 @@ pub mod flags {
 /// layout and the rules.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::MeasurementV1")]
+#[type_name("companion::MeasurementV2")]
 #[repr(C)]
 pub struct MeasurementMsg {
     /// [`PROTOCOL_VERSION`].
@@ -142,18 +198,29 @@ pub struct MeasurementMsg {
     pub flags: u32,
     /// Period number, from 0.
     pub seq: u64,
-    /// Random id of this plant run.
+    /// Random non-zero id of this plant run.
     pub session: u64,
-    /// FNV-1a hash of the scenario; 0 = not checked.
+    /// [`canonical::scenario_hash`] of the controller's scenario; 0 = not checked.
     pub scenario_hash: u64,
-    /// The plant's `CLOCK_MONOTONIC` at publication (ns).
+    /// The plant's `CLOCK_MONOTONIC` when the values were measured (ns).
     pub plant_time_ns: u64,
-    /// The control period (ns); 0 in lockstep.
+    /// The publication period (ns); 0 in lockstep.
     pub period_ns: u64,
-    /// Simulated time `t` (s).
+    /// The plant's time `t` (s).
     pub sim_time: f64,
-    /// The step the controller integrates over per period (s).
+    /// How long each command is held (s): the step the controller integrates over.
     pub dt: f64,
+    /// The delay (s, time scale of `dt`) from this measurement's timestamp to the moment its
+    /// answer is expected to take effect.
+    pub delay: f64,
+    /// The plant's [`platform`] code.
+    pub platform: u32,
+    /// Periods the plant holds the last command after a missed deadline before it stops.
+    pub hold_periods: u32,
+    /// Joints used.
+    pub joint_count: u32,
+    /// Zero.
+    pub reserved: u32,
     /// Platform pose `r_b = (x, y, θ)` (m, m, rad).
     pub base: [f64; 3],
     /// Car-like steering `ξ` (1/m); 0 otherwise.
@@ -162,10 +229,6 @@ pub struct MeasurementMsg {
     pub target: [f64; 3],
     /// Target body velocity `u_d` (m/s, m/s, rad/s).
     pub target_velocity: [f64; 3],
-    /// Joints used.
-    pub joint_count: u32,
-    /// Zero.
-    pub reserved: u32,
     /// Joint positions `q` (rad or m); entries past `joint_count` are zero.
     pub joints: [f64; MAX_JOINTS],
 }
@@ -173,14 +236,14 @@ pub struct MeasurementMsg {
 /// One command of the controller, answering one measurement. See the module docs.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::CommandV1")]
+#[type_name("companion::CommandV2")]
 #[repr(C)]
 pub struct CommandMsg {
     /// [`PROTOCOL_VERSION`].
     pub version: u32,
-    /// 0 = ok, else [`encode_status`] of the law's rejection.
+    /// 0 = ok, else [`encode_status`] of the law's rejection, or a [`Refusal`] code.
     pub status: u32,
-    /// The measurement this answers.
+    /// The sequence number of the measurement this answers.
     pub seq: u64,
     /// Copied from the measurement.
     pub session: u64,
@@ -192,8 +255,16 @@ pub struct CommandMsg {
     pub received_ns: u64,
     /// Measurements skipped (superseded by a newer one) since the previous answer.
     pub skipped: u32,
-    /// Joints used.
+    /// The controller's joint count.
     pub joint_count: u32,
+    /// [`flags::NOTIFIES`] if the controller notifies `command-ready`.
+    pub flags: u32,
+    /// The controller's [`platform`] code.
+    pub platform: u32,
+    /// The controller's scenario hash.
+    pub scenario_hash: u64,
+    /// The delay the law predicted over (s).
+    pub delay: f64,
     /// Forward speed `v` (m/s).
     pub v: f64,
     /// Lateral speed `v_lat` (m/s), omnidirectional platform.
@@ -216,17 +287,34 @@ pub struct CommandMsg {
     pub alpha_rate: [f64; 2],
 }
 
+/// A message of the wire: a plain `#[repr(C)]` value with its iceoryx2 type name.
+pub trait WireMessage: Copy + core::fmt::Debug + ZeroCopySend + 'static {
+    /// The iceoryx2 type name (what iceoryx2 compares, with size and alignment, when a
+    /// service is opened).
+    const TYPE_NAME: &'static str;
+}
+
+impl WireMessage for MeasurementMsg {
+    const TYPE_NAME: &'static str = MEASUREMENT_TYPE_NAME;
+}
+
+impl WireMessage for CommandMsg {
+    const TYPE_NAME: &'static str = COMMAND_TYPE_NAME;
+}
+
 /// The size of [`MeasurementMsg`] in bytes.
-pub const MEASUREMENT_SIZE: usize = 216;
+pub const MEASUREMENT_SIZE: usize = 232;
 /// The size of [`CommandMsg`] in bytes.
-pub const COMMAND_SIZE: usize = 200;
+pub const COMMAND_SIZE: usize = 224;
 
 const _: () = assert!(core::mem::size_of::<MeasurementMsg>() == MEASUREMENT_SIZE);
 const _: () = assert!(core::mem::size_of::<CommandMsg>() == COMMAND_SIZE);
+const _: () = assert!(core::mem::align_of::<MeasurementMsg>() == 8);
+const _: () = assert!(core::mem::align_of::<CommandMsg>() == 8);
 // The wire is little-endian and the bytes are the in-memory layout.
 const _: () = assert!(cfg!(target_endian = "little"), "the wire format is little-endian");
 
-/// Why a message was dropped.
+/// Why a message was dropped (or, [`WireError::Refused`], why the run ends).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum WireError {
     /// Another protocol version.
@@ -238,14 +326,16 @@ pub enum WireError {
     Stale(u64),
     /// A sequence number from the future (no such measurement was sent).
     Future(u64),
-    /// A `joint_count` other than the controller's.
+    /// A `joint_count` other than the expected one.
     JointCount(u32),
     /// An unknown `status` code.
     Status(u32),
     /// A non-finite velocity.
     NonFinite,
-    /// A controller built for another scenario.
-    Scenario,
+    /// A measurement whose announcement differs from the session's first.
+    Changed,
+    /// The controller refused the run (the [`Refusal`] code).
+    Refused(u32),
 }
 
 impl core::fmt::Display for WireError {
@@ -258,7 +348,8 @@ impl core::fmt::Display for WireError {
             Self::JointCount(n) => write!(f, "joint count {n}"),
             Self::Status(c) => write!(f, "unknown status code {c:#x}"),
             Self::NonFinite => f.write_str("non-finite velocity"),
-            Self::Scenario => f.write_str("scenario mismatch"),
+            Self::Changed => f.write_str("announcement changed within the session"),
+            Self::Refused(c) => write!(f, "the controller refused the run (status {c:#x})"),
         }
     }
 }
@@ -276,7 +367,8 @@ impl WireError {
             Self::JointCount(_) => "joint_count",
             Self::Status(_) => "status",
             Self::NonFinite => "non_finite",
-            Self::Scenario => "scenario",
+            Self::Changed => "changed",
+            Self::Refused(_) => "refused",
         }
     }
 }
@@ -341,6 +433,210 @@ const fn count_u32(n: usize) -> u32 {
     n as u32
 }
 
+/// What the plant announces in every measurement of a session: everything besides the
+/// measured values that the commands depend on or that must match (constant within a
+/// session).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Announcement {
+    /// [`flags::ANNOUNCED`] bits: lockstep, notifies.
+    pub flags: u32,
+    /// [`platform`] code.
+    pub platform: u32,
+    /// Joints used.
+    pub joint_count: u32,
+    /// Hold limit (periods).
+    pub hold_periods: u32,
+    /// How long each command is held (s).
+    pub dt: f64,
+    /// Publication period (ns); 0 in lockstep.
+    pub period_ns: u64,
+    /// Scenario hash; 0 = not checked.
+    pub scenario_hash: u64,
+}
+
+impl Announcement {
+    /// The announcement a measurement carries.
+    pub fn of(m: &MeasurementMsg) -> Self {
+        Self {
+            flags: m.flags & flags::ANNOUNCED,
+            platform: m.platform,
+            joint_count: m.joint_count,
+            hold_periods: m.hold_periods,
+            dt: m.dt,
+            period_ns: m.period_ns,
+            scenario_hash: m.scenario_hash,
+        }
+    }
+
+    /// Lockstep: the plant waits for every command.
+    pub fn lockstep(&self) -> bool {
+        self.flags & flags::LOCKSTEP != 0
+    }
+
+    /// The plant notifies `measurement-ready` after each measurement.
+    pub fn notifies(&self) -> bool {
+        self.flags & flags::NOTIFIES != 0
+    }
+
+    /// Equal, with `dt` compared bit for bit.
+    fn same_as(&self, o: &Self) -> bool {
+        Self { dt: 0.0, ..*self } == Self { dt: 0.0, ..*o } && self.dt.to_bits() == o.dt.to_bits()
+    }
+}
+
+/// Why the controller refuses to serve a plant (sent as the `status` of a command, then the
+/// controller exits). Each names the plant's and the controller's value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Refusal {
+    /// The measurement's `version` is not [`PROTOCOL_VERSION`].
+    Version {
+        /// The plant's version.
+        plant: u32,
+    },
+    /// Another joint count.
+    JointCount {
+        /// The plant's.
+        plant: u32,
+        /// The controller's.
+        controller: u32,
+    },
+    /// Another platform.
+    Platform {
+        /// The plant's code.
+        plant: u32,
+        /// The controller's code.
+        controller: u32,
+    },
+    /// Another scenario (both hashes non-zero and different).
+    Scenario {
+        /// The plant's hash.
+        plant: u64,
+        /// The controller's hash.
+        controller: u64,
+    },
+    /// A `dt` the law does not admit (not finite, `≤ 0`, or above its `max_time_step`).
+    Period {
+        /// The plant's `dt` (s).
+        dt: f64,
+    },
+}
+
+/// The refusal codes (`status` of a refusal command).
+pub mod refusal {
+    /// Another protocol version.
+    pub const VERSION: u32 = 0x8001;
+    /// Another joint count.
+    pub const JOINT_COUNT: u32 = 0x8002;
+    /// Another platform.
+    pub const PLATFORM: u32 = 0x8003;
+    /// Another scenario.
+    pub const SCENARIO: u32 = 0x8004;
+    /// A `dt` the law does not admit.
+    pub const PERIOD: u32 = 0x8005;
+
+    /// Whether a `status` is a refusal.
+    pub fn is_refusal(status: u32) -> bool {
+        status & 0xff00 == 0x8000
+    }
+}
+
+impl Refusal {
+    /// The `status` code.
+    pub fn code(&self) -> u32 {
+        match self {
+            Self::Version { .. } => refusal::VERSION,
+            Self::JointCount { .. } => refusal::JOINT_COUNT,
+            Self::Platform { .. } => refusal::PLATFORM,
+            Self::Scenario { .. } => refusal::SCENARIO,
+            Self::Period { .. } => refusal::PERIOD,
+        }
+    }
+
+    /// What a plant learns from a refusal command `c` answering its measurement `m`.
+    pub fn from_command(c: &CommandMsg, m: &MeasurementMsg) -> Option<Self> {
+        Some(match c.status {
+            refusal::VERSION => Self::Version { plant: m.version },
+            refusal::JOINT_COUNT => Self::JointCount { plant: m.joint_count, controller: c.joint_count },
+            refusal::PLATFORM => Self::Platform { plant: m.platform, controller: c.platform },
+            refusal::SCENARIO => Self::Scenario { plant: m.scenario_hash, controller: c.scenario_hash },
+            refusal::PERIOD => Self::Period { dt: m.dt },
+            _ => return None,
+        })
+    }
+}
+
+impl core::fmt::Display for Refusal {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Version { plant } => write!(
+                f,
+                "protocol version mismatch: the plant speaks version {plant}, the controller version \
+                 {PROTOCOL_VERSION}"
+            ),
+            Self::JointCount { plant, controller } => write!(
+                f,
+                "joint count mismatch: the plant has {plant} joints, the controller is built for {controller}"
+            ),
+            Self::Platform { plant, controller } => write!(
+                f,
+                "platform mismatch: the plant is {}, the controller is built for {}",
+                platform::describe(*plant),
+                platform::describe(*controller)
+            ),
+            Self::Scenario { plant, controller } => write!(
+                f,
+                "scenario mismatch: the plant's scenario hash is {plant:#018x}, the controller's {controller:#018x} \
+                 (give both roles the same scenario flags, or send 0 to skip the check)"
+            ),
+            Self::Period { dt } => write!(
+                f,
+                "the controller does not admit the plant's dt = {dt} s (it must be positive, finite and at most \
+                 the law's max_time_step)"
+            ),
+        }
+    }
+}
+
+impl core::error::Error for Refusal {}
+
+/// What the controller is and checks a plant against.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ControllerIdentity {
+    /// Its [`platform`] code.
+    pub platform: u32,
+    /// Its joint count.
+    pub joint_count: u32,
+    /// Its scenario hash (0 = do not check).
+    pub scenario_hash: u64,
+    /// The largest `dt` its law admits (s).
+    pub max_dt: f64,
+}
+
+impl ControllerIdentity {
+    /// Checks the first measurement of a session: the plant's version and announcement.
+    ///
+    /// # Errors
+    /// The first mismatch, as a [`Refusal`].
+    pub fn admit(&self, m: &MeasurementMsg) -> Result<Announcement, Refusal> {
+        if m.version != PROTOCOL_VERSION {
+            return Err(Refusal::Version { plant: m.version });
+        }
+        if m.joint_count != self.joint_count {
+            return Err(Refusal::JointCount { plant: m.joint_count, controller: self.joint_count });
+        }
+        if m.platform != self.platform {
+            return Err(Refusal::Platform { plant: m.platform, controller: self.platform });
+        }
+        if self.scenario_hash != 0 && m.scenario_hash != 0 && m.scenario_hash != self.scenario_hash {
+            return Err(Refusal::Scenario { plant: m.scenario_hash, controller: self.scenario_hash });
+        }
+        if !(m.dt.is_finite() && m.dt > 0.0 && m.dt <= self.max_dt) {
+            return Err(Refusal::Period { dt: m.dt });
+        }
+        Ok(Announcement::of(m))
+    }
+}
+
 impl MeasurementMsg {
     /// A measurement of `N` joints with the given header fields.
     ///
@@ -362,12 +658,15 @@ impl MeasurementMsg {
             period_ns: header.period_ns,
             sim_time: m.t,
             dt: header.dt,
+            delay: header.delay,
+            platform: header.platform,
+            hold_periods: header.hold_periods,
+            joint_count: count_u32(N),
+            reserved: 0,
             base: [m.base.x, m.base.y, m.base.theta],
             steering: m.steering,
             target: [m.target.x, m.target.y, m.target.theta],
             target_velocity: [m.target_velocity[0], m.target_velocity[1], m.target_velocity[2]],
-            joint_count: count_u32(N),
-            reserved: 0,
             joints,
         }
     }
@@ -419,12 +718,18 @@ pub struct MeasurementHeader {
     pub session: u64,
     /// Scenario hash.
     pub scenario_hash: u64,
-    /// Publication time (ns).
+    /// Measurement time (ns).
     pub plant_time_ns: u64,
     /// Period (ns), 0 in lockstep.
     pub period_ns: u64,
-    /// Step (s).
+    /// Hold (s).
     pub dt: f64,
+    /// Expected delay of the answer (s).
+    pub delay: f64,
+    /// [`platform`] code.
+    pub platform: u32,
+    /// Hold limit (periods).
+    pub hold_periods: u32,
 }
 
 /// What the law logged for one step (carried back for the plant's `timeseries.csv`).
@@ -442,6 +747,32 @@ pub struct LoggedDiagnostics {
     pub alpha_rate: [f64; 2],
 }
 
+impl LoggedDiagnostics {
+    /// No diagnostics (a refusal).
+    pub const NONE: Self = Self {
+        ep_norm: f64::NAN,
+        h_s: f64::NAN,
+        psi: f64::NAN,
+        saturation: f64::NAN,
+        alpha_rate: [f64::NAN; 2],
+    };
+}
+
+/// The header fields of a command besides the ids copied from the measurement.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CommandHeader {
+    /// The controller's identity.
+    pub identity: ControllerIdentity,
+    /// [`flags::NOTIFIES`] or 0.
+    pub flags: u32,
+    /// Receipt of the measurement (ns, controller's clock).
+    pub received_ns: u64,
+    /// Skipped measurements since the previous answer.
+    pub skipped: u32,
+    /// The delay the law predicted over (s).
+    pub delay: f64,
+}
+
 impl CommandMsg {
     /// The answer to `meas`: a command of `N` joints, its status and diagnostics, and timing.
     ///
@@ -449,11 +780,10 @@ impl CommandMsg {
     /// At compile time if `N > MAX_JOINTS`.
     pub fn answer<const N: usize>(
         meas: &MeasurementMsg,
+        header: &CommandHeader,
         command: &Command<f64, N>,
         error: Option<StepError>,
         diag: &LoggedDiagnostics,
-        received_ns: u64,
-        skipped: u32,
     ) -> Self {
         const { assert!(N <= MAX_JOINTS) };
         let mut joints = [0.0; MAX_JOINTS];
@@ -468,9 +798,13 @@ impl CommandMsg {
             session: meas.session,
             plant_time_ns: meas.plant_time_ns,
             compute_ns: 0,
-            received_ns,
-            skipped,
+            received_ns: header.received_ns,
+            skipped: header.skipped,
             joint_count: count_u32(N),
+            flags: header.flags,
+            platform: header.identity.platform,
+            scenario_hash: header.identity.scenario_hash,
+            delay: header.delay,
             v: p.v,
             v_lat: p.v_lat,
             omega: p.omega,
@@ -482,6 +816,12 @@ impl CommandMsg {
             saturation: diag.saturation,
             alpha_rate: diag.alpha_rate,
         }
+    }
+
+    /// The refusal of `meas`: every velocity zero, `status` the refusal's code.
+    pub fn refusal<const N: usize>(meas: &MeasurementMsg, header: &CommandHeader, why: &Refusal) -> Self {
+        let zero = Command::<f64, N>::zero();
+        Self { status: why.code(), ..Self::answer(meas, header, &zero, None, &LoggedDiagnostics::NONE) }
     }
 
     /// The command for `N` joints (call after [`check_command`]).
@@ -503,6 +843,11 @@ impl CommandMsg {
         }
     }
 
+    /// Whether a flag bit is set.
+    pub fn has(&self, flag: u32) -> bool {
+        self.flags & flag != 0
+    }
+
     /// The message as bytes, little-endian, in the documented layout.
     pub fn to_bytes(&self) -> [u8; COMMAND_SIZE] {
         zerocopy::transmute!(*self)
@@ -515,11 +860,12 @@ impl CommandMsg {
 }
 
 /// Checks a command against the measurement the plant is waiting for: the plant-side
-/// validation. `Ok` means it may be applied; [`WireError::Stale`] is a late answer to an
-/// earlier period; every other error is a malformed message.
+/// validation. `Ok` means it may be applied; [`WireError::Refused`] ends the run;
+/// [`WireError::Stale`] is a late answer to an earlier period; every other error is a
+/// malformed message.
 ///
 /// # Errors
-/// Why the command must be dropped.
+/// Why the command must be dropped (or the run ended).
 pub fn check_command<const N: usize>(
     msg: &CommandMsg,
     session: u64,
@@ -530,6 +876,9 @@ pub fn check_command<const N: usize>(
     }
     if msg.session != session {
         return Err(WireError::Session);
+    }
+    if refusal::is_refusal(msg.status) {
+        return Err(WireError::Refused(msg.status));
     }
     if msg.seq < expected_seq {
         return Err(WireError::Stale(msg.seq));
@@ -552,29 +901,30 @@ pub fn check_command<const N: usize>(
     Ok(())
 }
 
-/// Checks a measurement on the controller side: version, joint count, session (`None` = the
-/// first one, any session accepted), scenario (0 on either side = not checked) and order
-/// (`last_seq`: the newest one answered or skipped).
+/// Checks a measurement of a running session on the controller side: version, session,
+/// the announcement (as the session's first measurement made it) and order (`last_seq`:
+/// the newest one answered or skipped). The session's first measurement is checked by
+/// [`ControllerIdentity::admit`] instead.
 ///
 /// # Errors
 /// Why the measurement must be dropped.
-pub fn check_measurement<const N: usize>(
+pub fn check_measurement(
     msg: &MeasurementMsg,
-    session: Option<u64>,
+    session: u64,
+    announced: &Announcement,
     last_seq: Option<u64>,
-    scenario_hash: u64,
 ) -> Result<(), WireError> {
     if msg.version != PROTOCOL_VERSION {
         return Err(WireError::Version(msg.version));
     }
-    if msg.joint_count != count_u32(N) {
-        return Err(WireError::JointCount(msg.joint_count));
-    }
-    if session.is_some_and(|s| s != msg.session) {
+    if msg.session != session {
         return Err(WireError::Session);
     }
-    if scenario_hash != 0 && msg.scenario_hash != 0 && msg.scenario_hash != scenario_hash {
-        return Err(WireError::Scenario);
+    if msg.joint_count != announced.joint_count {
+        return Err(WireError::JointCount(msg.joint_count));
+    }
+    if !Announcement::of(msg).same_as(announced) {
+        return Err(WireError::Changed);
     }
     if last_seq.is_some_and(|l| msg.seq <= l) {
         return Err(WireError::Stale(msg.seq));
@@ -582,7 +932,7 @@ pub fn check_measurement<const N: usize>(
     Ok(())
 }
 
-/// FNV-1a, 64 bits (for the scenario hash).
+/// FNV-1a, 64 bits (for the scenario hash and session ids).
 pub fn fnv1a(bytes: &[u8]) -> u64 {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     for b in bytes {
@@ -593,176 +943,4 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
 }
 
 #[cfg(test)]
-mod tests {
-    use core::mem::offset_of;
-
-    use super::*;
-
-    fn meas() -> Measurement<f64, 3> {
-        Measurement {
-            t: 1.5,
-            base: Pose::new(0.1, -0.2, 0.3),
-            steering: 0.0,
-            joints: SVector::<f64, 3>::new(0.1, 0.35, -0.2),
-            target: Pose::new(2.6, 1.0, 0.0),
-            target_velocity: Vector3::new(0.0, -0.157, 0.0),
-        }
-    }
-
-    fn header() -> MeasurementHeader {
-        MeasurementHeader {
-            seq: 7,
-            flags: flags::LOCKSTEP,
-            session: 42,
-            scenario_hash: 9,
-            plant_time_ns: 123_456,
-            period_ns: 1_000_000,
-            dt: 1e-3,
-        }
-    }
-
-    fn good_command() -> CommandMsg {
-        let m = MeasurementMsg::new(header(), &meas());
-        let diag =
-            LoggedDiagnostics { ep_norm: 0.5, h_s: 0.1, psi: 1.0, saturation: 1.0, alpha_rate: [0.2, 0.0] };
-        let mut cmd = Command::<f64, 3>::zero();
-        cmd.platform.v = 0.3;
-        cmd.platform.omega = -0.1;
-        cmd.joints[1] = 0.05;
-        CommandMsg::answer(&m, &cmd, None, &diag, 200_000, 0)
-    }
-
-    #[test]
-    fn documented_offsets_hold() {
-        assert_eq!(offset_of!(MeasurementMsg, seq), 8);
-        assert_eq!(offset_of!(MeasurementMsg, plant_time_ns), 32);
-        assert_eq!(offset_of!(MeasurementMsg, sim_time), 48);
-        assert_eq!(offset_of!(MeasurementMsg, base), 64);
-        assert_eq!(offset_of!(MeasurementMsg, steering), 88);
-        assert_eq!(offset_of!(MeasurementMsg, target), 96);
-        assert_eq!(offset_of!(MeasurementMsg, target_velocity), 120);
-        assert_eq!(offset_of!(MeasurementMsg, joint_count), 144);
-        assert_eq!(offset_of!(MeasurementMsg, joints), 152);
-        assert_eq!(offset_of!(CommandMsg, compute_ns), 32);
-        assert_eq!(offset_of!(CommandMsg, skipped), 48);
-        assert_eq!(offset_of!(CommandMsg, v), 56);
-        assert_eq!(offset_of!(CommandMsg, joints), 88);
-        assert_eq!(offset_of!(CommandMsg, ep_norm), 152);
-        assert_eq!(offset_of!(CommandMsg, alpha_rate), 184);
-    }
-
-    #[test]
-    fn bytes_follow_the_in_memory_layout() {
-        let m = MeasurementMsg::new(header(), &meas());
-        let b = m.to_bytes();
-        assert_eq!(MeasurementMsg::from_bytes(&b), m);
-        assert_eq!(&b[8..16], &7u64.to_le_bytes());
-        assert_eq!(&b[152 + 8..152 + 16], &0.35f64.to_le_bytes());
-        let c = good_command();
-        let b = c.to_bytes();
-        assert_eq!(CommandMsg::from_bytes(&b), c);
-        assert_eq!(&b[56..64], &0.3f64.to_le_bytes());
-        assert_eq!(&b[88 + 8..88 + 16], &0.05f64.to_le_bytes());
-    }
-
-    #[test]
-    fn measurement_round_trips() {
-        let m = meas();
-        let msg = MeasurementMsg::new(header(), &m);
-        assert_eq!(msg.joint_count, 3);
-        assert_eq!(msg.measurement::<3>(), Some(m));
-        assert_eq!(msg.measurement::<2>(), None);
-        assert!(msg.has(flags::LOCKSTEP) && !msg.has(flags::END_OF_RUN));
-    }
-
-    #[test]
-    fn every_step_error_round_trips_through_status() {
-        let mut all = vec![
-            None,
-            Some(StepError::BadTimeStep),
-            Some(StepError::SingularArm),
-            Some(StepError::SingularTaskJacobian),
-            Some(StepError::NumericalFailure),
-        ];
-        for f in [
-            Field::Time,
-            Field::BasePose,
-            Field::Steering,
-            Field::Joints,
-            Field::TargetPose,
-            Field::TargetVelocity,
-        ] {
-            all.push(Some(StepError::NonFinite(f)));
-        }
-        for j in 0..3 {
-            all.push(Some(StepError::JointAtLimit(j)));
-        }
-        for e in all {
-            assert_eq!(decode_status(encode_status(e)), Ok(e));
-        }
-        assert_eq!(decode_status(0x106), Err(WireError::Status(0x106)));
-        assert_eq!(decode_status(0x7), Err(WireError::Status(0x7)));
-        assert_eq!(decode_status(0x300 + 8), Err(WireError::Status(0x308)));
-    }
-
-    #[test]
-    fn a_good_command_passes() {
-        let c = good_command();
-        assert_eq!(check_command::<3>(&c, 42, 7), Ok(()));
-        assert_eq!(c.command::<3>().platform.v, 0.3);
-    }
-
-    #[test]
-    fn malformed_commands_are_rejected_with_their_reason() {
-        let c = good_command();
-        assert_eq!(check_command::<3>(&CommandMsg { version: 2, ..c }, 42, 7), Err(WireError::Version(2)));
-        assert_eq!(check_command::<3>(&c, 43, 7), Err(WireError::Session));
-        assert_eq!(check_command::<3>(&c, 42, 8), Err(WireError::Stale(7)));
-        assert_eq!(check_command::<3>(&c, 42, 6), Err(WireError::Future(7)));
-        assert_eq!(
-            check_command::<3>(&CommandMsg { joint_count: 4, ..c }, 42, 7),
-            Err(WireError::JointCount(4))
-        );
-        assert_eq!(
-            check_command::<3>(&CommandMsg { status: 0x999, ..c }, 42, 7),
-            Err(WireError::Status(0x999))
-        );
-        for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
-            assert_eq!(check_command::<3>(&CommandMsg { v: bad, ..c }, 42, 7), Err(WireError::NonFinite));
-            assert_eq!(check_command::<3>(&CommandMsg { omega: bad, ..c }, 42, 7), Err(WireError::NonFinite));
-            assert_eq!(check_command::<3>(&CommandMsg { v_lat: bad, ..c }, 42, 7), Err(WireError::NonFinite));
-            assert_eq!(check_command::<3>(&CommandMsg { v_xi: bad, ..c }, 42, 7), Err(WireError::NonFinite));
-            let mut joints = c.joints;
-            joints[2] = bad;
-            assert_eq!(check_command::<3>(&CommandMsg { joints, ..c }, 42, 7), Err(WireError::NonFinite));
-        }
-        // NaN diagnostics (a rejected step) are not velocities: accepted.
-        let rejected = CommandMsg { status: 0x400, ep_norm: f64::NAN, h_s: f64::NAN, ..c };
-        assert_eq!(check_command::<3>(&rejected, 42, 7), Ok(()));
-        // Unused joint slots are not checked.
-        let mut joints = c.joints;
-        joints[5] = f64::NAN;
-        assert_eq!(check_command::<3>(&CommandMsg { joints, ..c }, 42, 7), Ok(()));
-    }
-
-    #[test]
-    fn measurements_are_checked_for_order_session_and_shape() {
-        let m = MeasurementMsg::new(header(), &meas());
-        assert_eq!(check_measurement::<3>(&m, None, None, 0), Ok(()));
-        assert_eq!(check_measurement::<3>(&m, Some(42), Some(6), 9), Ok(()));
-        assert_eq!(check_measurement::<3>(&m, Some(42), Some(7), 9), Err(WireError::Stale(7)));
-        assert_eq!(check_measurement::<3>(&m, Some(41), None, 9), Err(WireError::Session));
-        assert_eq!(check_measurement::<3>(&m, None, None, 10), Err(WireError::Scenario));
-        assert_eq!(check_measurement::<2>(&m, None, None, 0), Err(WireError::JointCount(3)));
-        assert_eq!(
-            check_measurement::<3>(&MeasurementMsg { version: 0, ..m }, None, None, 0),
-            Err(WireError::Version(0))
-        );
-    }
-
-    #[test]
-    fn fnv1a_matches_reference_values() {
-        assert_eq!(fnv1a(b""), 0xcbf2_9ce4_8422_2325);
-        assert_eq!(fnv1a(b"a"), 0xaf63_dc4c_8601_ec8c);
-    }
-}
+mod tests;

@@ -15,7 +15,6 @@ use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use companion_runtime::clock::{Clock, FakeClock, MonotonicClock};
 use companion_runtime::controller::AnyController;
-use companion_runtime::hil::config::adapt_scenario;
 use companion_runtime::hil::messages::{answer, Stamp};
 use companion_runtime::hil::plant_loop::{run_real_time, PlantSide};
 use companion_runtime::hil::serve::{serve, ServeOptions};
@@ -25,7 +24,10 @@ use companion_runtime::ipc::{ControlEndpoint, PlantEndpoint};
 use companion_runtime::link::{Link, PeerState};
 use companion_runtime::record::Row;
 use companion_runtime::scenario::Scenario;
-use companion_runtime::wire::{flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+use companion_runtime::wire::{
+    flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
+    MeasurementMsg,
+};
 
 struct Counting;
 
@@ -90,17 +92,32 @@ const TIMING: Timing = Timing {
 
 /// The HIL demo's scenario: trajectory 1, run (a), unicycle, `duration` s.
 fn scenario(duration: f64) -> Scenario {
-    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+    Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
         .duration(duration)
         .build()
-        .unwrap();
-    adapt_scenario(s, &TIMING)
+        .unwrap()
+}
+
+/// The command header of a controller of the paper's unicycle.
+fn command_header() -> CommandHeader {
+    let identity =
+        ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 0.01 };
+    CommandHeader { identity, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 }
 }
 
 fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
     let s = scenario(30.0);
     let plant = companion_runtime::sim::build_plant(&s).unwrap();
-    let header = MeasurementHeader { seq, flags: fl, session: 9, dt: 1e-3, ..MeasurementHeader::default() };
+    let header = MeasurementHeader {
+        seq,
+        flags: fl,
+        session: 9,
+        dt: 1e-3,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+        period_ns: TIMING.period_ns,
+        ..MeasurementHeader::default()
+    };
     MeasurementMsg::new(header, &plant.measure())
 }
 
@@ -150,7 +167,13 @@ fn the_counter_counts() {
     drop(v);
     let mut l =
         Uncounted { inner: Script { inbox: VecDeque::new(), sent: Vec::new(), ready: true }, transport: 0 };
-    let c = CommandMsg::answer::<3>(&measurement(0, 0), &companion_core::Command::zero(), None, &DIAG, 0, 0);
+    let c = CommandMsg::answer::<3>(
+        &measurement(0, 0),
+        &command_header(),
+        &companion_core::Command::zero(),
+        None,
+        &DIAG,
+    );
     // `sent` grows inside the transport: not ours, counted apart.
     let (n, ()) = allocations_in(|| l.publish(&c).unwrap());
     assert_eq!((n, l.transport), (0, 1));
@@ -181,7 +204,15 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
                 rows.push(*r);
                 true
             };
-            let stamp = Stamp { session: 5, scenario_hash: 0, period_ns: timing.period_ns, dt: s.dt };
+            let stamp = Stamp {
+                session: 5,
+                scenario_hash: companion_runtime::hil::handshake::controller_hash(&s.controller),
+                period_ns: timing.period_ns,
+                dt: s.dt,
+                flags: 0,
+                platform: platform::UNICYCLE,
+                hold_periods: timing.hold_periods,
+            };
             let (n, end) = allocations_in(|| {
                 let mut side = PlantSide {
                     clock: &MonotonicClock,
@@ -191,6 +222,7 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
                     stats: &mut stats,
                     live: &live,
                     target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
+                    last_sent: None,
                 };
                 run_real_time(&mut side, &mut plant, steps, &mut sink)
             });
@@ -199,7 +231,8 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
     };
     let ep = ControlEndpoint::control(&name, true).unwrap();
     ep.wait_for_peer(Duration::from_secs(20), || None).unwrap();
-    let mut ctrl = AnyController::new(&s.controller).unwrap();
+    // The law is built at the handshake: that many allocations, once.
+    let (build, _) = allocations_in(|| AnyController::new(&s.controller).unwrap());
     let mut link = Uncounted { inner: ep, transport: 0 };
     let opt = ServeOptions {
         wait: WaitMode::Adaptive,
@@ -207,11 +240,13 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
         silence_ns: 20_000_000,
         peer_timeout_ns: 2_000_000_000,
         startup_timeout_ns: 20_000_000_000,
-        scenario_hash: 0,
         forward_interrupt: false,
+        delay_compensation: true,
     };
     let mut stats = ControlStats::default();
-    let (n_control, end) = allocations_in(|| serve(&MonotonicClock, &mut link, &mut ctrl, &opt, &mut stats));
+    let silent = companion_runtime::observe::Silent;
+    let (n_control, end) =
+        allocations_in(|| serve(&MonotonicClock, &mut link, &s.controller, &opt, &mut stats, &silent));
     let (n_plant, plant_end, cycles, fresh, plant_transport) = plant_side.join().unwrap();
     println!(
         "{cycles} periods, {fresh} fresh commands; the transport allocated {plant_transport} times in the plant, {} \
@@ -224,8 +259,8 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
     assert!(stats.answered > steps / 2, "{} answers", stats.answered);
     assert_eq!(n_plant, 0, "the plant's loop allocated {n_plant} times in {cycles} periods");
     assert_eq!(
-        n_control, 0,
-        "the controller's loop allocated {n_control} times in {} answers",
+        n_control, build,
+        "the controller's loop allocated {n_control} times in {} answers ({build} to build the law at the handshake)",
         stats.answered
     );
 }
@@ -242,7 +277,7 @@ impl Link for InstantController {
     type Rx = CommandMsg;
     fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
         let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
-        let mut c = answer(m, &r, 0, 0);
+        let mut c = answer(m, &command_header(), &r);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
         self.pending = Some(c);
@@ -276,7 +311,15 @@ fn the_plant_loop_allocates_nothing() {
         rows.push(*r);
         true
     };
-    let stamp = Stamp { session: 1, scenario_hash: 0, period_ns: TIMING.period_ns, dt: s.dt };
+    let stamp = Stamp {
+        session: 1,
+        scenario_hash: 0,
+        period_ns: TIMING.period_ns,
+        dt: s.dt,
+        flags: 0,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+    };
     let steps = s.steps();
     let (n, end) = allocations_in(|| {
         let mut side = PlantSide {
@@ -287,6 +330,7 @@ fn the_plant_loop_allocates_nothing() {
             stats: &mut stats,
             live: &live,
             target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
+            last_sent: None,
         };
         run_real_time(&mut side, &mut plant, steps, &mut sink)
     });
@@ -328,16 +372,19 @@ impl Link for Script {
     }
 }
 
-#[test]
-fn the_controller_loop_allocates_nothing() {
-    let s = scenario(30.0);
-    let mut ctrl = AnyController::new(&s.controller).unwrap();
+/// Allocations of one `serve` over measurements `0..=last` (the last one ends the run).
+fn serve_allocations(s: &Scenario, last: u64) -> u64 {
     let m = measurement(0, 0);
     let mut inbox = VecDeque::with_capacity(5_001);
-    for seq in 0..5_000 {
+    for seq in 0..last {
         inbox.push_back(MeasurementMsg { seq, plant_time_ns: seq * 1_000_000, ..m });
     }
-    inbox.push_back(MeasurementMsg { seq: 5_000, flags: flags::END_OF_RUN, ..m });
+    inbox.push_back(MeasurementMsg {
+        seq: last,
+        flags: flags::END_OF_RUN,
+        plant_time_ns: last * 1_000_000,
+        ..m
+    });
     let mut link = Script { inbox, sent: Vec::with_capacity(5_001), ready: true };
     let opt = ServeOptions {
         wait: WaitMode::Spin,
@@ -345,14 +392,29 @@ fn the_controller_loop_allocates_nothing() {
         silence_ns: 20_000_000,
         peer_timeout_ns: 2_000_000_000,
         startup_timeout_ns: 2_000_000_000,
-        scenario_hash: 0,
         forward_interrupt: false,
+        delay_compensation: true,
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
-    let (n, end) = allocations_in(|| serve(&clock, &mut link, &mut ctrl, &opt, &mut stats));
-    assert_eq!(n, 0, "{n} allocations in {} controller cycles", stats.answered);
+    let silent = companion_runtime::observe::Silent;
+    let (n, end) = allocations_in(|| serve(&clock, &mut link, &s.controller, &opt, &mut stats, &silent));
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
-    assert_eq!(link.sent.len(), 5_001);
-    let _ = clock.now_ns();
+    assert_eq!(link.sent.len() as u64, last + 1);
+    n
+}
+
+#[test]
+fn the_controller_loop_allocates_nothing() {
+    let s = scenario(30.0);
+    // The handshake builds the law (a few allocations, once); the cycles after it none.
+    let handshake = serve_allocations(&s, 1);
+    let long = serve_allocations(&s, 5_000);
+    assert_eq!(
+        long,
+        handshake,
+        "{} allocations in 4 999 controller cycles after the handshake",
+        long - handshake
+    );
+    assert!(handshake > 0, "the law is built at the handshake");
 }

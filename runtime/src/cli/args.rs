@@ -250,15 +250,20 @@ impl ScenarioArgs {
         b
     }
 
-    /// The scenario the flags describe (`default_duration` if `--duration` is not given),
-    /// with its plant built once to check the target file and the plant's parameters.
+    /// The scenario the flags describe (`default_duration` if `--duration` is not given), with
+    /// `more` applied to the builder (flags of one command), and its plant built once to check
+    /// the target file and the plant's parameters.
     ///
     /// # Errors
     /// A bad flag value, config or target file, with a message saying which and why.
-    pub fn scenario(&self, default_duration: f64) -> Result<Scenario> {
+    pub fn scenario_with(
+        &self,
+        default_duration: f64,
+        more: impl FnOnce(ScenarioBuilder) -> ScenarioBuilder,
+    ) -> Result<Scenario> {
         let file = self.config_file()?;
         let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
-        let s = b.build()?;
+        let s = more(b).build()?;
         companion_runtime::plant_setup::build(&s)?;
         Ok(s)
     }

@@ -11,7 +11,6 @@ use std::time::Duration;
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
 use companion_runtime::hil::chaos::{self, Plan};
-use companion_runtime::hil::config::adapt_scenario;
 use companion_runtime::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
 use companion_runtime::hil::fault::Corruption;
 use companion_runtime::hil::plant::PlantLock;
@@ -148,6 +147,16 @@ pub struct HilArgs {
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// Lockstep only: the plant simulates a pure delay between a measurement and the moment
+    /// its command takes effect (s, 0 to 8 periods and at most the law's max_delay), and
+    /// announces it to the controller — the same run as `companion sim --delay`. In real
+    /// time the plant measures the delay itself.
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub delay: f64,
+    /// The controller ignores the delay the plant announces (predicts over 0), to see what the
+    /// delay does uncompensated.
+    #[arg(long)]
+    pub no_delay_compensation: bool,
     /// No live progress line.
     #[arg(long)]
     pub quiet: bool,
@@ -219,15 +228,23 @@ impl HilArgs {
         })
     }
 
-    /// The typed configuration and the scenario (adapted to the HIL: see `adapt_scenario`).
-    /// Every flag, the config and target files and the plant's parameters are checked here,
-    /// before any process starts or any file is written.
+    /// The typed configuration and the scenario. Every flag, the config and target files and
+    /// the plant's parameters are checked here, before any process starts or any file is
+    /// written.
     ///
     /// # Errors
     /// A bad flag value or file, naming the flag or parameter and the rule.
     pub fn resolve(&self) -> Result<(HilConfig, Scenario)> {
         ipc::validate_name(&self.name)?;
-        let s = self.scenario.scenario(DEFAULT_DURATION)?;
+        if self.delay != 0.0 && !self.lockstep {
+            bail!(
+                "--delay simulates a pure delay in lockstep (--lockstep); in real time the plant measures the \
+                 delay of every command itself"
+            );
+        }
+        let s = self.scenario.scenario_with(DEFAULT_DURATION, |b| {
+            b.delay(self.delay).delay_compensation(!self.no_delay_compensation)
+        })?;
         let timing = self.timing(&s)?;
         let startup = seconds("--startup-timeout", self.startup_timeout, MAX_STARTUP_TIMEOUT_S, true)?;
         let startup_timeout = Duration::from_secs_f64(startup);
@@ -256,7 +273,7 @@ impl HilArgs {
             acceptance,
             chaos,
         };
-        Ok((cfg, adapt_scenario(s, &timing)))
+        Ok((cfg, s))
     }
 
     /// `--inject`, parsed.
@@ -309,6 +326,7 @@ fn plant_exit_code(end: &PlantEnd, failures: &[Failure]) -> u8 {
         PlantEnd::Interrupted { .. } => EXIT_INTERRUPTED,
         PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. } => EXIT_PEER_LOST,
         PlantEnd::ControllerHung { .. } => EXIT_PEER_HUNG,
+        PlantEnd::Refused(_) => EXIT_ERROR,
     }
 }
 
@@ -419,7 +437,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         ParentOutcome::PlantExitedEarly(st) => code_of(Some(st)),
         ParentOutcome::Failed(..) if termination_requested() => EXIT_INTERRUPTED,
         ParentOutcome::Failed(..) => EXIT_ERROR,
-        ParentOutcome::Finished { end, plant, chaos } => {
+        ParentOutcome::Finished { end, plant, chaos, failure } => {
             let code = code_of(plant);
             let interrupted = end == ControlEnd::Interrupted || code == EXIT_INTERRUPTED;
             match chaos {
@@ -432,6 +450,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
                         EXIT_CHAOS_MISMATCH
                     }
                 }
+                None if failure.is_some() && code == 0 => EXIT_DEADLINES,
                 None => code,
             }
         }
@@ -566,7 +585,15 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         Ok(l) => l,
         Err(e) => return name_in_use_or(e),
     };
-    eprintln!("controller: demo '{}' waiting for its plant (companion plant --name {})", cfg.name, cfg.name);
+    eprintln!(
+        "controller: demo '{}' waiting for its plant (companion plant --name {}); protocol version {}, services {}, \
+         scenario hash {:#018x}",
+        cfg.name,
+        cfg.name,
+        companion_runtime::wire::PROTOCOL_VERSION,
+        ipc::service_name(&cfg.name, "{measurement,command}"),
+        companion_runtime::hil::handshake::controller_hash(&s.controller)
+    );
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {
         Ok(x) => x,
@@ -575,6 +602,9 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     eprintln!("{}", stats.line());
     if end != ControlEnd::EndOfRun {
         eprintln!("controller: {}", end.describe());
+    } else if let Some(f) = stats.failure() {
+        eprintln!("controller: {f}");
+        return Ok(ExitCode::from(EXIT_DEADLINES));
     }
     let rejected = rejection_failure(&stats.rejections, stats.answered, None, cfg.acceptance.max_rejected);
     let code = control_exit_code(&end);
@@ -689,8 +719,9 @@ mod tests {
         assert_eq!(tm.wait, WaitMode::Adaptive);
         assert!(!tm.lockstep);
         assert_eq!(cfg.acceptance, companion_runtime::record::Acceptance::default());
-        // The joint guard leaves room for the held periods.
-        assert_eq!(s.controller.overrides.joint_step_fraction, Some(1.0 / 22.0));
+        // The scenario is the one the flags describe (the joint guard is the plant's business,
+        // announced on the wire: see hil::handshake).
+        assert_eq!(s.controller.overrides.joint_step_fraction, None);
         let t = T::parse_from(["x", "--rt"]);
         assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Adaptive);
         let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
@@ -730,6 +761,18 @@ mod tests {
         let t = T::parse_from(["x", "--rate", "2000", "--deadline-us", "600"]);
         let e = t.a.resolve().unwrap_err().to_string();
         assert!(e.contains("--deadline-us"), "{e}");
+    }
+
+    #[test]
+    fn a_delay_is_for_lockstep_and_compensation_can_be_switched_off() {
+        let t = T::parse_from(["x", "--delay", "0.002"]);
+        let e = t.a.resolve().unwrap_err().to_string();
+        assert!(e.contains("--delay") && e.contains("--lockstep"), "{e}");
+        let t = T::parse_from(["x", "--lockstep", "--delay", "0.002", "--no-delay-compensation"]);
+        let (_, s) = t.a.resolve().unwrap();
+        assert_eq!((s.delay, s.delay_compensation), (0.002, false));
+        let t = T::parse_from(["x", "--lockstep", "--delay", "0.5"]);
+        assert!(t.a.resolve().is_err());
     }
 
     #[test]

@@ -9,7 +9,6 @@ use serde::{Deserialize, Serialize};
 use crate::ipc::Role;
 use crate::record::Acceptance;
 use crate::rt::RtConfig;
-use crate::scenario::Scenario;
 
 /// How a process waits for its peer's message.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -155,17 +154,4 @@ impl HilConfig {
     pub fn rt_config(&self, role: Role) -> Option<RtConfig> {
         self.rt.map(|r| r.for_role(role))
     }
-}
-
-/// The scenario as a real-time HIL run needs it: the plant may hold a command for
-/// `hold_periods` periods after the one it was meant for, so the joint guard leaves room for
-/// all of them (`κ ≤ 1/(hold + 2)`) and a held command never drives a joint onto its limit.
-/// Lockstep runs are left as they are (they must equal `companion sim`).
-pub fn adapt_scenario(mut s: Scenario, timing: &Timing) -> Scenario {
-    if !timing.lockstep {
-        let o = &mut s.controller.overrides;
-        let kappa = o.joint_step_fraction.unwrap_or(0.5).min(1.0 / (f64::from(timing.hold_periods) + 2.0));
-        o.joint_step_fraction = Some(kappa);
-    }
-    s
 }

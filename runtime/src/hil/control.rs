@@ -15,18 +15,19 @@ use super::chaos::{self, Agent, Observed, Plan};
 use super::config::HilConfig;
 use super::end::ControlEnd;
 use super::fault::{Corruption, Injected, Injecting};
-use super::messages::scenario_hash;
 use super::serve::{serve, ServeOptions};
 use super::stats::ControlStats;
 use crate::clock::MonotonicClock;
-use crate::controller::AnyController;
 use crate::histogram::fmt_ns;
 use crate::ipc::{ControlEndpoint, Role};
 use crate::lock::NameLock;
 use crate::observe::Observer;
 use crate::process::{exit_text, send_signal, ChildGuard, Signal};
-use crate::scenario::{Scenario, ScenarioError};
+use crate::scenario::Scenario;
 use crate::signals::termination_requested;
+
+/// How long the controller waits for the plant to read its last message.
+const LINGER: Duration = Duration::from_secs(1);
 
 /// The options of [`serve`] for a configuration and scenario.
 pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
@@ -39,8 +40,8 @@ pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
         silence_ns: t.silence_ns,
         peer_timeout_ns: t.peer_timeout_ns,
         startup_timeout_ns: startup.max(t.peer_timeout_ns),
-        scenario_hash: scenario_hash(s),
         forward_interrupt: true,
+        delay_compensation: s.delay_compensation,
     }
 }
 
@@ -69,7 +70,8 @@ pub struct Session {
 /// the controller's role of the demo's name.
 ///
 /// # Errors
-/// A bad parameter, a transport failure, or a plant running another scenario.
+/// A bad parameter, a transport failure, or a plant this controller refused
+/// ([`super::serve::Refused`]).
 pub fn session(
     cfg: &HilConfig,
     s: &Scenario,
@@ -80,7 +82,6 @@ pub fn session(
 ) -> Result<Session> {
     debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
     let opt = serve_options(cfg, s);
-    let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
     let ep = ControlEndpoint::control(&cfg.name, cfg.timing.wait.uses_events())?;
     ep.wait_for_peer(cfg.startup_timeout, abort)?;
     let rt = cfg.rt_config(Role::Control).map(|c| crate::rt::apply(&c));
@@ -91,16 +92,21 @@ pub fn session(
     let mut injected = Injected::default();
     let (r, ep) = if *faults == Faults::default() {
         let mut ep = ep;
-        (serve(&MonotonicClock, &mut ep, &mut ctrl, &opt, &mut stats), ep)
+        (serve(&MonotonicClock, &mut ep, &s.controller, &opt, &mut stats, observer), ep)
     } else {
         // Testing: corrupted commands go out before the real ones, some answers late.
         let mut link = Injecting::new(ep, faults.corruptions.clone()).with_delays(faults.delays.clone());
-        let r = serve(&MonotonicClock, &mut link, &mut ctrl, &opt, &mut stats);
+        let r = serve(&MonotonicClock, &mut link, &s.controller, &opt, &mut stats, observer);
         injected = link.injected();
         (r, link.into_inner())
     };
     if rt.is_some() {
         crate::rt::reset_thread();
+    }
+    // The last message (the answer to the end of the run, or a refusal) must reach the plant
+    // before this process exits and its samples with it.
+    if matches!(&r, Ok(ControlEnd::EndOfRun)) || r.as_ref().is_err_and(|e| e.is::<super::serve::Refused>()) {
+        ep.linger(LINGER);
     }
     let end = r?;
     if matches!(end, ControlEnd::PlantDied { .. }) {
@@ -113,6 +119,7 @@ impl ControlStats {
     /// One line: answers, skips, drops, rejections (with their reasons) and compute times.
     pub fn line(&self) -> String {
         let p = self.compute.percentiles();
+        let d = self.delay.percentiles();
         let why = if self.rejected > 0 { format!(": {}", self.rejections.describe()) } else { String::new() };
         let w = self.wait;
         let adaptive = if w.fallbacks + w.pressure_holds > 0 {
@@ -126,17 +133,40 @@ impl ControlStats {
         } else {
             String::new()
         };
-        format!(
+        let mut line = format!(
             "controller: answered {} measurements ({} skipped as superseded, {} dropped as malformed, {} rejected \
-             by the law{why}); compute p50 {} p99 {} max {}{adaptive}",
+             by the law{why}); compute p50 {} p99 {} max {}; delay predicted over p50 {} max {}",
             self.answered,
             self.skipped,
             self.invalid,
             self.rejected,
             fmt_ns(p.p50),
             fmt_ns(p.p99),
-            fmt_ns(p.max)
-        )
+            fmt_ns(p.max),
+            fmt_ns(d.p50),
+            fmt_ns(d.max)
+        );
+        if self.delay_clamped > 0 {
+            line.push_str(&format!(
+                " ({} announced delays clamped to what the law admits)",
+                self.delay_clamped
+            ));
+        }
+        line.push_str(&adaptive);
+        line
+    }
+
+    /// Why the run must not count as a success although it reached its end: the plant
+    /// stopped the robot (`None` if it never did).
+    pub fn failure(&self) -> Option<String> {
+        (self.stop_events > 0).then(|| {
+            format!(
+                "the plant stopped the robot {} time(s), first at cycle {} (commands missed their deadlines for \
+                 more than the plant's hold periods); the run did not follow the controller",
+                self.stop_events,
+                self.first_stop_seq.unwrap_or(0)
+            )
+        })
     }
 }
 
@@ -156,6 +186,8 @@ pub enum ParentOutcome {
         plant: Option<ExitStatus>,
         /// `--chaos`: the check of the plant's counts against what was injected.
         chaos: Option<Box<chaos::Report>>,
+        /// Why the run failed although it ended ([`ControlStats::failure`]).
+        failure: Option<String>,
     },
     /// The plant died, left or hung during the run.
     PlantLost(ControlEnd),
@@ -249,7 +281,11 @@ pub fn run_as_parent(
                 Some(c) => Some(Box::new(chaos_report(cfg, s, c.seed, injected, &stops)?)),
                 None => None,
             };
-            Ok(ParentOutcome::Finished { end, plant, chaos })
+            let failure = stats.failure();
+            if let Some(f) = &failure {
+                observer.note(&format!("controller: {f}"));
+            }
+            Ok(ParentOutcome::Finished { end, plant, chaos, failure })
         }
         ControlEnd::PlantGone { .. } => {
             // The plant's node went away without the end of the run reaching this process
@@ -258,7 +294,12 @@ pub fn run_as_parent(
             let plant = child.finish(Duration::from_secs(5))?;
             if plant.is_some_and(|st| st.code().is_some()) {
                 observer.note(&stats.line());
-                return Ok(ParentOutcome::Finished { end: ControlEnd::EndOfRun, plant, chaos: None });
+                return Ok(ParentOutcome::Finished {
+                    end: ControlEnd::EndOfRun,
+                    plant,
+                    chaos: None,
+                    failure: None,
+                });
             }
             lost(cfg, end, plant, pid, &stats, observer)
         }

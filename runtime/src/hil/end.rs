@@ -1,5 +1,7 @@
 //! How a HIL run ended, on each side (the command line maps these to exit codes).
 
+use crate::wire::Refusal;
+
 /// Why the plant's run ended.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum PlantEnd {
@@ -31,6 +33,8 @@ pub enum PlantEnd {
         /// Silence (ns).
         silent_ns: u64,
     },
+    /// The controller refused to serve this plant (a mismatch it names).
+    Refused(Refusal),
 }
 
 impl PlantEnd {
@@ -53,6 +57,7 @@ impl PlantEnd {
                 "controller alive but silent for {:.0} ms (at cycle {cycle}); robot stopped, run abandoned",
                 ms(silent_ns)
             ),
+            Self::Refused(why) => format!("the controller refused this plant: {why}"),
         }
     }
 }

@@ -143,6 +143,10 @@ impl<L: Link<Tx = CommandMsg>> Link for Injecting<L> {
     fn peer_state(&mut self) -> Result<PeerState> {
         self.inner.peer_state()
     }
+
+    fn notifies(&self) -> bool {
+        self.inner.notifies()
+    }
 }
 
 #[cfg(test)]

@@ -1,50 +1,56 @@
 //! The loops' ends of the wire: the one builder of measurement headers (the plant stamps
-//! every measurement with its ids, period and step), the report a received command carries,
-//! and the controller's answer to a measurement.
+//! every measurement with its ids and its announcement), the report a received command
+//! carries, and the controller's answer to a measurement.
 
 use companion_core::{Command, Measurement};
 
 use crate::controller::{StepReport, JOINTS};
-use crate::scenario::Scenario;
-use crate::wire::{decode_status, fnv1a, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
+use crate::wire::{
+    decode_status, CommandHeader, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg,
+};
 
-/// The scenario hash both roles compute: FNV-1a of the controller's specification (a
-/// controller refuses a plant whose hash differs).
-pub fn scenario_hash(s: &Scenario) -> u64 {
-    serde_json::to_vec(&s.controller).map_or(0, |b| fnv1a(&b)).max(1)
-}
-
-/// What the plant stamps on every measurement of a run.
+/// What the plant stamps on every measurement of a run: its session and its announcement.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stamp {
     /// Session id (random per plant run).
     pub session: u64,
-    /// Scenario hash.
+    /// Scenario hash (0: not checked).
     pub scenario_hash: u64,
     /// The period (ns); 0 in lockstep.
     pub period_ns: u64,
-    /// The step the controller integrates over (s).
+    /// How long each command is held (s).
     pub dt: f64,
+    /// The announced flags (`LOCKSTEP`, `NOTIFIES`).
+    pub flags: u32,
+    /// The platform code.
+    pub platform: u32,
+    /// Hold limit (periods).
+    pub hold_periods: u32,
 }
 
 impl Stamp {
-    /// Measurement `seq` with `flags`, stamped with the publication time `plant_time_ns`.
+    /// Measurement `seq` with the announced flags and `flags`, measured at `plant_time_ns`,
+    /// its answer expected to take effect `delay` seconds later.
     #[inline]
     pub fn message(
         &self,
         seq: u64,
         flags: u32,
         plant_time_ns: u64,
+        delay: f64,
         meas: &Measurement<f64, JOINTS>,
     ) -> MeasurementMsg {
         let header = MeasurementHeader {
             seq,
-            flags,
+            flags: self.flags | flags,
             session: self.session,
             scenario_hash: self.scenario_hash,
             plant_time_ns,
             period_ns: self.period_ns,
             dt: self.dt,
+            delay,
+            platform: self.platform,
+            hold_periods: self.hold_periods,
         };
         MeasurementMsg::new(header, meas)
     }
@@ -69,7 +75,7 @@ pub fn report_of(c: &CommandMsg) -> StepReport {
 }
 
 /// The controller's answer to `m`: the step's command, status and logged diagnostics.
-pub fn answer(m: &MeasurementMsg, report: &StepReport, received_ns: u64, skipped: u32) -> CommandMsg {
+pub fn answer(m: &MeasurementMsg, header: &CommandHeader, report: &StepReport) -> CommandMsg {
     let diag = LoggedDiagnostics {
         ep_norm: report.ep_norm,
         h_s: report.h_s,
@@ -77,7 +83,7 @@ pub fn answer(m: &MeasurementMsg, report: &StepReport, received_ns: u64, skipped
         saturation: report.saturation,
         alpha_rate: report.alpha_rate,
     };
-    CommandMsg::answer(m, &report.command, report.error, &diag, received_ns, skipped)
+    CommandMsg::answer(m, header, &report.command, report.error, &diag)
 }
 
 #[cfg(test)]
@@ -86,11 +92,20 @@ mod tests {
 
     #[test]
     fn a_rejected_step_is_applied_as_the_zero_command() {
-        let stamp = Stamp { session: 5, scenario_hash: 0, period_ns: 0, dt: 1e-3 };
+        let stamp = Stamp {
+            session: 5,
+            scenario_hash: 0,
+            period_ns: 0,
+            dt: 1e-3,
+            flags: crate::wire::flags::LOCKSTEP,
+            platform: crate::wire::platform::UNICYCLE,
+            hold_periods: 0,
+        };
         let m = stamp.message(
             3,
             0,
             0,
+            0.0,
             &Measurement::<f64, JOINTS> {
                 t: 0.0,
                 base: companion_core::Pose::new(0.0, 0.0, 0.0),
@@ -102,7 +117,10 @@ mod tests {
         );
         let mut r = StepReport::rejected(companion_core::StepError::SingularArm);
         r.command.platform.v = 3.0;
-        let c = answer(&m, &r, 0, 0);
+        let id =
+            crate::wire::ControllerIdentity { platform: 1, joint_count: 3, scenario_hash: 0, max_dt: 0.1 };
+        let header = CommandHeader { identity: id, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 };
+        let c = answer(&m, &header, &r);
         assert_eq!((c.seq, c.session), (3, 5));
         let back = report_of(&c);
         assert_eq!(back.command, Command::zero());

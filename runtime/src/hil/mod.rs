@@ -80,6 +80,7 @@ pub mod config;
 pub mod control;
 pub mod end;
 pub mod fault;
+pub mod handshake;
 pub mod hold;
 pub mod messages;
 pub mod plant;

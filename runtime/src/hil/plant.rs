@@ -8,7 +8,8 @@ use anyhow::{anyhow, Result};
 use super::chaos::{Agent, Plan};
 use super::config::HilConfig;
 use super::end::PlantEnd;
-use super::messages::{scenario_hash, Stamp};
+use super::handshake::controller_hash;
+use super::messages::Stamp;
 use super::plant_loop::{run_real_time, Lockstep, Lost, PlantSide};
 use super::report::{self, LatencyReport};
 use super::stats::{LiveFigures, PlantStats};
@@ -20,6 +21,7 @@ use crate::record::verdict::{deadline_failures, rejection_failure, DeadlineFigur
 use crate::record::{write_summary, LogItem, OutputDir, RecordWriter, Recorder, Row, RowSink, RunOutcome};
 use crate::scenario::Scenario;
 use crate::sim::{self, LoopEnd};
+use crate::wire::{flags, platform};
 
 /// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
 const LOG_RING: usize = 1 << 15;
@@ -88,17 +90,24 @@ pub fn run(
     let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
     let mut ep = PlantEndpoint::plant(&cfg.name, timing.wait.uses_events())?;
+    let mut announced = if timing.lockstep { flags::LOCKSTEP } else { 0 };
+    if ep.notifies() {
+        announced |= flags::NOTIFIES;
+    }
     let stamp = Stamp {
         session: crate::ipc::new_session_id(),
-        scenario_hash: scenario_hash(s),
+        scenario_hash: controller_hash(&s.controller),
         period_ns: timing.period_ns,
         dt: s.dt,
+        flags: announced,
+        platform: platform::code(s.controller.platform),
+        hold_periods: timing.hold_periods,
     };
     let out = OutputDir::prepare(&cfg.out)?;
     let steps = s.steps();
     observer.note(&format!(
-        "plant: demo '{}' waiting for its controller (companion control --name {})",
-        cfg.name, cfg.name
+        "plant: demo '{}' waiting for its controller (companion control --name {}); scenario hash {:#018x}",
+        cfg.name, cfg.name, stamp.scenario_hash
     ));
     if let Err(e) = ep.wait_for_peer(cfg.startup_timeout, || None) {
         out.discard();
@@ -130,8 +139,9 @@ pub fn run(
             stats: &mut stats,
             live,
             target_in_effector,
+            last_sent: None,
         };
-        let mut ex = Lockstep { side, steps };
+        let mut ex = Lockstep { side, steps, delay: s.delay };
         let r = sim::run_loop(s, &mut plant, &mut ex, &mut recorder, observer);
         let end = match r {
             Ok(LoopEnd::Completed) => PlantEnd::Completed,
@@ -162,6 +172,7 @@ pub fn run(
             stats: &mut stats,
             live,
             target_in_effector,
+            last_sent: None,
         };
         let r = run_real_time(&mut side, &mut plant, steps, &mut sink);
         crate::rt::reset_thread();
@@ -178,6 +189,12 @@ pub fn run(
         }
     }
     live.finish();
+    if stats.event_fallback {
+        observer.warn(
+            "the controller does not notify command-ready (flag NOTIFIES clear): the plant polled (hybrid) \
+             instead of waiting on the event",
+        );
+    }
     if matches!(end, PlantEnd::ControllerDied { .. }) {
         ep.cleanup_dead_nodes();
     }

@@ -2,14 +2,24 @@
 //! publish, wait for the command until the deadline, apply it or the hold policy, log,
 //! advance) and the lockstep exchange ([`Lockstep`], for `sim::run_loop`: publish, then wait
 //! for the answer however long it takes).
+//!
+//! **The delay.** In real time a command takes effect when it arrives: over period `n` the
+//! plant applies the command that was acting until then (the previous one, or a held one)
+//! for the first `d` of the period and the fresh command for the rest, where `d` is the time
+//! from measurement `n`'s timestamp to the command's arrival, on the plant's clock, scaled to
+//! the plant's time (`d = (t_arrival − plant_time_ns) · dt / period`). The next measurement
+//! announces that delay, and the controller's law predicts over it. In lockstep the plant
+//! announces the scenario's simulated pure delay (0 unless `--delay`), which `sim::run_loop`
+//! applies — the same as `companion sim`.
 
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
-use companion_core::{Measurement, Pose, Rpr};
+use companion_core::{Command, Measurement, Pose, Rpr};
 use companion_plant::Plant;
 
 use super::config::Timing;
+use super::config::WaitMode;
 use super::end::PlantEnd;
 use super::hold::HoldPolicy;
 use super::messages::{report_of, Stamp};
@@ -22,7 +32,7 @@ use crate::link::PlantLink;
 use crate::record::{CommandSource, Row};
 use crate::signals::termination_requested;
 use crate::sim::{self, Exchange};
-use crate::wire::{check_command, flags, CommandMsg, WireError};
+use crate::wire::{check_command, flags, CommandMsg, MeasurementMsg, Refusal, WireError};
 
 /// The plant's side of an exchange: clock, transport, timing, the stamp of its measurements,
 /// and what it counts.
@@ -42,20 +52,28 @@ pub struct PlantSide<'a, C: Clock, L: PlantLink> {
     pub live: &'a LiveFigures,
     /// `r*_ed`, for the true tracking error recorded with each row.
     pub target_in_effector: Pose<f64>,
+    /// The last measurement published.
+    pub last_sent: Option<MeasurementMsg>,
 }
 
+/// A fresh command and when it arrived (plant's clock, ns).
+type Fresh = (CommandMsg, u64);
+
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
-    /// Publishes measurement `n` now; returns the publication time.
+    /// Publishes measurement `n` now, announcing `delay`; returns the publication time.
     #[inline]
-    fn publish(&mut self, n: u64, fl: u32, meas: &Measurement<f64, JOINTS>) -> Result<u64> {
+    fn publish(&mut self, n: u64, fl: u32, delay: f64, meas: &Measurement<f64, JOINTS>) -> Result<u64> {
         let t_pub = self.clock.now_ns();
-        self.link.publish(&self.stamp.message(n, fl, t_pub, meas))?;
+        let m = self.stamp.message(n, fl, t_pub, delay, meas);
+        self.link.publish(&m)?;
+        self.last_sent = Some(m);
         Ok(t_pub)
     }
 
-    /// Takes every waiting command; returns the last one that answers measurement `n`.
+    /// Takes every waiting command; returns the last one that answers measurement `n`, or
+    /// the controller's refusal of this plant.
     #[inline]
-    fn drain(&mut self, n: u64, late_timed: bool) -> Result<Option<CommandMsg>> {
+    fn drain(&mut self, n: u64, late_timed: bool) -> Result<Result<Option<Fresh>, Refusal>> {
         let mut fresh = None;
         while let Some(c) = self.link.try_receive()? {
             let now = self.clock.now_ns();
@@ -63,7 +81,16 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                 Ok(()) => {
                     self.stats.timing(now, &c);
                     self.stats.controller_skipped += u64::from(c.skipped);
-                    fresh = Some(c);
+                    fresh = Some((c, now));
+                }
+                Err(WireError::Refused(code)) => {
+                    let mine = self
+                        .last_sent
+                        .unwrap_or_else(|| self.stamp.message(n, 0, 0, 0.0, &zero_measurement()));
+                    match Refusal::from_command(&c, &mine) {
+                        Some(why) => return Ok(Err(why)),
+                        None => self.stats.invalid.count(WireError::Status(code)),
+                    }
                 }
                 // A command for an earlier period that is also malformed counts as malformed.
                 Err(WireError::Stale(_)) if !finite_command(&c) => {
@@ -78,7 +105,21 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                 Err(e) => self.stats.invalid.count(e),
             }
         }
-        Ok(fresh)
+        Ok(Ok(fresh))
+    }
+}
+
+/// A measurement of nothing (only its header is read, to describe a refusal that came before
+/// any measurement was published — which a correct controller never sends).
+#[cold]
+fn zero_measurement() -> Measurement<f64, JOINTS> {
+    Measurement {
+        t: 0.0,
+        base: Pose::identity(),
+        steering: 0.0,
+        joints: companion_core::nalgebra::SVector::zeros(),
+        target: Pose::identity(),
+        target_velocity: companion_core::nalgebra::Vector3::zeros(),
     }
 }
 
@@ -124,6 +165,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
 ) -> Result<PlantEnd> {
     let timing = side.timing;
     let period = timing.period_ns;
+    let dt = side.stamp.dt;
     let mut idler = Idler::new(timing.wait, timing.spin_margin_ns);
     let mut policy = HoldPolicy::new(timing.hold_periods);
     let mut start = side.clock.now_ns();
@@ -131,6 +173,9 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
     let mut last_step = steps;
     let mut end = PlantEnd::Completed;
     let mut answered_last;
+    // The command acting at the end of the last period, and the last measured delay (s).
+    let mut acting = Command::<f64, JOINTS>::zero();
+    let mut delay = 0.0;
     let mut n: u64 = 0;
     loop {
         let mut release = start + n * period;
@@ -155,24 +200,29 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
             st.skipped_releases += skipped;
             st.longest_stall_ns = st.longest_stall_ns.max(behind);
         }
-        let t_pub = side.publish(n, fl, &meas)?;
-        let deadline = if n == 0 {
-            t_pub + timing.peer_timeout_ns
-        } else {
+        let t_pub = side.publish(n, fl, delay, &meas)?;
+        // The handshake's answer (a cold first step) and, at the end of a completed run, the
+        // last answer (the controller's confirmation) are awaited up to the peer timeout.
+        let patient = n == 0 || (n == last_step && end == PlantEnd::Completed);
+        let deadline = if patient { t_pub + timing.peer_timeout_ns } else { release + timing.deadline_ns };
+        if n > 0 {
             side.stats.jitter.record(t_pub - release);
-            release + timing.deadline_ns
-        };
+        }
         if t_pub > deadline {
             side.stats.plant_overruns += 1;
         }
         // Wait for command n (not once the controller is known to be gone).
         let mut fresh = None;
+        let mut refused = None;
         idler.reset();
         let peer_lost = matches!(end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
         if !peer_lost {
             loop {
-                fresh = side.drain(n, true)?;
-                if fresh.is_some() || side.clock.now_ns() >= deadline {
+                match side.drain(n, true)? {
+                    Ok(f) => fresh = f,
+                    Err(why) => refused = Some(why),
+                }
+                if fresh.is_some() || refused.is_some() || side.clock.now_ns() >= deadline {
                     break;
                 }
                 let link = &mut *side.link;
@@ -185,21 +235,39 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         }
         answered_last = fresh.is_some();
         let stats = &mut *side.stats;
-        let (report, source) = match fresh {
-            Some(c) => {
+        // Within period n, the fresh command takes effect when it arrived (from the start at
+        // n = 0, whose arrival starts the clock).
+        let mut switch_at = 0.0;
+        let (report, source) = match (fresh, refused) {
+            (_, Some(why)) => {
+                end = PlantEnd::Refused(why);
+                last_step = n;
+                (super::hold::stop_report(), CommandSource::Stopped)
+            }
+            (Some((c, t_rx)), None) => {
                 stats.fresh += 1;
-                let now = side.clock.now_ns();
                 if n > 0 {
-                    let gap = now - watch.last_heard_ns();
+                    let gap = t_rx.saturating_sub(watch.last_heard_ns());
                     stats.longest_command_gap_ns = stats.longest_command_gap_ns.max(gap);
                     if gap > (u64::from(timing.hold_periods) + 1) * period {
                         stats.command_gaps_over_hold += 1;
                     }
                 }
-                watch.heard(now);
+                watch.heard(t_rx);
+                if timing.wait.uses_events() && !c.has(flags::NOTIFIES) && !stats.event_fallback {
+                    // The controller does not notify: poll instead of sleeping on its event.
+                    idler = Idler::new(WaitMode::Hybrid, timing.spin_margin_ns);
+                    stats.event_fallback = true;
+                }
+                if n > 0 {
+                    #[allow(clippy::cast_precision_loss)]
+                    let d = t_rx.saturating_sub(t_pub) as f64 * dt / period as f64;
+                    switch_at = d.min(dt * (1.0 - 1e-9));
+                    delay = switch_at;
+                }
                 policy.fresh(report_of(&c))
             }
-            None => {
+            (None, None) => {
                 stats.deadline_misses += 1;
                 let was_stopped = policy.stopped();
                 let r = policy.missed();
@@ -232,7 +300,8 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         if last {
             break;
         }
-        plant.advance(&report.command, side.stamp.dt);
+        plant.try_advance_delayed(&acting, &report.command, switch_at, dt)?;
+        acting = report.command;
         if n % 256 == 255 {
             // A bucket scan (tens of µs) in the slack before the next release.
             live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
@@ -294,24 +363,32 @@ pub struct Lockstep<'a, C: Clock, L: PlantLink> {
     pub side: PlantSide<'a, C, L>,
     /// The last step (its measurement carries the end-of-run flag).
     pub steps: u64,
+    /// The scenario's simulated pure delay (s), announced in every measurement.
+    pub delay: f64,
 }
 
 impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
     fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
-        let mut fl = flags::LOCKSTEP;
-        if n == self.steps {
-            fl |= flags::END_OF_RUN;
-        }
+        let fl = if n == self.steps { flags::END_OF_RUN } else { 0 };
         let side = &mut self.side;
-        let t_pub = side.publish(n, fl, meas)?;
+        let t_pub = side.publish(n, fl, self.delay, meas)?;
         side.stats.cycles += 1;
         side.live.cycle.store(n + 1, Ordering::Relaxed);
-        let mut idler = Idler::new(side.timing.wait, side.timing.spin_margin_ns);
+        let wait = if side.stats.event_fallback { WaitMode::Hybrid } else { side.timing.wait };
+        let mut idler = Idler::new(wait, side.timing.spin_margin_ns);
         let mut watch = PeerWatch::new(side.timing.silence_ns, t_pub);
         loop {
-            if let Some(c) = side.drain(n, false)? {
-                side.stats.fresh += 1;
-                return Ok(report_of(&c));
+            match side.drain(n, false)? {
+                Ok(Some((c, _))) => {
+                    side.stats.fresh += 1;
+                    if wait == WaitMode::Event && !c.has(flags::NOTIFIES) {
+                        // The controller does not notify: poll instead of sleeping on its event.
+                        side.stats.event_fallback = true;
+                    }
+                    return Ok(report_of(&c));
+                }
+                Ok(None) => {}
+                Err(why) => return Err(Lost(PlantEnd::Refused(why)).into()),
             }
             let now = side.clock.now_ns();
             if let Some(loss) = watch.check(now, side.timing.peer_timeout_ns, side.link)? {

@@ -53,6 +53,15 @@ pub struct LatencyReport {
     pub deadline_ns: u64,
     /// Hold periods before the stop.
     pub hold_periods: u32,
+    /// The wire's protocol version.
+    pub protocol_version: u32,
+    /// The scenario hash the plant announced (hex).
+    pub scenario_hash: String,
+    /// The joint guard κ the controller runs with for this plant (see `hil::handshake`).
+    pub joint_step_fraction: f64,
+    /// The plant polled instead of waiting on the command event (the controller did not
+    /// notify it).
+    pub event_fallback: bool,
     /// Real-time setup.
     pub rt: RtSummary,
     /// Periods run.
@@ -136,6 +145,14 @@ impl LatencyReport {
             rate_hz,
             deadline_ns: if t.lockstep { 0 } else { t.deadline_ns },
             hold_periods: t.hold_periods,
+            protocol_version: crate::wire::PROTOCOL_VERSION,
+            scenario_hash: format!("{:#018x}", super::handshake::controller_hash(&s.controller)),
+            joint_step_fraction: super::handshake::joint_step_fraction(
+                &s.controller,
+                t.lockstep,
+                t.hold_periods,
+            ),
+            event_fallback: st.event_fallback,
             rt: RtSummary {
                 requested: plan.is_some(),
                 fifo: rt.is_some_and(|r| r.fifo),

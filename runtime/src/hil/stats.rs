@@ -31,10 +31,12 @@ impl InvalidCounts {
     pub fn count(&mut self, e: WireError) {
         match e {
             WireError::Version(_) => self.version += 1,
-            WireError::Session | WireError::Scenario => self.session += 1,
+            // (A changed announcement concerns measurements, not commands.)
+            WireError::Session | WireError::Changed => self.session += 1,
             WireError::Future(_) | WireError::Stale(_) => self.future_seq += 1,
             WireError::JointCount(_) => self.joint_count += 1,
-            WireError::Status(_) => self.status += 1,
+            // (A refusal of this session ends the run before it would be counted.)
+            WireError::Status(_) | WireError::Refused(_) => self.status += 1,
             WireError::NonFinite => self.non_finite += 1,
         }
     }
@@ -96,6 +98,8 @@ pub struct PlantStats {
     pub controller_skipped: u64,
     /// Log rows lost because the writer thread fell behind (0 unless the machine starves it).
     pub log_rows_dropped: u64,
+    /// Waiting on the command event was given up because the controller does not notify it.
+    pub event_fallback: bool,
 }
 
 impl PlantStats {
@@ -124,6 +128,17 @@ pub struct ControlStats {
     pub rejections: Rejections,
     /// What the adaptive wait did.
     pub wait: WaitCounts,
+    /// The delay the law predicted over, per answer (ns).
+    pub delay: LatencyHistogram,
+    /// Announced delays outside what the law admits, clamped.
+    pub delay_clamped: u64,
+    /// Times the plant reported that it stopped the robot (its `STOPPED` flag turning on
+    /// after the first answer).
+    pub stop_events: u64,
+    /// The measurement that first reported a stop.
+    pub first_stop_seq: Option<u64>,
+    /// Waiting on the measurement event was given up because the plant does not notify it.
+    pub event_fallback: bool,
 }
 
 /// Live figures of the plant's loop for a progress line (written with relaxed stores, read by

@@ -1,6 +1,6 @@
 //! Bare ping-pong between two processes with the HIL's message sizes: the transport's floor.
 //!
-//! The parent sends a [`MeasurementMsg`] (216 bytes) and waits for the [`CommandMsg`] (200
+//! The parent sends a [`MeasurementMsg`] (232 bytes) and waits for the [`CommandMsg`] (224
 //! bytes) the peer — a hidden `latency-peer` subcommand of the same binary — sends back at
 //! once; the round trip is timed on the parent's clock. Three transports:
 //!
@@ -25,7 +25,8 @@ use crate::observe::Observer;
 use crate::process::ChildGuard;
 use crate::rt;
 use crate::wire::{
-    flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg, COMMAND_SIZE, MEASUREMENT_SIZE,
+    flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
+    MeasurementMsg, COMMAND_SIZE, MEASUREMENT_SIZE,
 };
 
 /// A ping-pong transport.
@@ -65,7 +66,10 @@ pub struct PeerOptions {
 
 fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
     let diag = LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
-    CommandMsg::answer::<3>(m, &Command::zero(), None, &diag, received_ns, 0)
+    let identity =
+        ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 1.0 };
+    let header = CommandHeader { identity, flags: 0, received_ns, skipped: 0, delay: 0.0 };
+    CommandMsg::answer::<3>(m, &header, &Command::zero(), None, &diag)
 }
 
 fn ping(seq: u64, last: bool) -> MeasurementMsg {
@@ -83,6 +87,7 @@ fn ping(seq: u64, last: bool) -> MeasurementMsg {
         session: 1,
         plant_time_ns: rt::monotonic_ns(),
         dt: 1e-3,
+        platform: platform::UNICYCLE,
         ..MeasurementHeader::default()
     };
     MeasurementMsg::new(header, &m)
@@ -109,7 +114,7 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
 }
 
 fn peer_iox(name: &str, events: bool) -> Result<()> {
-    let ep = ControlEndpoint::control(name, events)?;
+    let mut ep = ControlEndpoint::control(name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
     loop {
@@ -209,7 +214,7 @@ pub fn iceoryx(
         args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
     }
     let mut child = spawn_peer(exe, &args)?;
-    let ep = PlantEndpoint::plant(&name, events)?;
+    let mut ep = PlantEndpoint::plant(&name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
     let mut hist = LatencyHistogram::new();

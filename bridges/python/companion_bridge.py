@@ -1,0 +1,851 @@
+#!/usr/bin/env python3
+"""The reference bridge: a replacement for `companion plant`, in Python.
+
+Written from docs/protocol.md alone (protocol version 2) with the official iceoryx2 binding
+(`pip install iceoryx2==0.10.0`). It plays the plant: it simulates the paper's unicycle with
+its RPR arm tracking trajectory 1 (a bridge to hardware would read its sensors in `measure()`
+and drive its motors in `apply()`), publishes one measurement per period, applies the
+controller's answer from the moment it arrives, and reports the measured delay.
+
+    companion control --name demo --duration 5 &
+    python3 bridges/python/companion_bridge.py --name demo --duration 5            # real time
+    python3 bridges/python/companion_bridge.py --name demo --duration 5 --lockstep
+
+It also injects faults for the tests (`--help`). Exit codes as `companion plant`: 0 the run
+completed, 2 an error or the controller refused this plant, 3 the controller died or left,
+4 the controller is alive but silent, 130 interrupted.
+"""
+
+import argparse
+import ctypes
+import json
+import math
+import random
+import signal
+import statistics
+import struct
+import sys
+import time
+
+import iceoryx2 as iox
+
+# ----- the wire (docs/protocol.md §3) ---------------------------------------------------------
+
+PROTOCOL_VERSION = 2
+MAX_JOINTS = 8
+PREFIX = "companion_"
+
+END_OF_RUN, LOCKSTEP, STOPPED, NOTIFIES = 1, 2, 4, 8
+PLATFORMS = {"unicycle": 1, "car": 2, "omni": 3}
+PLATFORM_NAMES = {1: "unicycle", 2: "car-like", 3: "omnidirectional"}
+REFUSALS = {
+    0x8001: "protocol version",
+    0x8002: "joint count",
+    0x8003: "platform",
+    0x8004: "scenario",
+    0x8005: "period (dt)",
+}
+
+EXIT_OK, EXIT_ERROR, EXIT_PEER_LOST, EXIT_PEER_HUNG, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
+
+
+def _type_name(name):
+    return staticmethod(lambda: name)
+
+
+class Measurement(ctypes.Structure):
+    """MeasurementMsg, 232 bytes, little-endian, no padding."""
+
+    _fields_ = [
+        ("version", ctypes.c_uint32),
+        ("flags", ctypes.c_uint32),
+        ("seq", ctypes.c_uint64),
+        ("session", ctypes.c_uint64),
+        ("scenario_hash", ctypes.c_uint64),
+        ("plant_time_ns", ctypes.c_uint64),
+        ("period_ns", ctypes.c_uint64),
+        ("sim_time", ctypes.c_double),
+        ("dt", ctypes.c_double),
+        ("delay", ctypes.c_double),
+        ("platform", ctypes.c_uint32),
+        ("hold_periods", ctypes.c_uint32),
+        ("joint_count", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
+        ("base", ctypes.c_double * 3),
+        ("steering", ctypes.c_double),
+        ("target", ctypes.c_double * 3),
+        ("target_velocity", ctypes.c_double * 3),
+        ("joints", ctypes.c_double * MAX_JOINTS),
+    ]
+    type_name = _type_name("companion::MeasurementV2")
+
+
+class Command(ctypes.Structure):
+    """CommandMsg, 224 bytes."""
+
+    _fields_ = [
+        ("version", ctypes.c_uint32),
+        ("status", ctypes.c_uint32),
+        ("seq", ctypes.c_uint64),
+        ("session", ctypes.c_uint64),
+        ("plant_time_ns", ctypes.c_uint64),
+        ("compute_ns", ctypes.c_uint64),
+        ("received_ns", ctypes.c_uint64),
+        ("skipped", ctypes.c_uint32),
+        ("joint_count", ctypes.c_uint32),
+        ("flags", ctypes.c_uint32),
+        ("platform", ctypes.c_uint32),
+        ("scenario_hash", ctypes.c_uint64),
+        ("delay", ctypes.c_double),
+        ("v", ctypes.c_double),
+        ("v_lat", ctypes.c_double),
+        ("omega", ctypes.c_double),
+        ("v_xi", ctypes.c_double),
+        ("joints", ctypes.c_double * MAX_JOINTS),
+        ("ep_norm", ctypes.c_double),
+        ("h_s", ctypes.c_double),
+        ("psi", ctypes.c_double),
+        ("saturation", ctypes.c_double),
+        ("alpha_rate", ctypes.c_double * 2),
+    ]
+    type_name = _type_name("companion::CommandV2")
+
+
+assert ctypes.sizeof(Measurement) == 232 and ctypes.alignment(Measurement) == 8
+assert ctypes.sizeof(Command) == 224 and ctypes.alignment(Command) == 8
+assert Measurement.joints.offset == 168 and Command.joints.offset == 112
+
+
+def known_status(code):
+    """Whether a command status is one the protocol defines (docs/protocol.md, status codes)."""
+    return (
+        code in (0, 0x200, 0x400, 0x500, 0x600, 0x700)
+        or 0x100 <= code <= 0x105
+        or 0x300 <= code < 0x300 + MAX_JOINTS
+    )
+
+
+def is_refusal(code):
+    return code & 0xFF00 == 0x8000
+
+
+# ----- the scenario hash (docs/protocol.md, "The scenario hash") ------------------------------
+
+
+def canonical_text(value):
+    lines = []
+
+    def walk(v, path):
+        def join(key):
+            return key if path == "" else path + "." + key
+
+        if v is None:
+            return
+        if isinstance(v, bool):
+            lines.append(f"{path}={'true' if v else 'false'}\n")
+        elif isinstance(v, (int, float)):
+            bits = struct.unpack("<Q", struct.pack("<d", float(v)))[0]
+            lines.append(f"{path}={bits:016x}\n")
+        elif isinstance(v, str):
+            lines.append(f"{path}={v}\n")
+        elif isinstance(v, list):
+            for i, e in enumerate(v):
+                walk(e, join(str(i)))
+        elif isinstance(v, dict):
+            for k, e in v.items():
+                walk(e, join(k))
+
+    walk(value, "")
+    return "".join(sorted(lines, key=lambda s: s.encode()))
+
+
+def fnv1a(data):
+    h = 0xCBF29CE484222325
+    for b in data:
+        h ^= b
+        h = (h * 0x100000001B3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def scenario_hash(value):
+    return fnv1a(canonical_text(value).encode()) or 1
+
+
+# ----- the robot: the paper's unicycle and RPR arm, trajectory 1 (docs/protocol.md §8) ------
+
+L, L_E = 0.4, 0.15
+TARGET_IN_EFFECTOR = (0.5, 0.0, 0.0)
+SIGN_SPEED = 1e-3
+
+
+def wrap(a):
+    if -math.pi < a <= math.pi:
+        return a
+    w = a - 2 * math.pi * round(a / (2 * math.pi))
+    if w <= -math.pi:
+        w += 2 * math.pi
+    elif w > math.pi:
+        w -= 2 * math.pi
+    return w
+
+
+def between(a, b):
+    """a⁻¹ · b for poses (x, y, θ)."""
+    s, c = math.sin(a[2]), math.cos(a[2])
+    dx, dy = b[0] - a[0], b[1] - a[1]
+    return (c * dx + s * dy, -s * dx + c * dy, wrap(b[2] - a[2]))
+
+
+def compose(a, b):
+    s, c = math.sin(a[2]), math.cos(a[2])
+    return (a[0] + c * b[0] - s * b[1], a[1] + s * b[0] + c * b[1], a[2] + b[2])
+
+
+def target_velocity(t):
+    """Trajectory 1: u_d(t) = −(π/20) (sin(πt/2), cos(πt/2), 0)."""
+    k = math.pi / 20.0
+    a = math.pi * t / 2.0
+    return (-k * math.sin(a), -k * math.cos(a), 0.0)
+
+
+class Robot:
+    """Unicycle + RPR arm + target, integrated by RK4 under a held command."""
+
+    def __init__(self, dt):
+        self.dt = dt
+        self.step = 0
+        self.base = (0.0, 0.0, 0.0)
+        self.q = (0.0, 0.35, 0.0)
+        self.target = compose(self.base, (2.6, 1.0, 0.0))
+
+    @property
+    def t(self):
+        return self.step * self.dt
+
+    def measure(self):
+        return self.t, self.base, self.q, self.target, target_velocity(self.t)
+
+    def tracking_error(self):
+        q1, q2, q3 = self.q
+        s13, c13 = math.sin(q1 + q3), math.cos(q1 + q3)
+        s3, c3 = math.sin(q3), math.cos(q3)
+        r_eb = (-L * c13 - q2 * c3 - L_E, L * s13 + q2 * s3, -q1 - q3)
+        r_ed = compose(r_eb, between(self.base, self.target))
+        e = between(TARGET_IN_EFFECTOR, r_ed)
+        return math.sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2])
+
+    @staticmethod
+    def _derivative(t, base_theta, target_theta, cmd):
+        v, omega, uq = cmd
+        sb, cb = math.sin(base_theta), math.cos(base_theta)
+        ud = target_velocity(t)
+        st, ct = math.sin(target_theta), math.cos(target_theta)
+        return (
+            (cb * v, sb * v, omega),
+            (ct * ud[0] - st * ud[1], st * ud[0] + ct * ud[1], ud[2]),
+        )
+
+    def _rk4(self, t0, t1, cmd):
+        h = t1 - t0
+        half = 0.5 * h
+        tm = t0 + half
+        b, d = self.base, self.target
+        kb1, kd1 = self._derivative(t0, b[2], d[2], cmd)
+        kb2, kd2 = self._derivative(tm, b[2] + half * kb1[2], d[2] + half * kd1[2], cmd)
+        kb3, kd3 = self._derivative(tm, b[2] + half * kb2[2], d[2] + half * kd2[2], cmd)
+        kb4, kd4 = self._derivative(t1, b[2] + h * kb3[2], d[2] + h * kd3[2], cmd)
+        w = h / 6.0
+
+        def step(x, k1, k2, k3, k4):
+            return tuple(x[i] + w * (((k1[i] + 2.0 * k2[i]) + 2.0 * k3[i]) + 1.0 * k4[i]) for i in range(3))
+
+        self.base = step(b, kb1, kb2, kb3, kb4)
+        self.target = step(d, kd1, kd2, kd3, kd4)
+        self.q = tuple(self.q[i] + h * cmd[2][i] for i in range(3))
+
+    def advance(self, previous, command, delay):
+        """One period: `previous` for the first `delay` seconds, then `command`."""
+        t0 = self.step * self.dt
+        t1 = (self.step + 1) * self.dt
+        if delay > 0.0:
+            ts = t0 + delay
+            self._rk4(t0, ts, previous)
+            self._rk4(ts, t1, command)
+        else:
+            self._rk4(t0, t1, command)
+        self.step += 1
+
+
+ZERO = (0.0, 0.0, (0.0, 0.0, 0.0))
+
+
+def command_of(c):
+    """The velocities of a checked command: zero when the law rejected the step."""
+    if c.status != 0:
+        return ZERO
+    return (c.v, c.omega, (c.joints[0], c.joints[1], c.joints[2]))
+
+
+# ----- the transport (docs/protocol.md §2) ----------------------------------------------------
+
+
+class Link:
+    def __init__(self, name, events, default_settings, service_version=PROTOCOL_VERSION):
+        iox.set_log_level_from_env_or(iox.LogLevel.Fatal)
+        self.cfg = iox.config.default()
+        self.cfg.global_cfg.prefix = iox.FileName.new(PREFIX)
+        self.name = name
+        self.version = service_version
+        self.node = iox.NodeBuilder.new().config(self.cfg).create(iox.ServiceType.Ipc)
+        base = f"companion/{name}/v{service_version}"
+        self.meas_service = self._pubsub(base + "/measurement", Measurement, default_settings)
+        self.cmd_service = self._pubsub(base + "/command", Command, default_settings)
+        self.publisher = (
+            self.meas_service.publisher_builder()
+            .backpressure_strategy(iox.BackpressureStrategy.DiscardData)
+            .create()
+        )
+        self.subscriber = self.cmd_service.subscriber_builder().create()
+        self.notifier = self.listener = None
+        if events:
+            ready = self._event(base + "/measurement-ready")
+            self.notifier = ready.notifier_builder().create()
+            self.listener = self._event(base + "/command-ready").listener_builder().create()
+        self.peer = None
+
+    def _pubsub(self, name, payload, default_settings):
+        sn = iox.ServiceName.new(name)
+        if default_settings:
+            # Whoever comes first creates; with iceoryx2's defaults when it is us.
+            return self.node.service_builder(sn).publish_subscribe(payload).open_or_create()
+        deadline = time.monotonic() + 2.0
+        while True:
+            try:
+                return self.node.service_builder(sn).publish_subscribe(payload).open()
+            except iox.PublishSubscribeOpenError as e:
+                if str(e) == "IncompatibleTypes":
+                    raise Fatal(
+                        f"{name} exists with another payload type than {payload.type_name()} "
+                        f"({ctypes.sizeof(payload)} bytes, alignment {ctypes.alignment(payload)}, no user header)"
+                    )
+                if str(e) != "DoesNotExist" and time.monotonic() > deadline:
+                    raise
+            try:
+                return (
+                    self.node.service_builder(sn)
+                    .publish_subscribe(payload)
+                    .max_publishers(1)
+                    .max_subscribers(1)
+                    .history_size(0)
+                    .subscriber_max_buffer_size(4)
+                    .enable_safe_overflow(True)
+                    .create()
+                )
+            except iox.PublishSubscribeCreateError as e:
+                if str(e) != "AlreadyExists" and time.monotonic() > deadline:
+                    raise
+            time.sleep(0.005)
+
+    def _event(self, name):
+        return self.node.service_builder(iox.ServiceName.new(name)).event().open_or_create()
+
+    def connected(self):
+        return (
+            self.meas_service.dynamic_config.number_of_subscribers >= 1
+            and self.cmd_service.dynamic_config.number_of_publishers >= 1
+        )
+
+    def other_version(self):
+        """A live peer on this demo with another protocol version: (version, service, pid)."""
+        prefix = f"companion/{self.name}/"
+        for d in iox.Service.list(self.cfg, iox.ServiceType.Ipc):
+            sn = d.name().to_string()
+            if not sn.startswith(prefix):
+                continue
+            rest = sn[len(prefix):]
+            if rest in ("measurement", "command"):
+                version = 1
+            elif rest.startswith("v") and rest.split("/", 1)[-1] in ("measurement", "command"):
+                try:
+                    version = int(rest[1:].split("/", 1)[0])
+                except ValueError:
+                    continue
+            else:
+                continue
+            if version == self.version:
+                continue
+            for n in d.nodes() or []:
+                if isinstance(n, iox.NodeState.Alive) and n._0.id != self.node.id:
+                    return version, sn, n._0.details.process_id
+        return None
+
+    def wait_for_peer(self, timeout_s):
+        end = time.monotonic() + timeout_s
+        next_scan = 0.0
+        while not self.connected():
+            now = time.monotonic()
+            if now >= next_scan:
+                other = self.other_version()
+                if other:
+                    v, sn, pid = other
+                    # Stay a moment, so that the peer's own scan finds us and says so too.
+                    time.sleep(0.5)
+                    raise Fatal(
+                        f"protocol version mismatch: process {pid} waits on demo '{self.name}' with protocol "
+                        f"version {v} (service {sn}); this bridge speaks version {self.version}"
+                    )
+                next_scan = now + 0.2
+            if now > end:
+                raise Fatal(
+                    f"no controller joined demo '{self.name}' within {timeout_s:.0f} s (services "
+                    f"companion/{self.name}/v{self.version}/measurement and /command, iceoryx2 prefix {PREFIX})"
+                )
+            time.sleep(0.001)
+
+    def publish(self, m):
+        self.publisher.send_copy(m)
+        if self.notifier is not None:
+            self.notifier.notify()
+
+    def receive(self):
+        """The next command (a copy), or None; remembers the node that sent it."""
+        s = self.subscriber.receive()
+        if s is None:
+            return None
+        self.peer = s.header.node_id
+        c = Command.from_buffer_copy(s.payload().contents)
+        s.delete()
+        return c
+
+    def wait_event(self, seconds):
+        if self.listener is not None:
+            self.listener.timed_wait(iox.Duration.from_micros(max(1, int(seconds * 1e6))))
+
+    def peer_state(self):
+        """'alive', 'dead' (with its resources cleaned) or 'absent'."""
+        ids = [self.peer] if self.peer is not None else [
+            n._0.id for n in self.cmd_service.nodes if n._0.id != self.node.id
+        ]
+        state = "absent"
+        for n in iox.Node.list(iox.ServiceType.Ipc, self.cfg):
+            if n._0.id in ids:
+                if isinstance(n, iox.NodeState.Alive):
+                    return "alive"
+                if isinstance(n, iox.NodeState.Dead):
+                    state = "dead"
+        if state == "dead":
+            self.node.try_cleanup_dead_nodes()
+        return state
+
+
+# ----- the run ---------------------------------------------------------------------------------
+
+
+class Refused(Exception):
+    pass
+
+
+class Fatal(Exception):
+    """An error that ends the bridge with exit code 2 (a mismatch, no peer)."""
+
+
+class Lost(Exception):
+    def __init__(self, code, why):
+        super().__init__(why)
+        self.code = code
+
+
+class Summary:
+    """The figures `companion sim` prints, computed the same way (record/summary.rs)."""
+
+    def __init__(self):
+        self.final_ep = float("nan")
+        self.max_ep_after_20 = 0.0
+        self.ep_after_20 = []
+        self.after20 = self.below = 0
+        self.path = 0.0
+        self.last_pos = None
+        self.last_sign = 0
+        self.v_sign_changes = 0
+        self.max_v = self.max_w = 0.0
+        self.steps = 0
+
+    def add(self, robot, cmd):
+        t, (x, y, _), ep = robot.t, robot.base, robot.tracking_error()
+        self.steps += 1
+        if self.last_pos is not None:
+            self.path += math.hypot(x - self.last_pos[0], y - self.last_pos[1])
+        self.last_pos = (x, y)
+        if math.isfinite(ep):
+            self.final_ep = ep
+            if t >= 20.0:
+                self.after20 += 1
+                self.max_ep_after_20 = max(self.max_ep_after_20, ep)
+                self.below += ep < 1e-3
+                self.ep_after_20.append(ep)
+        v, w = cmd[0], cmd[1]
+        if abs(v) > SIGN_SPEED:
+            sign = 1 if v > 0 else -1
+            if self.last_sign != 0 and sign != self.last_sign:
+                self.v_sign_changes += 1
+            self.last_sign = sign
+        self.max_v = max(self.max_v, abs(v))
+        self.max_w = max(self.max_w, abs(w))
+
+    def line(self):
+        tracked = 100.0 * self.below / self.after20 if self.after20 else 0.0
+        return (
+            f"final|ep| {self.final_ep:.2e} max|ep|>20 {self.max_ep_after_20:.2e} tracked {tracked:.1f}% "
+            f"path m {self.path:.2f} v sgn {self.v_sign_changes} max|v| {self.max_v:.3f} max|w| {self.max_w:.3f}"
+        )
+
+
+class Bridge:
+    def __init__(self, a):
+        self.a = a
+        self.link = Link(a.name, a.events, a.default_settings, a.service_version)
+        self.session = random.getrandbits(64) or 1
+        self.period_ns = 0 if a.lockstep else int(round(a.dt * 1e9))
+        self.flags = (LOCKSTEP if a.lockstep else 0) | (NOTIFIES if a.events else 0)
+        self.robot = Robot(a.dt)
+        self.summary = Summary()
+        self.counts = {"fresh": 0, "deadline_misses": 0, "late": 0, "held": 0, "stopped": 0, "stop_events": 0}
+        self.invalid = {}
+        self.delays = []
+        self.last_sent = None
+        self.poll = not a.events  # sleep on the controller's event only while it notifies
+
+    # -- messages --
+
+    def measurement(self, seq, flags, delay):
+        t, base, q, target, ud = self.robot.measure()
+        m = Measurement()
+        m.version = self.a.protocol_version
+        m.flags = self.flags | flags
+        m.seq = seq
+        m.session = self.session
+        m.scenario_hash = self.a.scenario_hash
+        m.plant_time_ns = time.monotonic_ns()
+        m.period_ns = self.period_ns
+        m.sim_time = t
+        m.dt = self.a.dt
+        m.delay = delay
+        m.platform = PLATFORMS[self.a.platform]
+        m.hold_periods = self.a.hold_periods
+        m.joint_count = self.a.joint_count
+        m.base[:] = base
+        m.target[:] = target
+        m.target_velocity[:] = ud
+        for i in range(3):
+            m.joints[i] = q[i]
+        return m
+
+    def publish(self, seq, flags, delay):
+        m = self.measurement(seq, flags, delay)
+        for kind in self.a.inject.get(seq, []):
+            self.link.publish(corrupt(m, kind, self.last_sent))
+        self.link.publish(m)
+        self.last_sent = m
+        return m
+
+    def drain(self, seq):
+        """Every waiting command, checked (docs/protocol.md, what the plant checks); returns the
+        last fresh one for `seq` with its arrival time."""
+        fresh = None
+        while True:
+            c = self.link.receive()
+            if c is None:
+                return fresh
+            now = time.monotonic_ns()
+            why = self.check(c, seq)
+            if why is None:
+                fresh = (c, now)
+                if not (c.flags & NOTIFIES):
+                    self.poll = True
+            elif why == "refused":
+                raise Refused(describe_refusal(c, self.last_sent))
+            elif why == "late":
+                self.counts["late"] += 1
+            else:
+                self.invalid[why] = self.invalid.get(why, 0) + 1
+
+    def check(self, c, seq):
+        if c.version != PROTOCOL_VERSION:
+            return "version"
+        if c.session != self.session:
+            return "session"
+        if is_refusal(c.status):
+            return "refused"
+        if c.seq < seq:
+            return "late"
+        if c.seq > seq:
+            return "future_seq"
+        if c.joint_count != self.a.joint_count:
+            return "joint_count"
+        if not known_status(c.status):
+            return "status"
+        values = [c.v, c.v_lat, c.omega, c.v_xi] + [c.joints[i] for i in range(self.a.joint_count)]
+        if not all(math.isfinite(x) for x in values):
+            return "non_finite"
+        return None
+
+    def idle(self, deadline_ns, spun_since):
+        """One wait step: the controller's event, or a spin that turns into 50 µs naps."""
+        now = time.monotonic_ns()
+        if not self.poll:
+            self.link.wait_event(min(0.01, max(0.0, (deadline_ns - now) / 1e9)))
+        elif now - spun_since > 200_000:
+            time.sleep(0.00005)
+
+    def watch(self, silent_since_ns):
+        """After a silence: is the controller still there? Raises Lost if not."""
+        silent = time.monotonic_ns() - silent_since_ns
+        if silent < self.a.silence_ms * 1_000_000:
+            return
+        state = self.link.peer_state()
+        if state == "dead":
+            raise Lost(EXIT_PEER_LOST, f"the controller died ({silent / 1e6:.0f} ms after its last command)")
+        if state == "absent":
+            raise Lost(EXIT_PEER_LOST, "the controller left")
+        if silent > self.a.peer_timeout * 1e9:
+            raise Lost(EXIT_PEER_HUNG, f"the controller is alive but silent for {silent / 1e6:.0f} ms")
+
+    # -- the loops --
+
+    def run(self):
+        a = self.a
+        steps = int(round(a.duration / a.dt))
+        self.link.wait_for_peer(a.startup_timeout)
+        print(
+            f"bridge: demo '{a.name}', session {self.session:#x}, {'lockstep' if a.lockstep else 'real time'}, "
+            f"{steps + 1} periods",
+            file=sys.stderr,
+        )
+        if a.lockstep:
+            return self.lockstep(steps)
+        return self.real_time(steps)
+
+    def lockstep(self, steps):
+        delay = 0.0
+        for n in range(steps + 1):
+            self.maybe_fault(n)
+            self.publish(n, END_OF_RUN if n == steps else 0, delay)
+            heard = spun = time.monotonic_ns()
+            while True:
+                got = self.drain(n)
+                if got:
+                    break
+                self.watch(heard)
+                self.idle(time.monotonic_ns() + 10_000_000, spun)
+            c, _ = got
+            self.counts["fresh"] += 1
+            cmd = command_of(c)
+            self.summary.add(self.robot, cmd)
+            if n < steps:
+                self.robot.advance(cmd, cmd, 0.0)
+        return EXIT_OK
+
+    def real_time(self, steps):
+        a = self.a
+        period = self.period_ns
+        deadline_ns = int(a.deadline_us * 1000)
+        start = time.monotonic_ns()
+        acting, last_fresh, delay = ZERO, None, 0.0
+        misses = 0
+        stopped = False
+        heard = start
+        for n in range(steps + 1):
+            self.maybe_fault(n)
+            release = start + n * period
+            while time.monotonic_ns() < release - 300_000:
+                time.sleep(0.0001)
+            while time.monotonic_ns() < release:
+                pass
+            late = time.monotonic_ns() - release
+            if n > 0 and late > period:
+                # Fell behind (a pause, or a starved process): restart the period clock; the
+                # robot's time goes on from where it was.
+                if late > 50 * period:
+                    print(f"bridge: period {n} released {late / 1e6:.0f} ms late", file=sys.stderr)
+                start = time.monotonic_ns() - n * period
+                release = start + n * period
+            m = self.publish(n, (END_OF_RUN if n == steps else 0) | (STOPPED if stopped else 0), delay)
+            t_pub = m.plant_time_ns
+            # The handshake's answer and the last one (the end of the run) are awaited up to
+            # the peer timeout; the others until the deadline.
+            patient = n in (0, steps)
+            limit = t_pub + int(a.peer_timeout * 1e9) if patient else release + deadline_ns
+            got, spun = None, time.monotonic_ns()
+            while True:
+                got = self.drain(n)
+                if got or time.monotonic_ns() >= limit:
+                    break
+                self.idle(limit, spun)
+            if n == 0:
+                start = time.monotonic_ns()
+            switch_at = 0.0
+            if got:
+                c, t_rx = got
+                heard = t_rx
+                self.counts["fresh"] += 1
+                cmd, last_fresh, misses, stopped = command_of(c), command_of(c), 0, False
+                if n > 0:
+                    switch_at = min((t_rx - t_pub) * a.dt / period, a.dt * (1 - 1e-9))
+                    delay = switch_at
+                    self.delays.append(switch_at)
+            else:
+                self.counts["deadline_misses"] += 1
+                misses += 1
+                if last_fresh is not None and misses <= a.hold_periods:
+                    cmd = last_fresh
+                    self.counts["held"] += 1
+                else:
+                    cmd = ZERO
+                    self.counts["stopped"] += 1
+                    if not stopped and last_fresh is not None:
+                        self.counts["stop_events"] += 1
+                    stopped = True
+            self.summary.add(self.robot, cmd)
+            if n == steps:
+                break
+            self.robot.advance(acting, cmd, switch_at)
+            acting = cmd
+            if not got:
+                self.watch(heard)
+        return EXIT_OK
+
+    def maybe_fault(self, n):
+        a = self.a
+        if n == a.pause_at:
+            time.sleep(a.pause_ms / 1000.0)
+        if n == a.stall_at:
+            print(f"bridge: stalling at period {n} (alive, silent)", file=sys.stderr)
+            while True:
+                time.sleep(1.0)
+
+    def report(self, code, why=None):
+        out = {
+            "exit": code,
+            "end": why or "completed",
+            "summary": self.summary.line(),
+            "final_ep_norm": self.summary.final_ep,
+            "path_length": self.summary.path,
+            "v_sign_changes": self.summary.v_sign_changes,
+            "max_abs_v": self.summary.max_v,
+            "max_abs_omega": self.summary.max_w,
+            "max_ep_norm_after_20s": self.summary.max_ep_after_20,
+            "median_ep_norm_after_20s": statistics.median(self.summary.ep_after_20) if self.summary.ep_after_20 else None,
+            "steps": self.summary.steps,
+            "counts": self.counts,
+            "invalid": self.invalid,
+            "delay_mean_s": sum(self.delays) / len(self.delays) if self.delays else 0.0,
+            "delay_max_s": max(self.delays) if self.delays else 0.0,
+        }
+        print(f"bridge: {self.summary.line()}", file=sys.stderr)
+        print(f"bridge: {json.dumps(self.counts)} invalid {json.dumps(self.invalid)}", file=sys.stderr)
+        if why:
+            print(f"bridge: {why}", file=sys.stderr)
+        if self.a.out:
+            with open(self.a.out, "w") as f:
+                json.dump(out, f, indent=2)
+
+
+def describe_refusal(c, mine):
+    what = REFUSALS.get(c.status, f"status {c.status:#x}")
+    if c.status == 0x8001:
+        detail = f"this bridge speaks version {mine.version}, the controller version {c.version}"
+    elif c.status == 0x8002:
+        detail = f"this bridge has {mine.joint_count} joints, the controller is built for {c.joint_count}"
+    elif c.status == 0x8003:
+        detail = (
+            f"this bridge is {PLATFORM_NAMES.get(mine.platform, mine.platform)}, the controller is built for "
+            f"{PLATFORM_NAMES.get(c.platform, c.platform)}"
+        )
+    elif c.status == 0x8004:
+        detail = f"this bridge's scenario hash is {mine.scenario_hash:#018x}, the controller's {c.scenario_hash:#018x}"
+    else:
+        detail = f"dt = {mine.dt} s"
+    return f"the controller refused this plant ({what} mismatch): {detail}"
+
+
+def corrupt(m, kind, previous):
+    """A malformed copy of measurement `m` (sent before it), for the tests."""
+    c = Measurement.from_buffer_copy(m)
+    if kind == "stale" and previous is not None:
+        c = Measurement.from_buffer_copy(previous)
+    elif kind == "session":
+        c.session ^= 0x5A5A
+    elif kind == "version":
+        c.version = 1
+    elif kind == "changed":
+        c.hold_periods += 1
+    elif kind == "joints":
+        c.joint_count = 4
+    return c
+
+
+def parse_inject(text):
+    plan = {}
+    for item in filter(None, (x.strip() for x in (text or "").split(","))):
+        kind, _, seq = item.partition("@")
+        if kind not in ("stale", "session", "version", "changed", "joints") or not seq.isdigit():
+            raise SystemExit(f"error: --inject {item!r}: KIND@SEQ with KIND stale, session, version, changed, joints")
+        plan.setdefault(int(seq), []).append(kind)
+    return plan
+
+
+def _terminate(*_):
+    raise KeyboardInterrupt
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v2/…)")
+    p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
+    p.add_argument("--dt", type=float, default=0.001, help="control period and hold (s)")
+    p.add_argument("--lockstep", action="store_true", help="wait for every command (deterministic)")
+    p.add_argument("--deadline-us", type=float, default=500.0, help="deadline after each release (µs)")
+    p.add_argument("--hold-periods", type=int, default=20, help="periods to hold a command after a miss")
+    p.add_argument("--events", action="store_true", help="notify measurement-ready, sleep on command-ready")
+    p.add_argument("--silence-ms", type=float, default=20.0)
+    p.add_argument("--peer-timeout", type=float, default=2.0, help="s")
+    p.add_argument("--startup-timeout", type=float, default=20.0, help="s")
+    p.add_argument("--scenario-json", help="a scenario.json whose controller object gives the scenario hash")
+    p.add_argument("--scenario-hash", type=lambda s: int(s, 0), default=0, help="sent as is (0: not checked)")
+    p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
+    p.add_argument("--joint-count", type=int, default=3)
+    p.add_argument("--protocol-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version field")
+    p.add_argument("--service-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version in the names")
+    p.add_argument("--default-settings", action="store_true", help="create services with iceoryx2's defaults")
+    p.add_argument("--inject", help="(tests) malformed measurements, e.g. stale@10,session@20,version@30")
+    p.add_argument("--pause-at", type=int, default=-1, help="(tests) pause before this period")
+    p.add_argument("--pause-ms", type=float, default=100.0)
+    p.add_argument("--stall-at", type=int, default=-1, help="(tests) stop publishing, stay alive")
+    p.add_argument("--out", help="write the run's figures as JSON here")
+    a = p.parse_args(argv)
+    a.inject = parse_inject(a.inject)
+    if a.scenario_json:
+        with open(a.scenario_json) as f:
+            a.scenario_hash = scenario_hash(json.load(f)["controller"])
+    signal.signal(signal.SIGTERM, _terminate)
+    try:
+        bridge = Bridge(a)
+    except Fatal as e:
+        print(f"error: {e}", file=sys.stderr)
+        return EXIT_ERROR
+    try:
+        code, why = bridge.run(), None
+    except Fatal as e:
+        code, why = EXIT_ERROR, f"error: {e}"
+    except Refused as e:
+        code, why = EXIT_ERROR, f"error: {e}"
+    except Lost as e:
+        code, why = e.code, f"{e}; robot stopped"
+    except KeyboardInterrupt:
+        code, why = EXIT_INTERRUPTED, "interrupted; robot stopped"
+    bridge.report(code, why)
+    return code
+
+
+if __name__ == "__main__":
+    sys.exit(main())
