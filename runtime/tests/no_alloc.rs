@@ -126,8 +126,7 @@ fn the_iceoryx2_exchange_allocates_nothing() {
         plant.wait_for_peer(Duration::from_secs(5), || None).unwrap();
         control.wait_for_peer(Duration::from_secs(5), || None).unwrap();
         let m = measurement(0, 0);
-        let diag =
-            LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
+        let diag = LoggedDiagnostics::IDLE;
         let cycle = |plant: &mut PlantEndpoint, control: &mut ControlEndpoint, seq: u64| {
             let mut msg = m;
             msg.seq = seq;

@@ -45,6 +45,11 @@ pub struct Summary {
     pub max_abs_alpha_rate: f64,
     /// The largest saturation factor.
     pub max_saturation: f64,
+    /// The largest factor the joint guard divided the arm's velocities by (1: the arm law
+    /// (30) was always applied as is).
+    pub max_joint_scale: f64,
+    /// Steps where the joint guard acted (factor > 1).
+    pub joint_guard_steps: u64,
     /// `h_s` at the first step.
     pub initial_h_s: f64,
     /// `h_s` at the last step.
@@ -91,6 +96,8 @@ impl SummaryAccumulator {
             scenario: name.to_string(),
             min_joint_margin: [f64::INFINITY; JOINTS],
             max_saturation: 1.0,
+            max_joint_scale: 1.0,
+            joint_guard_steps: 0,
             ..Summary::default()
         };
         Self {
@@ -199,6 +206,12 @@ impl SummaryAccumulator {
         }
         if r.saturation.is_finite() {
             s.max_saturation = s.max_saturation.max(r.saturation);
+        }
+        if r.joint_scale.is_finite() {
+            s.max_joint_scale = s.max_joint_scale.max(r.joint_scale);
+            if r.joint_scale > 1.0 {
+                s.joint_guard_steps += 1;
+            }
         }
     }
 
