@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The reference bridge: a replacement for `companion plant`, in Python.
 
-Written from docs/protocol.md alone (protocol version 2) with the official iceoryx2 binding
+Written from docs/protocol.md alone (protocol version 3) with the official iceoryx2 binding
 (`pip install iceoryx2==0.10.0`). It plays the plant: it simulates the paper's unicycle with
 its RPR arm tracking trajectory 1 (a bridge to hardware would read its sensors in `measure()`
 and drive its motors in `apply()`), publishes one measurement per period, applies the
@@ -31,7 +31,7 @@ import iceoryx2 as iox
 
 # ----- the wire (docs/protocol.md §3) ---------------------------------------------------------
 
-PROTOCOL_VERSION = 2
+PROTOCOL_VERSION = 3
 MAX_JOINTS = 8
 PREFIX = "companion_"
 
@@ -77,11 +77,11 @@ class Measurement(ctypes.Structure):
         ("target_velocity", ctypes.c_double * 3),
         ("joints", ctypes.c_double * MAX_JOINTS),
     ]
-    type_name = _type_name("companion::MeasurementV2")
+    type_name = _type_name("companion::MeasurementV3")
 
 
 class Command(ctypes.Structure):
-    """CommandMsg, 224 bytes."""
+    """CommandMsg, 232 bytes."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -107,12 +107,21 @@ class Command(ctypes.Structure):
         ("psi", ctypes.c_double),
         ("saturation", ctypes.c_double),
         ("alpha_rate", ctypes.c_double * 2),
+        ("joint_scale", ctypes.c_double),
     ]
-    type_name = _type_name("companion::CommandV2")
+    type_name = _type_name("companion::CommandV3")
+
+
+class CommandWithoutJointScale(ctypes.Structure):
+    """(tests) CommandMsg as a bridge out of date would declare it: protocol 2's 224 bytes under
+    protocol 3's type name. iceoryx2 compares name, size and alignment, so the two never connect."""
+
+    _fields_ = Command._fields_[:-1]
+    type_name = _type_name("companion::CommandV3")
 
 
 assert ctypes.sizeof(Measurement) == 232 and ctypes.alignment(Measurement) == 8
-assert ctypes.sizeof(Command) == 224 and ctypes.alignment(Command) == 8
+assert ctypes.sizeof(Command) == 232 and ctypes.alignment(Command) == 8
 assert Measurement.joints.offset == 168 and Command.joints.offset == 112
 
 
@@ -290,7 +299,7 @@ def command_of(c):
 
 
 class Link:
-    def __init__(self, name, events, default_settings, service_version=PROTOCOL_VERSION):
+    def __init__(self, name, events, default_settings, service_version=PROTOCOL_VERSION, command=Command):
         iox.set_log_level_from_env_or(iox.LogLevel.Fatal)
         self.cfg = iox.config.default()
         self.cfg.global_cfg.prefix = iox.FileName.new(PREFIX)
@@ -299,7 +308,7 @@ class Link:
         self.node = iox.NodeBuilder.new().config(self.cfg).create(iox.ServiceType.Ipc)
         base = f"companion/{name}/v{service_version}"
         self.meas_service = self._pubsub(base + "/measurement", Measurement, default_settings)
-        self.cmd_service = self._pubsub(base + "/command", Command, default_settings)
+        self.cmd_service = self._pubsub(base + "/command", command, default_settings)
         self.publisher = (
             self.meas_service.publisher_builder()
             .backpressure_strategy(iox.BackpressureStrategy.DiscardData)
@@ -503,7 +512,8 @@ class Summary:
 class Bridge:
     def __init__(self, a):
         self.a = a
-        self.link = Link(a.name, a.events, a.default_settings, a.service_version)
+        command = CommandWithoutJointScale if a.short_command else Command
+        self.link = Link(a.name, a.events, a.default_settings, a.service_version, command)
         self.session = random.getrandbits(64) or 1
         self.period_ns = 0 if a.lockstep else int(round(a.dt * 1e9))
         self.flags = (LOCKSTEP if a.lockstep else 0) | (NOTIFIES if a.events else 0)
@@ -512,6 +522,12 @@ class Bridge:
         self.counts = {"fresh": 0, "deadline_misses": 0, "late": 0, "held": 0, "stopped": 0, "stop_events": 0}
         self.invalid = {}
         self.delays = []
+        # The controller's logged joint guard factor (CommandMsg.joint_scale) over the fresh
+        # commands the law computed (status 0): its largest value, how often it acted, and how
+        # many carried no valid factor (not finite or below 1).
+        self.max_joint_scale = 1.0
+        self.joint_guard_steps = 0
+        self.joint_scale_invalid = 0
         self.last_sent = None
         self.poll = not a.events  # sleep on the controller's event only while it notifies
 
@@ -597,6 +613,15 @@ class Bridge:
         elif now - spun_since > 200_000:
             time.sleep(0.00005)
 
+    def note_diagnostics(self, c):
+        if c.status != 0:
+            return
+        if not math.isfinite(c.joint_scale) or c.joint_scale < 1.0:
+            self.joint_scale_invalid += 1
+            return
+        self.max_joint_scale = max(self.max_joint_scale, c.joint_scale)
+        self.joint_guard_steps += c.joint_scale > 1.0
+
     def watch(self, silent_since_ns):
         """After a silence: is the controller still there? Raises Lost if not."""
         silent = time.monotonic_ns() - silent_since_ns
@@ -639,6 +664,7 @@ class Bridge:
                 self.idle(time.monotonic_ns() + 10_000_000, spun)
             c, _ = got
             self.counts["fresh"] += 1
+            self.note_diagnostics(c)
             cmd = command_of(c)
             self.summary.add(self.robot, cmd)
             if n < steps:
@@ -688,6 +714,7 @@ class Bridge:
                 c, t_rx = got
                 heard = t_rx
                 self.counts["fresh"] += 1
+                self.note_diagnostics(c)
                 cmd, last_fresh, misses, stopped = command_of(c), command_of(c), 0, False
                 if n > 0:
                     switch_at = min((t_rx - t_pub) * a.dt / period, a.dt * (1 - 1e-9))
@@ -736,6 +763,9 @@ class Bridge:
             "max_ep_norm_after_20s": self.summary.max_ep_after_20,
             "median_ep_norm_after_20s": statistics.median(self.summary.ep_after_20) if self.summary.ep_after_20 else None,
             "steps": self.summary.steps,
+            "max_joint_scale": self.max_joint_scale,
+            "joint_guard_steps": self.joint_guard_steps,
+            "joint_scale_invalid": self.joint_scale_invalid,
             "counts": self.counts,
             "invalid": self.invalid,
             "delay_mean_s": sum(self.delays) / len(self.delays) if self.delays else 0.0,
@@ -800,7 +830,7 @@ def _terminate(*_):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v2/…)")
+    p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v3/…)")
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
     p.add_argument("--dt", type=float, default=0.001, help="control period and hold (s)")
     p.add_argument("--lockstep", action="store_true", help="wait for every command (deterministic)")
@@ -816,6 +846,9 @@ def main(argv=None):
     p.add_argument("--joint-count", type=int, default=3)
     p.add_argument("--protocol-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version field")
     p.add_argument("--service-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version in the names")
+    p.add_argument(
+        "--short-command", action="store_true", help="(tests) declare CommandMsg without its last field"
+    )
     p.add_argument("--default-settings", action="store_true", help="create services with iceoryx2's defaults")
     p.add_argument("--inject", help="(tests) malformed measurements, e.g. stale@10,session@20,version@30")
     p.add_argument("--pause-at", type=int, default=-1, help="(tests) pause before this period")

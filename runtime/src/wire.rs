@@ -13,7 +13,7 @@
 //! [`MEASUREMENT_TYPE_NAME`] and [`COMMAND_TYPE_NAME`] (see [`crate::ipc`]); a transport that
 //! carries bytes sends [`MeasurementMsg::to_bytes`].
 //!
-//! ## Rules of the exchange (protocol version 2)
+//! ## Rules of the exchange (protocol version 3)
 //!
 //! - **The plant owns time.** It numbers measurements `seq = 0, 1, 2, …` within a `session`
 //!   (a random non-zero id per plant run), stamps each with `plant_time_ns` (its
@@ -44,7 +44,7 @@
 //!
 //! ```text
 //! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (2)
+//!      0 u32       version          PROTOCOL_VERSION (3)
 //!      4 u32       flags            END_OF_RUN 1, LOCKSTEP 2, STOPPED 4, NOTIFIES 8
 //!      8 u64       seq              period number, from 0
 //!     16 u64       session          random non-zero id of this plant run
@@ -65,11 +65,11 @@
 //!    168 f64[8]    joints           joint positions q (rad or m)
 //! ```
 //!
-//! ## Layout of [`CommandMsg`] (224 bytes)
+//! ## Layout of [`CommandMsg`] (232 bytes)
 //!
 //! ```text
 //! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (2)
+//!      0 u32       version          PROTOCOL_VERSION (3)
 //!      4 u32       status           0 ok; 0x100–0x7ff the law's rejection; 0x80nn refusal
 //!      8 u64       seq              the measurement this answers
 //!     16 u64       session          copied from the measurement
@@ -92,6 +92,7 @@
 //!    192 f64       psi              Ψ (logged; NaN when rejected)
 //!    200 f64       saturation       common saturation factor ≥ 1 (logged; NaN when rejected)
 //!    208 f64[2]    alpha_rate       α̇ (logged; NaN when rejected)
+//!    224 f64       joint_scale      joint guard's factor ≥ 1 (logged; NaN when rejected)
 //! ```
 //!
 //! `status` codes. The law answered with the safe command (all velocities zero): `0x100 + f`
@@ -117,15 +118,15 @@ use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 /// The protocol version both messages carry. Changed whenever the layout or meaning changes;
 /// it is also part of the service names ([`crate::ipc`]), so that peers of different
 /// versions never open each other's services.
-pub const PROTOCOL_VERSION: u32 = 2;
+pub const PROTOCOL_VERSION: u32 = 3;
 
 /// Room for joints in both messages.
 pub const MAX_JOINTS: usize = 8;
 
 /// The iceoryx2 type name of [`MeasurementMsg`] (what a bridge in another language declares).
-pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV2";
+pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV3";
 /// The iceoryx2 type name of [`CommandMsg`].
-pub const COMMAND_TYPE_NAME: &str = "companion::CommandV2";
+pub const COMMAND_TYPE_NAME: &str = "companion::CommandV3";
 
 /// Bits of [`MeasurementMsg::flags`] (and [`flags::NOTIFIES`] of [`CommandMsg::flags`]).
 pub mod flags {
@@ -189,7 +190,7 @@ pub mod platform {
 /// layout and the rules.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::MeasurementV2")]
+#[type_name("companion::MeasurementV3")]
 #[repr(C)]
 pub struct MeasurementMsg {
     /// [`PROTOCOL_VERSION`].
@@ -236,7 +237,7 @@ pub struct MeasurementMsg {
 /// One command of the controller, answering one measurement. See the module docs.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::CommandV2")]
+#[type_name("companion::CommandV3")]
 #[repr(C)]
 pub struct CommandMsg {
     /// [`PROTOCOL_VERSION`].
@@ -285,6 +286,8 @@ pub struct CommandMsg {
     pub saturation: f64,
     /// `α̇` (NaN when rejected).
     pub alpha_rate: [f64; 2],
+    /// The joint guard's factor (≥ 1; 1: the arm law applied as is; NaN when rejected).
+    pub joint_scale: f64,
 }
 
 /// A message of the wire: a plain `#[repr(C)]` value with its iceoryx2 type name.
@@ -305,7 +308,7 @@ impl WireMessage for CommandMsg {
 /// The size of [`MeasurementMsg`] in bytes.
 pub const MEASUREMENT_SIZE: usize = 232;
 /// The size of [`CommandMsg`] in bytes.
-pub const COMMAND_SIZE: usize = 224;
+pub const COMMAND_SIZE: usize = 232;
 
 const _: () = assert!(core::mem::size_of::<MeasurementMsg>() == MEASUREMENT_SIZE);
 const _: () = assert!(core::mem::size_of::<CommandMsg>() == COMMAND_SIZE);
@@ -745,6 +748,8 @@ pub struct LoggedDiagnostics {
     pub saturation: f64,
     /// `α̇`.
     pub alpha_rate: [f64; 2],
+    /// The joint guard's factor.
+    pub joint_scale: f64,
 }
 
 impl LoggedDiagnostics {
@@ -755,7 +760,13 @@ impl LoggedDiagnostics {
         psi: f64::NAN,
         saturation: f64::NAN,
         alpha_rate: [f64::NAN; 2],
+        joint_scale: f64::NAN,
     };
+
+    /// The diagnostics of a step that found nothing to do (benchmarks and tests of the
+    /// transport): no error, no saturation, the joint guard idle.
+    pub const IDLE: Self =
+        Self { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2], joint_scale: 1.0 };
 }
 
 /// The header fields of a command besides the ids copied from the measurement.
@@ -815,6 +826,7 @@ impl CommandMsg {
             psi: diag.psi,
             saturation: diag.saturation,
             alpha_rate: diag.alpha_rate,
+            joint_scale: diag.joint_scale,
         }
     }
 
@@ -840,6 +852,7 @@ impl CommandMsg {
             psi: self.psi,
             saturation: self.saturation,
             alpha_rate: self.alpha_rate,
+            joint_scale: self.joint_scale,
         }
     }
 

@@ -113,6 +113,20 @@ fn pair(control_args: &[&str], bridge_args: &[&str]) -> ((ExitStatus, String), (
     (bo, finish(c, LIMIT, "controller"))
 }
 
+/// The bridge and the controller, `bridge_first` or the other way round, the second started
+/// once the first has created the services: `(bridge, controller)`.
+fn start_in_order(bridge_first: bool, bridge_args: &[&str], control_args: &[&str]) -> (Child, Child) {
+    if bridge_first {
+        let b = bridge(bridge_args);
+        std::thread::sleep(Duration::from_millis(1500));
+        (b, control(control_args))
+    } else {
+        let c = control(control_args);
+        std::thread::sleep(Duration::from_millis(500));
+        (bridge(bridge_args), c)
+    }
+}
+
 fn json(path: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap()
@@ -173,6 +187,11 @@ fn lockstep_through_the_python_bridge_equals_the_simulation_to_the_printed_digit
     assert_eq!(printed(&got), printed(&reference));
     assert_eq!(got["steps"], 5001);
     assert!(ct.contains("answered 5001 measurements (0 skipped as superseded, 0 dropped"), "{ct}");
+    // The joint guard's factor came back on every command (protocol 3), as the simulation
+    // logged it.
+    assert_eq!(got["joint_scale_invalid"], 0, "{got}");
+    assert_eq!(got["max_joint_scale"], reference["max_joint_scale"], "{got}");
+    assert_eq!(got["joint_guard_steps"], reference["joint_guard_steps"], "{got}");
 }
 
 #[test]
@@ -307,21 +326,49 @@ fn a_bridge_with_iceoryx2_default_settings_is_served_whoever_starts_first() {
     for bridge_first in [true, false] {
         let n = name(if bridge_first { "defaults-b" } else { "defaults-c" });
         let args = ["--name", &n, "--duration", "1", "--lockstep", "--default-settings"];
-        let (b, c) = if bridge_first {
-            let b = bridge(&args);
-            std::thread::sleep(Duration::from_millis(1500));
-            (b, control(&["--name", &n, "--duration", "1"]))
-        } else {
-            let c = control(&["--name", &n, "--duration", "1"]);
-            std::thread::sleep(Duration::from_millis(500));
-            (bridge(&args), c)
-        };
+        let (b, c) = start_in_order(bridge_first, &args, &["--name", &n, "--duration", "1"]);
         let (bs, bt) = finish(b, LIMIT, "bridge");
         let (cs, ct) = finish(c, LIMIT, "controller");
         assert!(
             bs.success() && cs.success(),
             "bridge first: {bridge_first}\nbridge:\n{bt}\ncontroller:\n{ct}"
         );
+    }
+}
+
+/// A bridge out of date (protocol 2's 224-byte command under protocol 3's type name): the side
+/// that opens second names both payload types; the side that created the service can only say
+/// that no peer joined. Both exit 2, whoever starts first.
+#[test]
+fn a_bridge_with_another_command_layout_is_refused_by_name_whoever_starts_first() {
+    if !available() {
+        return;
+    }
+    let _g = serial();
+    for bridge_first in [true, false] {
+        let n = name(if bridge_first { "layout-b" } else { "layout-c" });
+        let bridge_args =
+            ["--name", &n, "--duration", "1", "--lockstep", "--short-command", "--startup-timeout", "4"];
+        let control_args = ["--name", &n, "--duration", "1", "--startup-timeout", "4"];
+        let (b, c) = start_in_order(bridge_first, &bridge_args, &control_args);
+        let (bs, bt) = finish(b, LIMIT, "bridge");
+        let (cs, ct) = finish(c, LIMIT, "controller");
+        println!("bridge first: {bridge_first}\n  controller: {}\n  bridge: {}", ct.trim(), bt.trim());
+        assert_eq!(bs.code(), Some(2), "{bt}");
+        assert_eq!(cs.code(), Some(2), "{ct}");
+        if bridge_first {
+            // companion lists the service and names the bridge's type and its own.
+            let says =
+                "the peer created it with companion::CommandV3 (224 bytes, alignment 8); this program \
+                        (protocol version 3) uses companion::CommandV3 (232 bytes, alignment 8)";
+            assert!(ct.contains(says), "{ct}");
+            assert!(bt.contains("no controller joined demo"), "{bt}");
+        } else {
+            // The Python binding does not list a service's payload type: it names its own.
+            let says = "exists with another payload type than companion::CommandV3 (224 bytes, alignment 8";
+            assert!(bt.contains(says), "{bt}");
+            assert!(ct.contains("no plant joined demo"), "{ct}");
+        }
     }
 }
 
@@ -348,7 +395,7 @@ fn every_mismatch_is_named_on_both_sides() {
             "the plant's scenario hash is 0x0000000000001234",
             "scenario mismatch",
         ),
-        (&["--service-version", "3", "--protocol-version", "3"], "waits on demo", "with protocol version 2"),
+        (&["--service-version", "4", "--protocol-version", "4"], "waits on demo", "with protocol version 3"),
     ];
     for (flags, controller_says, bridge_says) in cases {
         let n = name("mismatch");

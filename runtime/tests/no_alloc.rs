@@ -179,8 +179,7 @@ fn the_counter_counts() {
     assert_eq!((n, l.transport), (0, 1));
 }
 
-const DIAG: LoggedDiagnostics =
-    LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
+const DIAG: LoggedDiagnostics = LoggedDiagnostics::IDLE;
 
 #[test]
 fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {

@@ -68,8 +68,7 @@ pub fn report_of(c: &CommandMsg) -> StepReport {
         psi: c.psi,
         saturation: c.saturation,
         alpha_rate: c.alpha_rate,
-        // Not on the wire.
-        joint_scale: f64::NAN,
+        joint_scale: c.joint_scale,
         error,
     }
 }
@@ -82,6 +81,7 @@ pub fn answer(m: &MeasurementMsg, header: &CommandHeader, report: &StepReport) -
         psi: report.psi,
         saturation: report.saturation,
         alpha_rate: report.alpha_rate,
+        joint_scale: report.joint_scale,
     };
     CommandMsg::answer(m, header, &report.command, report.error, &diag)
 }

@@ -65,7 +65,7 @@ pub struct PeerOptions {
 }
 
 fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
-    let diag = LoggedDiagnostics { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2] };
+    let diag = LoggedDiagnostics::IDLE;
     let identity =
         ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 1.0 };
     let header = CommandHeader { identity, flags: 0, received_ns, skipped: 0, delay: 0.0 };

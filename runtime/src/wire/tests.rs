@@ -40,8 +40,14 @@ fn command_header() -> CommandHeader {
 
 fn good_command() -> CommandMsg {
     let m = MeasurementMsg::new(header(), &meas());
-    let diag =
-        LoggedDiagnostics { ep_norm: 0.5, h_s: 0.1, psi: 1.0, saturation: 1.0, alpha_rate: [0.2, 0.0] };
+    let diag = LoggedDiagnostics {
+        ep_norm: 0.5,
+        h_s: 0.1,
+        psi: 1.0,
+        saturation: 1.0,
+        alpha_rate: [0.2, 0.0],
+        joint_scale: 1.25,
+    };
     let mut cmd = Command::<f64, 3>::zero();
     cmd.platform.v = 0.3;
     cmd.platform.omega = -0.1;
@@ -99,6 +105,7 @@ fn command_fields() -> Vec<(&'static str, usize)> {
         ("psi", offset_of!(CommandMsg, psi)),
         ("saturation", offset_of!(CommandMsg, saturation)),
         ("alpha_rate", offset_of!(CommandMsg, alpha_rate)),
+        ("joint_scale", offset_of!(CommandMsg, joint_scale)),
     ]
 }
 
@@ -320,7 +327,7 @@ fn the_controller_admits_only_a_plant_it_can_serve() {
     assert!(a.lockstep() && !a.notifies());
     assert_eq!((a.hold_periods, a.platform), (20, platform::UNICYCLE));
     let cases = [
-        (MeasurementMsg { version: 3, ..m }, Refusal::Version { plant: 3 }),
+        (MeasurementMsg { version: 4, ..m }, Refusal::Version { plant: 4 }),
         (MeasurementMsg { platform: platform::CAR, ..m }, Refusal::Platform { plant: 2, controller: 1 }),
         (MeasurementMsg { platform: 0, ..m }, Refusal::Platform { plant: 0, controller: 1 }),
         (MeasurementMsg { scenario_hash: 10, ..m }, Refusal::Scenario { plant: 10, controller: 9 }),

@@ -166,7 +166,7 @@ fn a_plant_the_controller_cannot_serve_is_refused_on_the_wire_and_in_the_error()
         (|m| m.scenario_hash ^= 1, refusal::SCENARIO, "scenario mismatch"),
         (|m| m.platform = platform::CAR, refusal::PLATFORM, "the plant is car-like"),
         (|m| m.joint_count = 4, refusal::JOINT_COUNT, "the plant has 4 joints"),
-        (|m| m.version = 3, refusal::VERSION, "the plant speaks version 3"),
+        (|m| m.version = 4, refusal::VERSION, "the plant speaks version 4"),
         (|m| m.dt = 1.0, refusal::PERIOD, "dt = 1 s"),
     ];
     for (spoil, code, text) in cases {
