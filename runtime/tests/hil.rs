@@ -213,6 +213,11 @@ fn lockstep_timeseries_is_byte_identical_to_sim() {
         let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
         assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
         assert!(a == b, "hil --lockstep {extra:?} and sim differ");
+        // And so is the trajectory's fingerprint in summary.json (every step, unrounded).
+        let (ha, sb) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
+        let digest = ha["trajectory_digest"].as_str().expect("a digest");
+        assert_eq!(digest.len(), 16);
+        assert_eq!(ha["trajectory_digest"], sb["trajectory_digest"], "hil --lockstep {extra:?}");
         let lat = json(&hil_dir.join("latency.json"));
         assert_eq!(lat["mode"], "lockstep");
         assert_eq!(lat["cycles"], 3001);
@@ -448,10 +453,14 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
         lat["stopped_periods"],
         lat["stop_events"]
     );
-    assert!(lat["max_consecutive_misses"].as_u64().unwrap() >= 100, "{lat:#}");
+    // The 200 ms without commands, measured on the plant's clock. (Counted in periods it is
+    // ~200 misses on an idle machine, fewer on a loaded one: a plant that was itself not
+    // scheduled skips the releases it missed instead of replaying them.)
+    assert!(lat["longest_command_gap_ns"].as_u64().unwrap() >= 150_000_000, "{lat:#}");
+    assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");
-    assert!(lat["stopped_periods"].as_u64().unwrap() >= 80, "{lat:#}");
+    assert!(lat["stopped_periods"].as_u64().unwrap() >= 1, "{lat:#}");
     assert_eq!(lat["end"], "completed");
     // In the file: a run of 20 held periods, then stopped ones, then fresh commands again.
     let statuses = csv_statuses(&d.join("timeseries.csv"));
