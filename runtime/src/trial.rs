@@ -25,23 +25,26 @@ pub struct Judge {
     /// A run whose `‖e_p‖` exceeds this (or is not finite) has diverged and is stopped.
     /// Default 100.
     pub divergence: f64,
+    /// The tracked fraction and the bound on `‖e_p‖` count from this time (s); default
+    /// (`None`): half the run's duration.
+    pub track_after: Option<f64>,
 }
 
 impl Default for Judge {
     fn default() -> Self {
-        Self { tolerance: 1e-3, window: 5.0, divergence: 100.0 }
+        Self { tolerance: 1e-3, window: 5.0, divergence: 100.0, track_after: None }
     }
 }
 
 /// What an exploration reads from one run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Tail {
-    /// The fraction of steps in the run's second half (`t ≥ T/2`) with `‖e_p‖ < tolerance`
-    /// (for the usual 40 s runs: after 20 s, as in `summary.json`).
+    /// The fraction of steps from `track_after` (default: the run's second half, `t ≥ T/2`)
+    /// with `‖e_p‖ < tolerance` (for the usual 40 s runs: after 20 s, as in `summary.json`).
     pub tracked_fraction: f64,
     /// The last time `‖e_p‖ ≥ tolerance` (s); 0 if never.
     pub settling_time_s: f64,
-    /// The largest `‖e_p‖` in the second half: the observed practical-stability bound.
+    /// The largest `‖e_p‖` from `track_after` on: the observed practical-stability bound.
     pub ep_bound: f64,
     /// The largest `‖e_p‖` over the last `window` seconds.
     pub window_max_ep: f64,
@@ -84,7 +87,7 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial> {
     let steps = s.steps();
     #[allow(clippy::cast_precision_loss)]
     let end = steps as f64 * s.dt;
-    let (half, window_start) = (0.5 * end, end - judge.window);
+    let (half, window_start) = (judge.track_after.unwrap_or(0.5 * end), end - judge.window);
     let mut tail = Tail {
         tracked_fraction: 0.0,
         settling_time_s: 0.0,

@@ -98,7 +98,7 @@ fn map(file: &Path, s: &ExploreSummary) -> Plot {
         .x_label_area_size(40)
         .y_label_area_size(56)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart.configure_mesh().disable_mesh().x_desc(m.x.as_str()).y_desc(m.y.as_str()).draw()?;
+    chart.configure_mesh().disable_mesh().x_desc(m.x.as_str()).y_desc(m.y.as_deref().unwrap_or("")).draw()?;
     for (j, row) in m.samples.iter().enumerate() {
         for (i, &n) in row.iter().enumerate() {
             let rect = [(m.x_edges[i], m.y_edges[j]), (m.x_edges[i + 1], m.y_edges[j + 1])];

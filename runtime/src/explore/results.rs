@@ -198,12 +198,15 @@ pub fn parse(text: &str, columns: usize) -> Result<Record> {
     Ok(Record { sample, inputs, class, outcomes })
 }
 
+/// Verified lines of a results file: `(sample, line)` each, and a last line cut short.
+pub type Lines = (Vec<(u64, String)>, Option<String>);
+
 /// The complete lines of a file's text after its header, verified, with the index of each;
 /// a last line without its line break (a write cut short by a kill) is returned apart.
 ///
 /// # Errors
 /// The header differs, or a complete line is corrupt (named by its line number).
-pub fn read_lines(text: &str, header: &str, what: &str) -> Result<(Vec<(u64, String)>, Option<String>)> {
+pub fn read_lines(text: &str, header: &str, what: &str) -> Result<Lines> {
     let columns = header.split(',').count();
     let mut lines = text.split_inclusive('\n');
     match lines.next() {

@@ -25,8 +25,9 @@
 //!
 //! [judge]                        # how a run is classified (`trial::Judge`)
 //! tolerance = 1e-3
-//! window = 5.0
+//! window = 5.0                   # s (default: 5, or the whole run if shorter)
 //! divergence = 100.0
+//! track_after = 20.0             # s: the tracked fraction from here (default: T/2)
 //! ```
 //!
 //! An initial value the file does not give is the scenario's own (the trajectory's
@@ -143,8 +144,8 @@ impl InitialSpace {
 pub struct MapSpec {
     /// The horizontal axis: a variable drawn from a range.
     pub x: String,
-    /// The vertical axis.
-    pub y: String,
+    /// The vertical axis (none: a one-row map).
+    pub y: Option<String>,
     /// Bins along x and y (1 to 100 each).
     #[serde(default = "default_bins")]
     pub bins: [usize; 2],
@@ -180,6 +181,8 @@ pub struct JudgeFile {
     pub window: Option<f64>,
     /// `‖e_p‖` above this stops the run as diverged.
     pub divergence: Option<f64>,
+    /// The tracked fraction counts from this time (s); default: half the duration.
+    pub track_after: Option<f64>,
 }
 
 impl SpaceFile {
@@ -270,20 +273,35 @@ impl Space {
         parameters.sort_by_key(|(k, _)| *k);
         check_corners(builder, &base, &parameters)?;
         check_joints(builder, &base, &parameters, &initial)?;
-        let map = file.map.clone().unwrap_or(MapSpec {
-            x: "distance".into(),
-            y: "heading".into(),
-            bins: default_bins(),
-        });
-        for axis in [&map.x, &map.y] {
-            let drawn =
-                INITIAL.iter().position(|n| n == axis).and_then(|i| initial[i]).is_some_and(Value::is_range)
-                    || parameters.iter().any(|(k, v)| k.name() == axis && v.is_range());
-            if !drawn {
+        // The drawn variables: distance and heading first, then the others in column order.
+        let mut drawn: Vec<&str> = ["distance", "heading"]
+            .into_iter()
+            .chain(INITIAL)
+            .filter(|n| {
+                INITIAL.iter().position(|m| m == n).and_then(|i| initial[i]).is_some_and(Value::is_range)
+            })
+            .collect();
+        drawn.extend(parameters.iter().filter(|(_, v)| v.is_range()).map(|(k, _)| k.name()));
+        drawn.dedup();
+        let map = match &file.map {
+            Some(m) => m.clone(),
+            None => {
+                let Some(x) = drawn.first() else {
+                    bail!("the space draws no variable: give at least one range");
+                };
+                MapSpec {
+                    x: (*x).to_string(),
+                    y: drawn.get(1).map(|y| (*y).to_string()),
+                    bins: default_bins(),
+                }
+            }
+        };
+        for axis in std::iter::once(&map.x).chain(map.y.as_ref()) {
+            if !drawn.contains(&axis.as_str()) {
                 bail!("map axis `{axis}` must be a variable of the space drawn from a range");
             }
         }
-        if map.x == map.y {
+        if map.y.as_ref() == Some(&map.x) {
             bail!("the map's two axes must differ (both are `{}`)", map.x);
         }
         if map.bins.iter().any(|b| !(1..=100).contains(b)) {
@@ -293,9 +311,16 @@ impl Space {
         let d = Judge::default();
         let judge = Judge {
             tolerance: j.tolerance.unwrap_or(d.tolerance),
-            window: j.window.unwrap_or(d.window),
+            // The default window, but never longer than the run.
+            window: j.window.unwrap_or(d.window.min(base.duration)),
             divergence: j.divergence.unwrap_or(d.divergence),
+            track_after: j.track_after,
         };
+        if let Some(t) = judge.track_after {
+            if !(t >= 0.0 && t < base.duration) {
+                bail!("judge.track_after must be in [0, duration = {} s), got {t}", base.duration);
+            }
+        }
         if !(judge.tolerance.is_finite() && judge.tolerance > 0.0) {
             bail!("judge.tolerance must be > 0, got {}", judge.tolerance);
         }

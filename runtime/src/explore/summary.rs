@@ -58,8 +58,8 @@ impl Spread {
 pub struct Map {
     /// The horizontal variable.
     pub x: String,
-    /// The vertical variable.
-    pub y: String,
+    /// The vertical variable (none: one row).
+    pub y: Option<String>,
     /// Bin edges along x.
     pub x_edges: Vec<f64>,
     /// Bin edges along y.
@@ -172,14 +172,21 @@ pub fn summarize(
     // The map.
     let m = &space.map;
     let (xl, xh) = range_of(space, &m.x);
-    let (yl, yh) = range_of(space, &m.y);
-    let (x_edges, y_edges) = (edges(xl, xh, m.bins[0]), edges(yl, yh, m.bins[1]));
-    let mut samples = vec![vec![0u64; m.bins[0]]; m.bins[1]];
+    let (yl, yh) = m.y.as_deref().map_or((0.0, 1.0), |y| range_of(space, y));
+    let ny = if m.y.is_some() { m.bins[1] } else { 1 };
+    let (x_edges, y_edges) = (edges(xl, xh, m.bins[0]), edges(yl, yh, ny));
+    let mut samples = vec![vec![0u64; m.bins[0]]; ny];
     let mut converged = samples.clone();
-    let (xi, yi) = (input_index(&m.x, knobs), input_index(&m.y, knobs));
+    let xi = input_index(&m.x, knobs);
+    let yi = m.y.as_deref().map(|y| input_index(y, knobs));
     for r in records {
-        let (Some(xi), Some(yi)) = (xi, yi) else { break };
-        if let (Some(i), Some(j)) = (bin(r.inputs[xi], &x_edges), bin(r.inputs[yi], &y_edges)) {
+        let Some(xi) = xi else { break };
+        let y = match yi {
+            None => 0.5,
+            Some(Some(yi)) => r.inputs[yi],
+            Some(None) => break,
+        };
+        if let (Some(i), Some(j)) = (bin(r.inputs[xi], &x_edges), bin(y, &y_edges)) {
             samples[j][i] += 1;
             converged[j][i] += u64::from(r.class == Class::Converged);
         }

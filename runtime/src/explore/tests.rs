@@ -83,7 +83,7 @@ fn the_same_bytes_for_any_thread_count_and_any_shard_split() {
     let err = merge(&[shards[0].clone(), shards[1].clone(), od], &dir("m4")).unwrap_err().to_string();
     assert!(err.contains("another exploration"), "{err}");
     // The unsharded folder is not a shard.
-    let err = merge(&[one.clone()], &dir("m5")).unwrap_err().to_string();
+    let err = merge(std::slice::from_ref(&one), &dir("m5")).unwrap_err().to_string();
     assert!(err.contains("not a shard"), "{err}");
     // A corrupt line in a shard's results is detected, not merged.
     let path = shards[1].join("results.csv");
@@ -185,7 +185,13 @@ fn bad_spaces_are_refused_before_anything_runs() {
     assert!(check("[initial]\nq2 = [0.1, 0.8]").contains("strictly inside"));
     let e = check("[initial]\ndistance = 2.0\n[map]\nx = \"distance\"\ny = \"heading\"");
     assert!(e.contains("map axis `distance`"), "{e}");
-    assert!(check("[judge]\nwindow = 100.0").contains("judge.window"));
+    let e = check("[initial]\ndistance = 2.0\nbearing = 0.0\nheading = 0.0");
+    assert!(e.contains("draws no variable"), "{e}");
+    // One drawn variable: a one-row map over it.
+    assert_eq!(check("[initial]\ndistance = 2.0\nbearing = 0.0\nheading = [0.0, 1.0]"), "accepted");
+    let ranges = "[initial]\ndistance = [1.0, 2.0]\nheading = [0.0, 1.0]\n";
+    assert!(check(&format!("{ranges}[judge]\nwindow = 100.0")).contains("judge.window"));
+    assert!(check(&format!("{ranges}[map]\nx = \"distance\"\ny = \"distance\"")).contains("must differ"));
     assert!(Exploration::new(b(), &space(), 0, 1).unwrap_err().to_string().contains("--samples"));
     assert_eq!(check("[parameters]\nepsilon = [0.1, 0.3]\nstroke = [0.7, 1.2]"), "accepted");
     assert!(Shard::parse("0/3").is_err() && Shard::parse("4/3").is_err() && Shard::parse("x").is_err());

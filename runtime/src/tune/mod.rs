@@ -23,9 +23,10 @@
 //! 1. the current parameters (the baseline), then a scrambled Halton sequence (a
 //!    low-discrepancy design, shifted by the seed) over the box — half the budget — run in
 //!    parallel;
-//! 2. Nelder–Mead (argmin's) from the best point so far, on the normalised box, for the rest
-//!    of the budget, restarted with a smaller simplex when it converges early. Each candidate
-//!    runs its set's runs in parallel.
+//! 2. Nelder–Mead (argmin's) on the normalised box from each of the three best points so far
+//!    in turn, each with a third of the rest of the budget (a simplex shrunk onto one point
+//!    only measures noise; three starts keep some diversity). Each candidate runs its set's
+//!    runs in parallel.
 //!
 //! Why these: the cost is a noisy, discontinuous function of the parameters (tracked
 //! fractions jump when a manoeuvre succeeds or not; runs b and d are chaotic), so gradients
@@ -318,29 +319,43 @@ impl Tuning {
         for c in evaluated {
             push(c)?;
         }
-        // 2. Nelder–Mead from the best so far.
-        let mut step = 0.15;
-        while archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len() + d + 1 <= self.budget {
-            let best = best_of(&archive.lock().map_err(|_| anyhow!("lock poisoned"))?).cloned();
-            let Some(best) = best else { break };
-            let x0 = self.coords(&best.values);
+        // 2. Nelder–Mead from the best design points in turn (each start gets a share of the
+        // rest of the budget: a simplex that has shrunk onto one point only measures noise).
+        let starts: Vec<Candidate> = {
+            let a = archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+            let mut v: Vec<Candidate> = a.iter().filter(|c| c.cost.is_finite()).cloned().collect();
+            v.sort_by(|x, y| x.cost.total_cmp(&y.cost).then(x.index.cmp(&y.index)));
+            v.dedup_by(|x, y| x.values == y.values);
+            v.truncate(START_COUNT);
+            v
+        };
+        let left = self.budget.saturating_sub(archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len());
+        let share = (left / starts.len().max(1)).max(d + 2);
+        for start in starts {
+            let used = archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len();
+            if used + d + 1 > self.budget {
+                break;
+            }
+            let x0 = self.coords(&start.values);
             let mut simplex = vec![x0.clone()];
             for j in 0..d {
                 let mut x = x0.clone();
-                x[j] = if x[j] + step <= 1.0 { x[j] + step } else { x[j] - step };
+                x[j] = if x[j] + STEP <= 1.0 { x[j] + STEP } else { x[j] - STEP };
                 simplex.push(x);
             }
-            let problem =
-                Problem { tuning: self, archive: &archive, observer, cache: Mutex::new(HashMap::new()) };
+            let limit = (used + share).min(self.budget);
+            let problem = Problem {
+                tuning: self,
+                archive: &archive,
+                observer,
+                cache: Mutex::new(HashMap::new()),
+                limit,
+            };
             let solver = NelderMead::new(simplex).with_sd_tolerance(1e-4)?;
             match Executor::new(problem, solver).configure(|s| s.max_iters(10_000)).run() {
                 Ok(_) => {}
-                Err(e) if e.to_string().contains(BUDGET) => break,
+                Err(e) if e.to_string().contains(BUDGET) => {}
                 Err(e) => return Err(anyhow!("Nelder–Mead: {e}")),
-            }
-            step *= 0.5;
-            if step < 0.01 {
-                break;
             }
         }
         let candidates = archive.into_inner().map_err(|_| anyhow!("lock poisoned"))?;
@@ -349,6 +364,12 @@ impl Tuning {
 }
 
 const BUDGET: &str = "tune: budget spent";
+
+/// How many of the best design points Nelder–Mead starts from.
+const START_COUNT: usize = 3;
+
+/// The initial simplex's edge, in normalised coordinates (a seventh of each knob's range).
+const STEP: f64 = 0.15;
 
 /// The scores of a run with knob values.
 fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
@@ -360,7 +381,8 @@ fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
         Ok(t) => {
             let s: &Summary = &t.summary;
             let margin = s.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);
-            let failed = s.rejected_steps > 0 || !(margin > 0.0) || t.tail.diverged_at.is_some();
+            let failed =
+                s.rejected_steps > 0 || margin.is_nan() || margin <= 0.0 || t.tail.diverged_at.is_some();
             RunScore {
                 run: r.name.clone(),
                 tracked: if failed { 0.0 } else { s.fraction_ep_below_1e_3_after_20s },
@@ -416,6 +438,8 @@ struct Problem<'a> {
     archive: &'a Mutex<Vec<Candidate>>,
     observer: &'a dyn Observer,
     cache: Mutex<HashMap<Vec<u64>, f64>>,
+    /// Stop this start when the archive holds this many candidates.
+    limit: usize,
 }
 
 impl CostFunction for Problem<'_> {
@@ -431,7 +455,7 @@ impl CostFunction for Problem<'_> {
             return Ok(c + outside);
         }
         let mut archive = self.archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
-        if archive.len() >= self.tuning.budget {
+        if archive.len() >= self.limit {
             return Err(anyhow!(BUDGET));
         }
         let index = archive.len();
@@ -456,3 +480,6 @@ pub fn write(out: &Path, tuning: &Tuning, report: &TuneReport) -> Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     report.write(out, tuning)
 }
+
+#[cfg(test)]
+mod tests;
