@@ -62,3 +62,38 @@ pub fn matched_steering(s: &Scenario) -> f64 {
     let alpha = Vector2::new(c.initial_alpha[0], c.initial_alpha[1]);
     c.car::<f64>().companion(&alpha).map_or(0.0, |f| f.xi_f)
 }
+
+#[cfg(test)]
+mod tests {
+    use companion_core::{PaperRun, PlatformKind};
+    use companion_plant::PaperTrajectory;
+
+    use super::*;
+    use crate::scenario::Start;
+
+    #[test]
+    fn the_cars_steering_starts_where_its_transverse_function_says() {
+        let b = || Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Car);
+        let s = b().build().unwrap();
+        let xi_f = s.controller.car::<f64>().companion(&Vector2::zeros()).unwrap().xi_f;
+        assert!(xi_f.abs() > 0.1, "ξ_f(0) = {xi_f}: the test needs a function that steers at α = 0");
+        assert_eq!(build(&s).unwrap().truth().steering, xi_f);
+        // At α₁ = π/2, f̄₂ = ε η₁ cos α₁ vanishes: straight wheels.
+        let s = b().initial_alpha([core::f64::consts::FRAC_PI_2, 0.3]).build().unwrap();
+        assert!(build(&s).unwrap().truth().steering.abs() < 1e-12);
+        // A start that gives ξ(0) has it.
+        let start = Start { target: [2.0, 0.5, 0.1], joints: [0.1, 0.3, -0.1], steering: Some(0.25) };
+        let s = b().start(start).build().unwrap();
+        let plant = build(&s).unwrap();
+        let x = plant.truth();
+        assert_eq!(x.steering, 0.25);
+        assert_eq!((x.target.x, x.target.y, x.target.theta), (2.0, 0.5, 0.1));
+        assert_eq!(x.joints[2], -0.1);
+        // Other platforms have no steering.
+        let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle).build().unwrap();
+        assert_eq!(build(&s).unwrap().truth().steering, 0.0);
+        // A start that is not finite is refused when the scenario is built.
+        let bad = Start { target: [f64::NAN, 0.0, 0.0], ..start };
+        assert!(b().start(bad).build().is_err());
+    }
+}

@@ -214,15 +214,28 @@ pub struct CarConfig {
 }
 
 impl Default for CarConfig {
-    /// The car-like defaults, chosen in the README's design notes (transverse-function
-    /// shaping, SPEC §3).
+    /// The car-like defaults, found by `companion tune` (README, "The car-like platform"):
+    /// on trajectory 1 runs (a) and (c) and trajectory 2 run (c), with the paper's RPR arm and
+    /// the realistic velocity limits,
+    ///
+    /// ```text
+    /// companion tune --platform car --limits realistic --runs 1a,1c,2c \
+    ///     --space docs/tune/car-space.toml --budget 300 --out out/tune-car
+    /// ```
+    ///
+    /// rounded to three digits. `ε(1 + η₂) = 0.44 m`: the platform's excursions from its
+    /// companion frame fit the prismatic joint's stroke (0.7 m), where the earlier ε = 0.3,
+    /// η₂ = 3 gave ±1.2 m; the large `η₃` and `η₁` keep the heading and steering oscillations
+    /// (`~ε²η₃`, `εη₁`) large enough to manoeuvre. Lemma 2: `6η₂η₃ = 176 > 8η₃ + η₁η₂ = 165`.
     fn default() -> Self {
-        Self { epsilon: 0.3, eta_1: 2.0, eta_2: 3.0, eta_3: 2.0, k: 5.0 }
+        Self { epsilon: 0.152, eta_1: 21.9, eta_2: 1.9, eta_3: 15.4, k: 26.6 }
     }
 }
 
-/// The car's default `K̄ = diag(k̄_v, k̄_α, k̄_α)` for `w = (v, α̇₁, α̇₂)`.
-pub const CAR_K_BAR: [f64; 3] = [1.0, 10.0, 10.0];
+/// The car's default `K̄ = diag(k̄_v, k̄_α₁, k̄_α₂)` for `w = (v, α̇₁, α̇₂)` (found with
+/// [`CarConfig::default`]'s parameters): `α̇₂`, which moves the platform's heading and lateral
+/// offset, is cheap; `α̇₁`, which swings the steering, about as dear as driving.
+pub const CAR_K_BAR: [f64; 3] = [1.0, 2.07, 254.0];
 
 /// The omnidirectional platform's `K̄`: the paper's form (36) `K̄ = diag(k̄_b, k̄_b, k̄_α)`
 /// weighs the platform's velocity `u_b` by `k̄_b` and only `α̇` by `k̄_α`; with `f = 0` there
@@ -253,7 +266,12 @@ impl ArmConfig {
     /// `(q₂⁺, q₂*)` (m).
     pub fn stroke_and_extension(&self) -> (f64, f64) {
         let stroke = self.stroke.unwrap_or(PAPER_STROKE);
-        let ext = self.preferred_extension.unwrap_or(PAPER_PREFERRED_EXTENSION * stroke / PAPER_STROKE);
+        let proportional = if stroke == PAPER_STROKE {
+            PAPER_PREFERRED_EXTENSION
+        } else {
+            PAPER_PREFERRED_EXTENSION * stroke / PAPER_STROKE
+        };
+        let ext = self.preferred_extension.unwrap_or(proportional);
         (stroke, ext)
     }
 
@@ -565,6 +583,43 @@ mod tests {
         assert_eq!(p.secondary.rest_filter, RestFilter::Explicit);
         assert!(parse("[controller]\nG_gain = [1, 2, 3]").unwrap_err().contains("unknown field"));
         assert!(parse("[controller]\nsigma_qhat = 1").unwrap_err().contains("unknown field"));
+    }
+
+    #[test]
+    fn omni_k_bar_is_the_papers_form_and_the_unicycles_is_untouched() {
+        let k = |p| ControllerSpec::paper(p, PaperRun::A, Scalar::F64).params::<f64>().secondary.k_bar;
+        assert_eq!(k(PlatformKind::Omni), Vector3::new(1.0, 1.0, 1.0));
+        assert_eq!(k(PlatformKind::Unicycle), Params::<f64, 3>::paper(PaperRun::A).secondary.k_bar);
+        assert_eq!(k(PlatformKind::Car), Vector3::from(CAR_K_BAR));
+    }
+
+    #[test]
+    fn the_arms_stroke_sets_the_limit_margins_and_preferred_pose() {
+        for run in [PaperRun::A, PaperRun::B] {
+            let paper = ControllerSpec::paper(PlatformKind::Car, run, Scalar::F64);
+            // The paper's stroke, given explicitly, changes nothing.
+            let same = ControllerSpec {
+                arm: ArmConfig { stroke: Some(0.7), preferred_extension: None },
+                ..paper.clone()
+            };
+            let (a, b) = (paper.params::<f64>(), same.params::<f64>());
+            assert_eq!(a.joint_limits, b.joint_limits);
+            assert_eq!(a.secondary.preferred_pose, b.secondary.preferred_pose);
+            assert!((a.primary.penalty_margin - b.primary.penalty_margin).amax() < 1e-15);
+            let longer =
+                ControllerSpec { arm: ArmConfig { stroke: Some(1.4), preferred_extension: None }, ..paper };
+            let p = longer.params::<f64>();
+            assert_eq!(p.joint_limits.upper[1], 1.4);
+            assert!((p.primary.penalty_margin[1] - 0.07).abs() < 1e-15);
+            assert!((p.secondary.preferred_pose.x + (0.5 + 0.15 + 0.4 + 0.9)).abs() < 1e-12);
+            p.validate().unwrap();
+        }
+        let bad = ArmConfig { stroke: Some(0.5), preferred_extension: Some(0.6) };
+        assert_eq!(bad.validate().unwrap_err().param, "arm.preferred_extension");
+        assert_eq!(
+            ArmConfig { stroke: Some(-1.0), preferred_extension: None }.validate().unwrap_err().param,
+            "arm.stroke"
+        );
     }
 
     #[test]
