@@ -17,16 +17,21 @@
 //! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
 //!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2);
 //! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
-//!   `control`), [`latency`] (`companion latency`).
+//!   `control`), [`latency`] (`companion latency`);
+//! - many runs: [`trial`] (one run without files), [`knobs`] (the parameters that are
+//!   sampled and searched), [`explore`] (`companion explore`: Monte Carlo over starts and
+//!   parameters), [`tune`] (`companion tune`: a search for parameters).
 //!
 //! A test in `companion-tests` (`module_cycles`) checks that no module depends on another in
 //! a cycle, in every crate of the workspace.
 
 pub mod clock;
 pub mod controller;
+pub mod explore;
 pub mod hil;
 pub mod histogram;
 pub mod ipc;
+pub mod knobs;
 pub mod latency;
 pub mod link;
 pub mod lock;
@@ -40,4 +45,6 @@ pub mod rt;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod trial;
+pub mod tune;
 pub mod wire;

@@ -117,7 +117,7 @@ pub fn sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -
 /// The plant's state for a step that is not logged: what the summary reads, without the
 /// end effector's pose (its forward kinematics cost four sin/cos; the pose is left at the
 /// identity).
-fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
+pub fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
     let x = plant.truth();
     PlantSample {
         t: plant.time(),
@@ -257,8 +257,8 @@ pub fn run_one_with(
 }
 
 /// The scenarios of `companion sim --all`: every paper run (trajectories 1 and 2 × a–d), b and
-/// d with the Ψ̇ term, and the car-like and omnidirectional platforms; trajectory 1 for 40 s,
-/// trajectory 2 for 120 s. `base` makes each one's builder (and may set anything else).
+/// d with the Ψ̇ term, the car-like platform with a–d and the omnidirectional one with a and c;
+/// trajectory 1 for 40 s, trajectory 2 for 120 s. `base` makes each one's builder (and may set anything else).
 ///
 /// # Errors
 /// A scenario `base` makes is invalid.
@@ -278,8 +278,9 @@ pub fn all_scenarios(
         for choice in [PaperRun::B, PaperRun::D] {
             list.push(mk(choice, PlatformKind::Unicycle, true)?);
         }
-        list.push(mk(PaperRun::A, PlatformKind::Car, false)?);
-        list.push(mk(PaperRun::C, PlatformKind::Car, false)?);
+        for choice in [PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D] {
+            list.push(mk(choice, PlatformKind::Car, false)?);
+        }
         list.push(mk(PaperRun::A, PlatformKind::Omni, false)?);
         list.push(mk(PaperRun::C, PlatformKind::Omni, false)?);
     }

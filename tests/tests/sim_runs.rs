@@ -162,31 +162,42 @@ fn omnidirectional_platform_tracks_both_trajectories() {
     assert!(out[1].max_abs_v <= 1.0 + 1e-9, "omni (a) traj 2 max |v| {}", out[1].max_abs_v);
 }
 
-/// The car-like platform (ε = 0.3, η = (2, 3, 2), k = 5, realistic velocity limits: see the
-/// README's "car-like platform") tracks trajectory 1 with run (c): the target's small
-/// circle is absorbed by the arm once the car has parked behind it. On trajectory 2 it
-/// does not track all the time: following a target that moves sideways (Table 1,
-/// 59–99 s) takes parallel-parking maneuvers whose forward excursions (±1.2 m for this
-/// function) exceed what the arm's prismatic joint can absorb. Asserted as observed.
+/// The car-like platform with its built-in parameters (found by `companion tune`, see the
+/// README's "car-like platform": ε = 0.152, η = (21.9, 1.9, 15.4), k = 26.6,
+/// K̄ = diag(1, 2.07, 254)) and realistic velocity limits tracks trajectory 1 with runs (a) and
+/// (c) — (c) parks behind the target and stops, (a) keeps manoeuvring — which the issue asks
+/// ≥ 95 % of the time after 20 s. On trajectory 2 it tracks run (c) about half the time
+/// (53 % measured; the issue's aim of 60 % is not met): following a target that moves
+/// sideways takes parallel parking, whose excursions the arm's 0.7 m stroke absorbs only in
+/// part (`companion explore` over the stroke quantifies it). Asserted as measured, with room
+/// for rounding differences across machines.
 #[test]
-fn car_like_platform_tracks_trajectory_1_and_part_of_trajectory_2() {
+fn car_like_platform_tracks_trajectory_1_and_half_of_trajectory_2() {
     let list: Vec<(&str, _)> = vec![
+        ("car-1a", Scenario::paper(One, PaperRun::A, PlatformKind::Car)),
         ("car-1c", Scenario::paper(One, PaperRun::C, PlatformKind::Car)),
         ("car-2c", Scenario::paper(Two, PaperRun::C, PlatformKind::Car)),
     ];
     let out = summaries(&list);
-    let (t1, t2) = (&out[0], &out[1]);
-    assert!(t1.max_ep_norm_after_20s < 1e-3, "car traj 1: max |e_p| after 20 s {}", t1.max_ep_norm_after_20s);
-    assert!(t1.path_length_after_20s < 1e-3, "car traj 1 keeps moving: {}", t1.path_length_after_20s);
-    assert!(
-        t2.fraction_ep_below_1e_3_after_20s > 0.2,
-        "car traj 2 tracked {}",
-        t2.fraction_ep_below_1e_3_after_20s
-    );
-    assert!(t2.fraction_ep_below_1e_3_after_20s < 0.9);
+    let (t1a, t1c, t2) = (&out[0], &out[1], &out[2]);
+    for t1 in [t1a, t1c] {
+        assert!(
+            t1.max_ep_norm_after_20s < 1e-3,
+            "{}: max |e_p| after 20 s {}",
+            t1.scenario,
+            t1.max_ep_norm_after_20s
+        );
+    }
+    assert!(t1c.path_length_after_20s < 1e-3, "car traj 1 (c) keeps moving: {}", t1c.path_length_after_20s);
+    assert!(t1a.path_length_after_20s > 0.1, "car traj 1 (a) stops: {}", t1a.path_length_after_20s);
+    let tracked = t2.fraction_ep_below_1e_3_after_20s;
+    assert!((0.45..0.9).contains(&tracked), "car traj 2 (c) tracked {tracked}");
     for s in &out {
         assert!(s.min_joint_margin.iter().all(|m| *m > 0.0), "{}: joint limit reached", s.scenario);
-        assert!(s.max_saturation >= 1.0);
+        assert_eq!(s.rejected_steps, 0, "{}", s.scenario);
+        // The realistic limits bind (the common factor scales the command down at some
+        // step: measured 4.0–12.4), so the speed bound below is the saturation's doing.
+        assert!(s.max_saturation > 1.5, "{}: the limits never bind: {}", s.scenario, s.max_saturation);
         assert!(s.max_abs_v <= 1.0 + 1e-9, "{}: speed limit exceeded: {}", s.scenario, s.max_abs_v);
     }
 }

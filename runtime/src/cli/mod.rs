@@ -5,10 +5,12 @@
 
 mod args;
 mod exit;
+mod explore;
 mod hil;
 mod latency;
 mod sim;
 mod terminal;
+mod tune;
 
 use std::process::ExitCode;
 
@@ -42,6 +44,14 @@ enum Command {
     /// The controller role of the HIL demo alone.
     #[command(after_help = EXIT_CODES_HELP)]
     Control(hil::HilArgs),
+    /// Monte Carlo over initial conditions and parameters: which starts converge, with which
+    /// parameters. Writes results.csv, summary.json and plots (a success map, histograms, the
+    /// bound on ‖e_p‖ against ε); resumable, shardable (`--shard K/N`, `explore merge`).
+    Explore(explore::ExploreArgs),
+    /// Search the transverse function's parameters, the steering gain, K̄ and the gains on a
+    /// set of runs (tracked fraction first, then effort); writes a --config preset and a
+    /// Pareto-front report.
+    Tune(tune::TuneArgs),
     /// Worst-case latency benchmark: controller step, bare iceoryx2 and Unix-socket ping-pong,
     /// and the full HIL cycle in each wait mode.
     #[command(after_help = EXIT_CODES_HELP)]
@@ -59,6 +69,8 @@ pub fn main() -> ExitCode {
         Command::Sim(a) => sim::run(a),
         Command::Plant(a) => hil::run_plant(a),
         Command::Control(a) => hil::run_control(a),
+        Command::Explore(a) => explore::run(a),
+        Command::Tune(a) => tune::run(a).map(|()| ExitCode::SUCCESS),
         Command::Latency(a) => latency::run(a).map(|()| ExitCode::SUCCESS),
         Command::LatencyPeer(a) => latency::run_peer(a).map(|()| ExitCode::SUCCESS),
     };

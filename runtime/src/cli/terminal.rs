@@ -41,6 +41,24 @@ impl Terminal {
         Self { bar: Some(bar), notes: true }
     }
 
+    /// A bar of `len` items named `unit` with the time left (hidden when stderr is not a
+    /// terminal or `hidden`).
+    pub fn bar_of(len: u64, unit: &str, hidden: bool) -> Self {
+        let bar = if hidden || !std::io::stderr().is_terminal() {
+            ProgressBar::hidden()
+        } else {
+            let pb = ProgressBar::new(len);
+            pb.set_style(
+                ProgressStyle::with_template(&format!(
+                    "{{spinner}} [{{elapsed_precise}}] {{wide_bar}} {{pos}}/{{len}} {unit} ({{per_sec}}, {{eta}} left)"
+                ))
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+            );
+            pb
+        };
+        Self { bar: Some(bar), notes: true }
+    }
+
     /// The same without notes (warnings only).
     pub fn without_notes(self) -> Self {
         Self { notes: false, ..self }

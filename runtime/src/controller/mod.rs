@@ -7,14 +7,16 @@
 mod spec;
 
 pub use spec::{
-    platform_name, run_name, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig, LimitsConfig,
-    RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR,
+    platform_name, run_name, ArmConfig, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig,
+    LimitsConfig, RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR, OMNI_K_BAR,
+    PAPER_PREFERRED_EXTENSION, PAPER_STROKE,
 };
 
+use companion_core::nalgebra::Vector2;
 use companion_core::nalgebra::Vector3;
 use companion_core::{
     CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformCommand, PlatformKind,
-    Pose, Real, Rpr, StepError, Unicycle,
+    Pose, Real, Rpr, Rule, StepError, Unicycle,
 };
 
 /// The number of joints of the paper's arm (the wire and the logs carry this many).
@@ -86,11 +88,37 @@ pub enum AnyController {
 }
 
 impl AnyController {
-    /// Builds and validates the controller a spec describes.
+    /// Builds and validates the controller a spec describes, starting from its `α(0)`.
     ///
     /// # Errors
     /// An invalid parameter.
     pub fn new(spec: &ControllerSpec) -> Result<Self, ParamError> {
+        spec.arm.validate()?;
+        if !spec.initial_alpha.iter().all(|a| a.is_finite()) {
+            return Err(ParamError::new("initial_alpha", Rule::NonFinite));
+        }
+        let mut c = Self::build(spec)?;
+        c.set_alpha(spec.initial_alpha);
+        Ok(c)
+    }
+
+    /// Sets `α` (rad) in the controller's state: the first step starts from it (the law
+    /// keeps `α` when it initialises its filters).
+    fn set_alpha(&mut self, alpha: [f64; 2]) {
+        fn to<T: Real>(a: [f64; 2]) -> Vector2<T> {
+            Vector2::new(T::of(a[0]), T::of(a[1]))
+        }
+        match self {
+            Self::UnicycleF64(c) => c.state.alpha = to(alpha),
+            Self::UnicycleF32(c) => c.state.alpha = to(alpha),
+            Self::CarF64(c) => c.state.alpha = to(alpha),
+            Self::CarF32(c) => c.state.alpha = to(alpha),
+            Self::OmniF64(c) => c.state.alpha = to(alpha),
+            Self::OmniF32(c) => c.state.alpha = to(alpha),
+        }
+    }
+
+    fn build(spec: &ControllerSpec) -> Result<Self, ParamError> {
         Ok(match (spec.platform, spec.scalar) {
             (PlatformKind::Unicycle, Scalar::F64) => {
                 Self::UnicycleF64(Box::new(Controller::new(spec.params(), spec.unicycle(), spec.arm())?))

@@ -10,8 +10,8 @@
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    CarLike, Discretisation, PaperRun, Params, PlatformKind, Pose, Precompensation, Real, RestFilter, Rpr,
-    TargetMotion, Unicycle, VelocityLimits, Weight,
+    CarLike, Discretisation, PaperRun, ParamError, Params, PlatformKind, Pose, Precompensation, Real,
+    RestFilter, Rpr, Rule, TargetMotion, Unicycle, VelocityLimits, Weight, WeightMargins,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -214,15 +214,88 @@ pub struct CarConfig {
 }
 
 impl Default for CarConfig {
-    /// The car-like defaults, chosen in the README's design notes (transverse-function
-    /// shaping, SPEC §3).
+    /// The car-like defaults, found by `companion tune` (README, "The car-like platform"):
+    /// on trajectory 1 runs (a) and (c) and trajectory 2 run (c), with the paper's RPR arm and
+    /// the realistic velocity limits,
+    ///
+    /// ```text
+    /// companion tune --platform car --limits realistic --runs 1a,1c,2c \
+    ///     --space docs/tune/car-space.toml --budget 300 --out out/tune-car
+    /// ```
+    ///
+    /// rounded to three digits. `ε(1 + η₂) = 0.44 m`: the platform's excursions from its
+    /// companion frame fit the prismatic joint's stroke (0.7 m), where the earlier ε = 0.3,
+    /// η₂ = 3 gave ±1.2 m; the large `η₃` and `η₁` keep the heading and steering oscillations
+    /// (`~ε²η₃`, `εη₁`) large enough to manoeuvre. Lemma 2: `6η₂η₃ = 176 > 8η₃ + η₁η₂ = 165`.
     fn default() -> Self {
-        Self { epsilon: 0.3, eta_1: 2.0, eta_2: 3.0, eta_3: 2.0, k: 5.0 }
+        Self { epsilon: 0.152, eta_1: 21.9, eta_2: 1.9, eta_3: 15.4, k: 26.6 }
     }
 }
 
-/// The car's default `K̄ = diag(k̄_v, k̄_α, k̄_α)` for `w = (v, α̇₁, α̇₂)`.
-pub const CAR_K_BAR: [f64; 3] = [1.0, 10.0, 10.0];
+/// The car's default `K̄ = diag(k̄_v, k̄_α₁, k̄_α₂)` for `w = (v, α̇₁, α̇₂)` (found with
+/// [`CarConfig::default`]'s parameters): `α̇₂`, which moves the platform's heading and lateral
+/// offset, is cheap; `α̇₁`, which swings the steering, about as dear as driving.
+pub const CAR_K_BAR: [f64; 3] = [1.0, 2.07, 254.0];
+
+/// The omnidirectional platform's `K̄`: the paper's form (36) `K̄ = diag(k̄_b, k̄_b, k̄_α)`
+/// weighs the platform's velocity `u_b` by `k̄_b` and only `α̇` by `k̄_α`; with `f = 0` there
+/// is no `α` and `w = u_b = (v₁, v₂, ω)`, so `K = K̄ = k̄_b I₃` (`k̄_b = 1`). The unicycle's
+/// `diag(1, 1, 100)` would make turning a hundred times cheaper than driving.
+pub const OMNI_K_BAR: [f64; 3] = [1.0, 1.0, 1.0];
+
+/// The paper's RPR arm's prismatic stroke `q₂⁺` (m) and preferred extension `q₂*` (m), §4.3.
+pub const PAPER_STROKE: f64 = 0.7;
+/// See [`PAPER_STROKE`].
+pub const PAPER_PREFERRED_EXTENSION: f64 = 0.45;
+
+/// The arm's prismatic joint, for arms that differ from the paper's only in its stroke (the
+/// `[arm]` table of a config file). Not a field of `companion-core`: it sets several of them
+/// as §4.3 derives them from the arm — the limit `q₂⁺`, the penalty margin `δ₂ = 0.05 q₂⁺`,
+/// the weight margins of (52) around `q₂*`, and `r_* = −(X* + L_e + L + q₂*, 0, 0)` — unless
+/// those are given explicitly.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ArmConfig {
+    /// `q₂⁺` (m): the prismatic joint moves in `(0, stroke)`. Paper: 0.7.
+    pub stroke: Option<f64>,
+    /// `q₂*` (m), in `(0, stroke)`. Default: `0.45 · stroke / 0.7` (the paper's proportion).
+    pub preferred_extension: Option<f64>,
+}
+
+impl ArmConfig {
+    /// `(q₂⁺, q₂*)` (m).
+    pub fn stroke_and_extension(&self) -> (f64, f64) {
+        let stroke = self.stroke.unwrap_or(PAPER_STROKE);
+        let proportional = if stroke == PAPER_STROKE {
+            PAPER_PREFERRED_EXTENSION
+        } else {
+            PAPER_PREFERRED_EXTENSION * stroke / PAPER_STROKE
+        };
+        let ext = self.preferred_extension.unwrap_or(proportional);
+        (stroke, ext)
+    }
+
+    /// Checks `0 < q₂* < q₂⁺ ≤ 10³`.
+    ///
+    /// # Errors
+    /// The parameter that breaks the rule.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let (stroke, ext) = self.stroke_and_extension();
+        if !stroke.is_finite() {
+            return Err(ParamError::new("arm.stroke", Rule::NonFinite));
+        }
+        if stroke <= 0.0 {
+            return Err(ParamError::new("arm.stroke", Rule::NotPositive));
+        }
+        if !ext.is_finite() {
+            return Err(ParamError::new("arm.preferred_extension", Rule::NonFinite));
+        }
+        if ext <= 0.0 || ext >= stroke {
+            return Err(ParamError::new("arm.preferred_extension", Rule::Geometry));
+        }
+        Ok(())
+    }
+}
 
 /// Velocity limits (`companion-core`'s `VelocityLimits`; omitted fields: no limit).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -313,6 +386,11 @@ pub struct ControllerSpec {
     pub car: CarConfig,
     /// Velocity limits (None: unlimited).
     pub limits: Option<LimitsConfig>,
+    /// The arm's prismatic stroke (the paper's by default).
+    pub arm: ArmConfig,
+    /// `α(0)`: the transverse-function variables the controller starts from (rad; the
+    /// unicycle uses the first, the omnidirectional platform none). SPEC §3: 0.
+    pub initial_alpha: [f64; 2],
 }
 
 fn t<T: Real>(x: f64) -> T {
@@ -339,6 +417,8 @@ impl ControllerSpec {
             unicycle: UnicycleConfig::default(),
             car: CarConfig::default(),
             limits: None,
+            arm: ArmConfig::default(),
+            initial_alpha: [0.0; 2],
         }
     }
 
@@ -346,9 +426,23 @@ impl ControllerSpec {
     pub fn params<T: Real>(&self) -> Params<T, 3> {
         let mut p = Params::<T, 3>::paper(self.choice);
         let o = &self.overrides;
+        // The arm's stroke and preferred extension, as §4.3 derives the limits, margins and
+        // r_* from them (the paper's values unless `[arm]` is given).
+        let (stroke, ext) = self.arm.stroke_and_extension();
+        if self.arm != ArmConfig::default() {
+            p.joint_limits.upper[1] = t(stroke);
+            let lim = p.joint_limits;
+            p.primary.penalty_margin = (lim.upper - lim.lower) * t::<T>(0.05);
+            let q_star = SVector::<T, 3>::new(T::zero(), t(ext), T::zero());
+            let margins = WeightMargins::paper(&lim, &q_star);
+            if let Weight::Filtered { lambda, xi, .. } = p.secondary.weight {
+                p.secondary.weight = Weight::Filtered { margins, lambda, xi };
+            }
+            p.secondary.preferred_pose.x = -(t::<T>(0.5) + t(0.15) + t(0.4) + t(ext));
+        }
         if let Some(x) = o.target_in_effector {
             p.primary.target_in_effector = pose(x);
-            p.secondary.preferred_pose.x = -(t::<T>(x[0]) + t(0.15) + t(0.4) + t(0.45));
+            p.secondary.preferred_pose.x = -(t::<T>(x[0]) + t(0.15) + t(0.4) + t(ext));
         }
         if let Some(x) = o.preferred_pose {
             p.secondary.preferred_pose = pose(x);
@@ -376,8 +470,10 @@ impl ControllerSpec {
         }
         // K̄ weighs the generalised inputs w: (v, ω, α̇) for the unicycle but (v, α̇₁, α̇₂) for
         // the car, whose two α̇ get the paper's α̇ weight.
-        if self.platform == PlatformKind::Car {
-            p.secondary.k_bar = v3(CAR_K_BAR);
+        match self.platform {
+            PlatformKind::Car => p.secondary.k_bar = v3(CAR_K_BAR),
+            PlatformKind::Omni => p.secondary.k_bar = v3(OMNI_K_BAR),
+            PlatformKind::Unicycle => {}
         }
         if let Some(k) = o.k_bar {
             p.secondary.k_bar = Vector3::from(v3::<T>(k));
@@ -487,6 +583,43 @@ mod tests {
         assert_eq!(p.secondary.rest_filter, RestFilter::Explicit);
         assert!(parse("[controller]\nG_gain = [1, 2, 3]").unwrap_err().contains("unknown field"));
         assert!(parse("[controller]\nsigma_qhat = 1").unwrap_err().contains("unknown field"));
+    }
+
+    #[test]
+    fn omni_k_bar_is_the_papers_form_and_the_unicycles_is_untouched() {
+        let k = |p| ControllerSpec::paper(p, PaperRun::A, Scalar::F64).params::<f64>().secondary.k_bar;
+        assert_eq!(k(PlatformKind::Omni), Vector3::new(1.0, 1.0, 1.0));
+        assert_eq!(k(PlatformKind::Unicycle), Params::<f64, 3>::paper(PaperRun::A).secondary.k_bar);
+        assert_eq!(k(PlatformKind::Car), Vector3::from(CAR_K_BAR));
+    }
+
+    #[test]
+    fn the_arms_stroke_sets_the_limit_margins_and_preferred_pose() {
+        for run in [PaperRun::A, PaperRun::B] {
+            let paper = ControllerSpec::paper(PlatformKind::Car, run, Scalar::F64);
+            // The paper's stroke, given explicitly, changes nothing.
+            let same = ControllerSpec {
+                arm: ArmConfig { stroke: Some(0.7), preferred_extension: None },
+                ..paper.clone()
+            };
+            let (a, b) = (paper.params::<f64>(), same.params::<f64>());
+            assert_eq!(a.joint_limits, b.joint_limits);
+            assert_eq!(a.secondary.preferred_pose, b.secondary.preferred_pose);
+            assert!((a.primary.penalty_margin - b.primary.penalty_margin).amax() < 1e-15);
+            let longer =
+                ControllerSpec { arm: ArmConfig { stroke: Some(1.4), preferred_extension: None }, ..paper };
+            let p = longer.params::<f64>();
+            assert_eq!(p.joint_limits.upper[1], 1.4);
+            assert!((p.primary.penalty_margin[1] - 0.07).abs() < 1e-15);
+            assert!((p.secondary.preferred_pose.x + (0.5 + 0.15 + 0.4 + 0.9)).abs() < 1e-12);
+            p.validate().unwrap();
+        }
+        let bad = ArmConfig { stroke: Some(0.5), preferred_extension: Some(0.6) };
+        assert_eq!(bad.validate().unwrap_err().param, "arm.preferred_extension");
+        assert_eq!(
+            ArmConfig { stroke: Some(-1.0), preferred_extension: None }.validate().unwrap_err().param,
+            "arm.stroke"
+        );
     }
 
     #[test]

@@ -21,6 +21,9 @@
 //! [velocity_limits]
 //! forward = 1.0                 # m/s
 //!
+//! [arm]
+//! stroke = 0.9                  # q₂⁺ (m); q₂*, the margins and r_* follow (see ArmConfig)
+//!
 //! [plant]
 //! actuator_lag = 0.05           # s
 //! [plant.noise]
@@ -33,7 +36,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::controller::{CarConfig, ControllerConfig, LimitsConfig, UnicycleConfig};
+use crate::controller::{ArmConfig, CarConfig, ControllerConfig, LimitsConfig, UnicycleConfig};
 
 /// Plant imperfections in a config file (`companion-plant`'s `Imperfections`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -88,6 +91,8 @@ pub struct ConfigFile {
     pub car: Option<CarConfig>,
     /// Velocity limits.
     pub velocity_limits: Option<LimitsConfig>,
+    /// The arm's prismatic stroke.
+    pub arm: Option<ArmConfig>,
     /// Plant imperfections.
     #[serde(default)]
     pub plant: PlantFileConfig,

@@ -141,6 +141,22 @@ pub enum ScenarioError {
     /// The controller's parameters break a rule.
     #[error("invalid parameter: {0}")]
     Param(ParamError),
+    /// A value of the start is not finite.
+    #[error("start: {0} must be finite")]
+    Start(&'static str),
+}
+
+/// A start other than the target's (the paper's `r_bd(0)` and `q(0)`): the platform at the
+/// origin with `θ_b = 0`, the target at `r_bd(0)` from it.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Start {
+    /// `r_bd(0) = (x, y, θ)`: the target seen from the platform (m, m, rad).
+    pub target: [f64; 3],
+    /// `q(0)` (rad, m, rad).
+    pub joints: [f64; 3],
+    /// The car's steering `ξ(0)` (1/m). `None`: `ξ_f(α(0))`, the paper's assumption that the
+    /// steering is at the transverse function's from the start (§5, after (59)).
+    pub steering: Option<f64>,
 }
 
 /// The size of a row of `timeseries.csv` the output limit assumes (bytes; measured 130–330,
@@ -199,6 +215,9 @@ pub struct Scenario {
     pub delay: f64,
     /// Whether the controller is told the delay (the law then predicts over it).
     pub delay_compensation: bool,
+    /// A start of its own (`None`: the target's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub start: Option<Start>,
 }
 
 /// Builds a [`Scenario`]: the paper's parameters plus what is set, checked by
@@ -218,9 +237,23 @@ pub struct ScenarioBuilder {
     delay: f64,
     delay_compensation: bool,
     max_output_bytes: u64,
+    start: Option<Start>,
+    initial_alpha: [f64; 2],
 }
 
 impl ScenarioBuilder {
+    /// A start of its own instead of the target's `r_bd(0)` and `q(0)`.
+    pub fn start(mut self, start: Start) -> Self {
+        self.start = Some(start);
+        self
+    }
+
+    /// `α(0)` (rad); default 0 (SPEC §3).
+    pub fn initial_alpha(mut self, alpha: [f64; 2]) -> Self {
+        self.initial_alpha = alpha;
+        self
+    }
+
     /// The largest `timeseries.csv` the run may write (bytes, estimated at [`BYTES_PER_ROW`]
     /// per row); default [`DEFAULT_MAX_OUTPUT_BYTES`]. Checked by [`build`](Self::build), not
     /// part of the scenario.
@@ -386,7 +419,21 @@ impl ScenarioBuilder {
             unicycle: file.unicycle.unwrap_or_default(),
             car: file.car.unwrap_or_default(),
             limits,
+            arm: file.arm.unwrap_or_default(),
+            initial_alpha: self.initial_alpha,
         };
+        if let Some(st) = &self.start {
+            let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+            if !finite(&st.target) {
+                return Err(ScenarioError::Start("the target's pose r_bd(0)"));
+            }
+            if !finite(&st.joints) {
+                return Err(ScenarioError::Start("the joints q(0)"));
+            }
+            if !st.steering.is_none_or(f64::is_finite) {
+                return Err(ScenarioError::Start("the steering xi(0)"));
+            }
+        }
         // Build once to report a bad parameter now, with its name and rule.
         AnyController::new(&controller).map_err(ScenarioError::Param)?;
         let params = controller.params::<f64>();
@@ -412,6 +459,7 @@ impl ScenarioBuilder {
             log_every: self.log_every,
             delay: self.delay,
             delay_compensation: self.delay_compensation,
+            start: self.start,
         };
         s.name = s.default_name();
         Ok(s)
@@ -434,6 +482,8 @@ impl Scenario {
             delay: 0.0,
             delay_compensation: true,
             max_output_bytes: DEFAULT_MAX_OUTPUT_BYTES,
+            start: None,
+            initial_alpha: [0.0; 2],
         }
     }
 

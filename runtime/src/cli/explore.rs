@@ -1,0 +1,168 @@
+//! `companion explore` and `companion explore merge`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Args, Subcommand};
+use companion_runtime::explore::{self, Exploration, Shard, SpaceFile};
+use companion_runtime::signals;
+
+use super::args::ScenarioArgs;
+use super::exit::EXIT_INTERRUPTED;
+use super::terminal::Terminal;
+
+/// `companion explore` flags.
+#[derive(Args, Clone, Debug)]
+#[command(args_conflicts_with_subcommands = true, subcommand_negates_reqs = true)]
+pub struct ExploreArgs {
+    #[command(subcommand)]
+    pub command: Option<ExploreCommand>,
+    #[command(flatten)]
+    pub run: ExploreRunArgs,
+}
+
+/// `companion explore merge`.
+#[derive(Subcommand, Clone, Debug)]
+pub enum ExploreCommand {
+    /// Merge the folders of the shards of one exploration (`--shard K/N`) into the files an
+    /// unsharded run writes, byte for byte. Every shard must be finished and intact.
+    Merge(MergeArgs),
+}
+
+/// `companion explore merge` flags.
+#[derive(Args, Clone, Debug)]
+pub struct MergeArgs {
+    /// The shards' output folders.
+    #[arg(required = true, value_name = "DIR")]
+    pub dirs: Vec<PathBuf>,
+    /// The merged output folder.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+}
+
+/// The flags of one exploration.
+#[derive(Args, Clone, Debug)]
+pub struct ExploreRunArgs {
+    #[command(flatten)]
+    /// The scenario every sample starts from (its start and parameters are then sampled);
+    /// `--seed` seeds the samples' draws (and the plant's noise, with --noise).
+    pub scenario: ScenarioArgs,
+    /// A TOML file of ranges to sample: `[initial]` (distance, bearing, heading, q1–q3,
+    /// alpha_1, alpha_2, steering), `[parameters]` (epsilon, eta_1..3, k, epsilon_1,
+    /// epsilon_2, k_bar_1..3, d, gain, lambda, stroke), `[map]` and `[judge]`. Without it:
+    /// starts around the target (distance 0.5–6 m, any bearing and relative heading).
+    #[arg(long, value_name = "FILE")]
+    pub space: Option<PathBuf>,
+    /// How many samples.
+    #[arg(long, default_value_t = 1000, value_name = "N")]
+    pub samples: u64,
+    /// Output folder: results.csv, summary.json, plots; run the same command again to resume
+    /// after an interruption.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Run only part K of N of the samples (for a cluster); `explore merge` joins the parts.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<String>,
+    /// Worker threads [default: one per core].
+    #[arg(long, value_name = "N")]
+    pub threads: Option<usize>,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+/// `explore`'s duration when `--duration` is not given (s).
+const DEFAULT_DURATION: f64 = 40.0;
+
+/// `companion explore`.
+///
+/// # Errors
+/// A bad flag, space file, or an I/O failure.
+pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
+    if let Some(ExploreCommand::Merge(m)) = &args.command {
+        let s = explore::merge(&m.dirs, &m.out)?;
+        println!(
+            "merged {} shards: {} samples, {} converged ({:.1} %); wrote {}",
+            m.dirs.len(),
+            s.samples,
+            s.counts.converged,
+            100.0 * s.converged_fraction,
+            m.out.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
+    let a = &args.run;
+    let out = a.out.clone().context("--out DIR is required")?;
+    let shard = a.shard.as_deref().map(Shard::parse).transpose()?.unwrap_or(Shard::WHOLE);
+    let sc = &a.scenario;
+    let builder =
+        sc.builder(sc.config_file()?, sc.target(), sc.choice.into(), sc.platform.into(), DEFAULT_DURATION);
+    let file = match &a.space {
+        Some(p) => SpaceFile::load(p)?,
+        None => SpaceFile::around_the_target(),
+    };
+    let exploration = Exploration::new(builder, &file, a.samples, sc.seed)?;
+    signals::install_termination_handler()?;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
+    let mine = shard.samples(a.samples).count() as u64;
+    let term = Terminal::bar_of(mine, "samples", a.quiet);
+    let outcome = pool.install(|| exploration.run(&out, shard, &term, &signals::termination_requested))?;
+    term.finish();
+    for n in &outcome.notes {
+        eprintln!("note: {n}");
+    }
+    let threads = pool.current_num_threads();
+    if outcome.ran > 0 {
+        // Per CPU second where the system tells it (a shared machine gives the cores to
+        // others too), else per thread second of wall time.
+        #[allow(clippy::cast_precision_loss)]
+        let (cpu, what) = match outcome.cpu_s.filter(|c| *c > 0.0) {
+            Some(c) => (c, "CPU"),
+            None => (outcome.wall_s * threads as f64, "thread"),
+        };
+        #[allow(clippy::cast_precision_loss)]
+        let per_hour = outcome.ran as f64 / cpu * 3600.0;
+        #[allow(clippy::cast_precision_loss)]
+        let step_ns = cpu / outcome.steps.max(1) as f64 * 1e9;
+        eprintln!(
+            "ran {} samples in {:.1} s on {threads} threads, {cpu:.1} {what} s: {per_hour:.0} runs per {what}-hour, \
+             {step_ns:.0} ns per closed-loop step{}",
+            outcome.ran,
+            outcome.wall_s,
+            if outcome.resumed > 0 { format!(" ({} resumed from the journal)", outcome.resumed) } else { String::new() }
+        );
+    }
+    match &outcome.summary {
+        None => {
+            eprintln!(
+                "interrupted: {} of {mine} samples are in {}; run the same command again to resume",
+                outcome.resumed + outcome.ran,
+                out.join("journal.csv").display()
+            );
+            Ok(ExitCode::from(EXIT_INTERRUPTED))
+        }
+        Some(s) => {
+            let c = &s.counts;
+            println!(
+                "{}: {} samples, {} converged ({:.1} %), {} not converged, {} diverged, {} rejected{}",
+                s.scenario,
+                s.samples,
+                c.converged,
+                100.0 * s.converged_fraction,
+                c.not_converged,
+                c.diverged,
+                c.rejected,
+                if c.invalid > 0 { format!(", {} invalid", c.invalid) } else { String::new() }
+            );
+            if let Some(t) = &s.settling_time_s {
+                println!(
+                    "settling time of the converged: median {:.2} s, 90 % {:.2} s, max {:.2} s",
+                    t.median, t.p90, t.max
+                );
+            }
+            println!("wrote {} (open {})", out.display(), out.join("index.html").display());
+            Ok(ExitCode::SUCCESS)
+        }
+    }
+}

@@ -1,0 +1,126 @@
+//! `companion tune`.
+
+use std::path::PathBuf;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use companion_core::PaperRun;
+use companion_plant::PaperTrajectory;
+use companion_runtime::controller::run_name;
+use companion_runtime::scenario::Target;
+use companion_runtime::tune::{self, SetRun, TuneSpaceFile, Tuning};
+
+use super::args::ScenarioArgs;
+use super::terminal::Terminal;
+
+/// `companion tune` flags.
+#[derive(Args, Clone, Debug)]
+pub struct TuneArgs {
+    #[command(flatten)]
+    /// The scenario the candidates run (platform, limits, config, dt); `--seed` seeds the
+    /// design.
+    pub scenario: ScenarioArgs,
+    /// The set of runs, as trajectory and choice, e.g. `1a,1c,2c` [default: trajectories 1 and
+    /// 2 with --choice; with --target-file, that file with --choice].
+    #[arg(long, value_name = "LIST", value_delimiter = ',')]
+    pub runs: Vec<String>,
+    /// A TOML file of ranges to search: `[parameters]` knob = [low, high] (low > 0), and
+    /// `[objective]` effort_weight [default: the platform's space, see the README].
+    #[arg(long, value_name = "FILE")]
+    pub space: Option<PathBuf>,
+    /// Candidate evaluations (each runs the whole set).
+    #[arg(long, default_value_t = 200, value_name = "N")]
+    pub budget: usize,
+    /// Output folder: preset.toml, report.json, candidates.csv, pareto.svg.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// No progress bar.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+fn parse_run(text: &str) -> Result<(PaperTrajectory, PaperRun)> {
+    let t = text.trim();
+    let traj = match t.get(..1) {
+        Some("1") => PaperTrajectory::One,
+        Some("2") => PaperTrajectory::Two,
+        _ => bail!("--runs: `{t}` must be a trajectory (1 or 2) and a choice (a–d), e.g. 1a"),
+    };
+    let choice = match t.get(1..) {
+        Some("a") => PaperRun::A,
+        Some("b") => PaperRun::B,
+        Some("c") => PaperRun::C,
+        Some("d") => PaperRun::D,
+        _ => bail!("--runs: `{t}` must be a trajectory (1 or 2) and a choice (a–d), e.g. 1a"),
+    };
+    Ok((traj, choice))
+}
+
+/// `companion tune`.
+///
+/// # Errors
+/// A bad flag, space file, or an I/O failure.
+pub fn run(args: &TuneArgs) -> Result<()> {
+    let sc = &args.scenario;
+    let file = sc.config_file()?;
+    let mut set: Vec<(String, Target, PaperRun)> = Vec::new();
+    if args.runs.is_empty() {
+        let choice: PaperRun = sc.choice.into();
+        match &sc.target_file {
+            Some(p) => set.push((format!("file{}", run_name(choice)), Target::File(p.clone()), choice)),
+            None => {
+                for (n, t) in [(1, PaperTrajectory::One), (2, PaperTrajectory::Two)] {
+                    set.push((format!("{n}{}", run_name(choice)), Target::Paper(t), choice));
+                }
+            }
+        }
+    } else {
+        for r in &args.runs {
+            let (t, c) = parse_run(r)?;
+            set.push((r.trim().to_string(), Target::Paper(t), c));
+        }
+    }
+    let mut runs = Vec::new();
+    for (name, target, choice) in set {
+        let duration = match &target {
+            Target::Paper(PaperTrajectory::One) => 40.0,
+            _ => 120.0,
+        };
+        let builder = sc.builder(file.clone(), target, choice, sc.platform.into(), duration);
+        let base = builder.clone().build().with_context(|| format!("run {name}"))?;
+        runs.push(SetRun { name, builder, base });
+    }
+    let space = args.space.as_deref().map(|p| -> Result<TuneSpaceFile> {
+        let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+        toml::from_str(&text).with_context(|| format!("in space file {}", p.display()))
+    });
+    let space = space.transpose()?;
+    let tuning = Tuning::new(runs, space.as_ref(), args.budget, sc.seed)?;
+    let term = Terminal::bar_of(args.budget as u64, "candidates", args.quiet);
+    let report = tuning.run(&term)?;
+    term.finish();
+    tune::write(&args.out, &tuning, &report)?;
+    match report.best() {
+        Some(b) => {
+            let values: Vec<String> =
+                b.values.iter().map(|(k, v)| format!("{} = {v:.4}", k.name())).collect();
+            println!("best of {} candidates: {}", report.candidates.len(), values.join(", "));
+            for r in &b.runs {
+                println!(
+                    "  {}: tracked {:.1} %, rms |v| {:.3} m/s, {} maneuvers",
+                    r.run,
+                    100.0 * r.tracked,
+                    r.rms_v,
+                    r.maneuvers
+                );
+            }
+            println!(
+                "wrote {} (use it: --config {})",
+                args.out.display(),
+                args.out.join("preset.toml").display()
+            );
+        }
+        None => bail!("no candidate satisfies the law's rules"),
+    }
+    Ok(())
+}
