@@ -39,6 +39,17 @@ fn companion(args: &[&str]) -> Command {
     c
 }
 
+/// Flags for a real-time run whose subject is not real time: on a loaded machine no missed
+/// deadline fails it (exit 7) and the robot is never stopped, so it must exit 0.
+const NOT_ABOUT_REAL_TIME: [&str; 4] = ["--max-miss-fraction", "1", "--hold-periods", "100000"];
+
+/// `args` followed by [`NOT_ABOUT_REAL_TIME`].
+fn relaxed<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    let mut all = args.to_vec();
+    all.extend(NOT_ABOUT_REAL_TIME);
+    all
+}
+
 fn run(args: &[&str]) -> (ExitStatus, String, String) {
     let out = companion(args).output().unwrap();
     (out.status, String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
@@ -227,9 +238,18 @@ fn malformed_commands_are_counted_and_dropped_never_applied() {
         rd.to_str().unwrap(),
         "--inject",
         "version@100,nan@200,seq@300,session@400",
+        "--max-miss-fraction",
+        "1",
     ]);
-    assert!(st.success(), "{out}\n{err}");
     let lat = json(&rd.join("latency.json"));
+    // Real time is not this test's subject: on a loaded machine the plant may stop the robot,
+    // and then (only then) the run is a failure of real time, exit 7.
+    let stops = lat["stop_events"].as_u64().unwrap();
+    assert!(
+        st.code() == Some(0)
+            || (st.code() == Some(7) && stops > 0 && err.contains("the plant stopped the robot")),
+        "{st:?}, {stops} stops\n{out}\n{err}"
+    );
     // The wrong version, session and future sequence number are recognised whenever they
     // arrive. The NaN command carries its period's sequence number: on a loaded machine it can
     // arrive after that period, and is then counted (and dropped) as late, before its values
@@ -301,7 +321,7 @@ fn killed_plant_is_noticed_quickly_data_is_kept_and_the_next_run_succeeds() {
     // No residue: the same name runs again at once.
     let d2 = dir("kill-plant-again");
     let (st, out, err) =
-        run(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]);
+        run(&relaxed(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]));
     assert!(st.success(), "{out}\n{err}");
     assert!(d2.join("latency.json").exists());
 }
@@ -346,11 +366,12 @@ fn killed_controller_makes_the_plant_stop_the_robot_and_exit_cleanly() {
     let tail = &statuses[last_ok + 1..];
     let held = tail.iter().take_while(|s| *s == "held").count();
     assert!(held <= 5, "{tail:?}");
-    assert!(!tail[held..].is_empty() && tail[held..].iter().all(|s| s == "stopped"), "{tail:?}");
+    // (The plant may notice the death before the hold runs out: then the stop is the run's end.)
+    assert!(tail[held..].iter().all(|s| s == "stopped"), "{tail:?}");
     // The next run succeeds.
     let d2 = dir("kill-controller-again");
     let (st, out, err) =
-        run(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]);
+        run(&relaxed(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]));
     assert!(st.success(), "{out}\n{err}");
 }
 
@@ -381,7 +402,10 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     std::thread::sleep(Duration::from_millis(200));
     signal(controller, "CONT");
     let (st, seen) = demo.wait(Duration::from_secs(30));
-    assert!(st.success(), "{seen:#?}");
+    // The files are complete, but a run in which the robot had to be stopped is a failure of
+    // real time: exit 7, and the plant says why.
+    assert_eq!(st.code(), Some(7), "{seen:#?}");
+    assert!(seen.iter().any(|l| l.contains("RUN FAILED: the plant stopped the robot")), "{seen:#?}");
     let lat = json(&d.join("latency.json"));
     println!(
         "misses {} (longest run {}), held {}, stopped {}, stops {}",
@@ -391,10 +415,17 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
         lat["stopped_periods"],
         lat["stop_events"]
     );
-    assert!(lat["max_consecutive_misses"].as_u64().unwrap() >= 100, "{lat:#}");
+    // The plant's own measure of the stop: the longest gap between two commands it received
+    // (the controller was stopped for 200 ms; its last command before the stop may reach a
+    // preempted plant late). Not the count of missed periods: a plant that is itself
+    // preempted on a loaded machine skips the releases it fell behind (counted apart), so
+    // how many of the 200 periods it ran depends on the machine.
+    let gap = lat["longest_command_gap_ns"].as_u64().unwrap();
+    assert!((150_000_000..2_000_000_000).contains(&gap), "{lat:#}");
+    assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");
-    assert!(lat["stopped_periods"].as_u64().unwrap() >= 80, "{lat:#}");
+    assert!(lat["stopped_periods"].as_u64().unwrap() >= 1, "{lat:#}");
     assert_eq!(lat["end"], "completed");
     // In the file: a run of 20 held periods, then stopped ones, then fresh commands again.
     let statuses = csv_statuses(&d.join("timeseries.csv"));
@@ -418,7 +449,7 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
     let _g = serial();
     let d = dir("names");
     let n = name("names");
-    let mut first = Demo::start(&[
+    let mut first = Demo::start(&relaxed(&[
         "hil",
         "--duration",
         "4",
@@ -428,7 +459,7 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
         &n,
         "--out",
         d.join("first").to_str().unwrap(),
-    ]);
+    ]));
     first.plant_pid();
     std::thread::sleep(Duration::from_millis(500));
     let (st, _, err) = run(&[
@@ -449,7 +480,7 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
     assert_eq!(st.code(), Some(5), "{err}");
     // Another name runs beside it.
     let other = name("names-other");
-    let (st, out, err) = run(&[
+    let (st, out, err) = run(&relaxed(&[
         "hil",
         "--duration",
         "1",
@@ -458,7 +489,7 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
         &other,
         "--out",
         d.join("other").to_str().unwrap(),
-    ]);
+    ]));
     assert!(st.success(), "{out}\n{err}");
     let (st, seen) = first.wait(Duration::from_secs(30));
     assert!(st.success(), "{seen:#?}");
@@ -469,14 +500,25 @@ fn plant_and_control_run_as_two_commands() {
     let _g = serial();
     let d = dir("two");
     let n = name("two");
-    let plant =
-        companion(&["plant", "--duration", "1", "--no-plots", "--name", &n, "--out", d.to_str().unwrap()])
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-    let control =
-        companion(&["control", "--name", &n]).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    let plant = companion(&relaxed(&[
+        "plant",
+        "--duration",
+        "1",
+        "--no-plots",
+        "--name",
+        &n,
+        "--out",
+        d.to_str().unwrap(),
+    ]))
+    .stdout(Stdio::piped())
+    .stderr(Stdio::piped())
+    .spawn()
+    .unwrap();
+    let control = companion(&relaxed(&["control", "--name", &n]))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
     let p = plant.wait_with_output().unwrap();
     let c = control.wait_with_output().unwrap();
     assert!(p.status.success(), "{}", String::from_utf8_lossy(&p.stderr));
@@ -484,4 +526,48 @@ fn plant_and_control_run_as_two_commands() {
     let lat = json(&d.join("latency.json"));
     assert_eq!(lat["cycles"], 1001);
     assert!(String::from_utf8_lossy(&c.stderr).contains("answered"));
+}
+
+#[test]
+fn a_signal_to_either_process_alone_ends_the_run_with_130_and_its_files() {
+    let _g = serial();
+    // SIGTERM to the `hil` process (the controller), as a supervisor sends it; SIGINT to the
+    // plant alone.
+    for (tag, sig, to_plant) in [("term-hil", "TERM", false), ("int-plant", "INT", true)] {
+        let d = dir(tag);
+        let n = name(tag);
+        let mut demo = Demo::start(&relaxed(&[
+            "hil",
+            "--duration",
+            "20",
+            "--log-every",
+            "1",
+            "--no-plots",
+            "--quiet",
+            "--name",
+            &n,
+            "--out",
+            d.to_str().unwrap(),
+        ]));
+        let plant = demo.plant_pid();
+        std::thread::sleep(Duration::from_millis(1000));
+        signal(if to_plant { plant } else { demo.child.id() }, sig);
+        let (st, seen) = demo.wait(Duration::from_secs(20));
+        assert_eq!(st.code(), Some(130), "{tag}: {seen:#?}");
+        let end = Instant::now() + Duration::from_secs(5);
+        while alive(plant) {
+            assert!(Instant::now() < end, "{tag}: the plant is still running");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        // The files of the part that ran are written and agree with each other.
+        let lat = json(&d.join("latency.json"));
+        let reason = lat["end"].as_str().unwrap();
+        assert!(reason.starts_with("interrupted at cycle"), "{tag}: {reason}");
+        let cycle: usize = reason.rsplit(' ').next().unwrap().parse().unwrap();
+        assert!((100..20_000).contains(&cycle), "{tag}: {reason}");
+        let statuses = csv_statuses(&d.join("timeseries.csv"));
+        assert!(statuses.len().abs_diff(cycle) <= 1, "{tag}: {} rows, {reason}", statuses.len());
+        let summary = json(&d.join("summary.json"));
+        assert_eq!(summary["ended_early"], true, "{tag}: {summary:#}");
+    }
 }
