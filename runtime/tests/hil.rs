@@ -571,3 +571,49 @@ fn a_signal_to_either_process_alone_ends_the_run_with_130_and_its_files() {
         assert_eq!(summary["ended_early"], true, "{tag}: {summary:#}");
     }
 }
+
+#[test]
+fn two_demos_with_one_name_started_at_once_never_cross() {
+    let _g = serial();
+    let d = dir("same-moment");
+    let n = name("same-moment");
+    for i in 0..5 {
+        let outs = [d.join(format!("{i}a")), d.join(format!("{i}b"))];
+        let children: Vec<_> = outs
+            .iter()
+            .map(|o| {
+                companion(&relaxed(&[
+                    "hil",
+                    "--duration",
+                    "1",
+                    "--no-plots",
+                    "--quiet",
+                    "--name",
+                    &n,
+                    "--out",
+                    o.to_str().unwrap(),
+                ]))
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+            })
+            .collect();
+        let ends: Vec<_> = children.into_iter().map(|c| c.wait_with_output().unwrap()).collect();
+        let codes: Vec<_> = ends.iter().map(|e| e.status.code()).collect();
+        let errs: Vec<_> = ends.iter().map(|e| String::from_utf8_lossy(&e.stderr).into_owned()).collect();
+        // One runs to the end with its own plant; the other is refused at once and writes
+        // nothing. (Or, if the first was done before the second looked, both ran in turn.)
+        let ran: Vec<usize> = (0..2).filter(|&k| codes[k] == Some(0)).collect();
+        let refused: Vec<usize> = (0..2).filter(|&k| codes[k] == Some(5)).collect();
+        assert_eq!(ran.len() + refused.len(), 2, "try {i}: {codes:?}\n{errs:#?}");
+        assert!(!ran.is_empty(), "try {i}: {codes:?}\n{errs:#?}");
+        for &k in &ran {
+            assert_eq!(json(&outs[k].join("latency.json"))["cycles"], 1001, "try {i}");
+        }
+        for &k in &refused {
+            assert!(errs[k].contains("is already running"), "try {i}: {}", errs[k]);
+            assert!(!outs[k].exists(), "try {i}: the refused demo left {}", outs[k].display());
+        }
+    }
+}
