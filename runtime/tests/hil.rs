@@ -14,11 +14,9 @@ use std::time::{Duration, Instant};
 
 const BIN: &str = env!("CARGO_BIN_EXE_companion");
 
-/// The hold of real-time runs that must succeed whatever the machine's load: a robot stopped
-/// because a loaded 2-CPU machine starved a process makes the run fail (exit code 7), which is
-/// not what these tests are about; they also pass `--max-miss-fraction 1`. (Runs about the
-/// hold use their own.)
-const LOADED_HOLD: &str = "500";
+/// The hold of real-time runs written out flag by flag that must succeed whatever the
+/// machine's load (with `--max-miss-fraction 1`; see [`NOT_ABOUT_REAL_TIME`]).
+const LOADED_HOLD: &str = NOT_ABOUT_REAL_TIME[3];
 
 static SERIAL: Mutex<()> = Mutex::new(());
 
@@ -45,6 +43,17 @@ fn companion(args: &[&str]) -> Command {
     c
 }
 
+/// Flags for a real-time run whose subject is not real time: on a loaded machine no missed
+/// deadline fails it (exit 7) and the robot is never stopped, so it must exit 0.
+const NOT_ABOUT_REAL_TIME: [&str; 4] = ["--max-miss-fraction", "1", "--hold-periods", "100000"];
+
+/// `args` followed by [`NOT_ABOUT_REAL_TIME`].
+fn relaxed<'a>(args: &[&'a str]) -> Vec<&'a str> {
+    let mut all = args.to_vec();
+    all.extend(NOT_ABOUT_REAL_TIME);
+    all
+}
+
 fn run(args: &[&str]) -> (ExitStatus, String, String) {
     let out = companion(args).output().unwrap();
     (out.status, String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
@@ -62,27 +71,6 @@ fn two_roles(plant: &[&str], control: &[&str]) -> ((ExitStatus, String), (ExitSt
     let c = spawn("control", control);
     let out = |o: std::process::Output| (o.status, String::from_utf8_lossy(&o.stderr).into_owned());
     (out(p.wait_with_output().unwrap()), out(c.wait_with_output().unwrap()))
-}
-
-/// A one-second real-time demo named `n` runs and succeeds; its output folder.
-fn a_short_run_succeeds(n: &str, tag: &str) -> PathBuf {
-    let d = dir(tag);
-    let (st, out, err) = run(&[
-        "hil",
-        "--duration",
-        "1",
-        "--no-plots",
-        "--hold-periods",
-        LOADED_HOLD,
-        "--max-miss-fraction",
-        "1",
-        "--name",
-        n,
-        "--out",
-        d.to_str().unwrap(),
-    ]);
-    assert!(st.success(), "{out}\n{err}");
-    d
 }
 
 fn json(path: &Path) -> serde_json::Value {
@@ -279,21 +267,24 @@ fn malformed_commands_are_counted_and_dropped_never_applied() {
         "--duration",
         "1",
         "--no-plots",
-        "--hold-periods",
-        LOADED_HOLD,
-        "--max-miss-fraction",
-        "1",
         "--name",
         &n,
         "--out",
         rd.to_str().unwrap(),
         "--inject",
         "version@100,nan@200,seq@300,session@400",
+        "--max-miss-fraction",
+        "1",
     ]);
-    // (A machine so loaded that the plant itself misses its releases for half a second stops
-    // the robot, and the run says so with exit code 6; the counts below hold either way.)
-    assert!(st.success() || st.code() == Some(7), "{out}\n{err}");
     let lat = json(&rd.join("latency.json"));
+    // Real time is not this test's subject: on a loaded machine the plant may stop the robot,
+    // and then (only then) the run is a failure of real time, exit 7.
+    let stops = lat["stop_events"].as_u64().unwrap();
+    assert!(
+        st.code() == Some(0)
+            || (st.code() == Some(7) && stops > 0 && err.contains("the plant stopped the robot")),
+        "{st:?}, {stops} stops\n{out}\n{err}"
+    );
     // The wrong version, session and future sequence number are recognised whenever they
     // arrive. The NaN command carries its period's sequence number: on a loaded machine it can
     // arrive after that period, and is then counted (and dropped) as late, before its values
@@ -363,7 +354,10 @@ fn killed_plant_is_noticed_quickly_data_is_kept_and_the_next_run_succeeds() {
     assert_eq!(fault["plant_exit"], "killed by signal 9");
     assert_eq!(fault["rows_on_disk"].as_u64(), Some(statuses.len() as u64));
     // No residue: the same name runs again at once.
-    let d2 = a_short_run_succeeds(&n, "kill-plant-again");
+    let d2 = dir("kill-plant-again");
+    let (st, out, err) =
+        run(&relaxed(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]));
+    assert!(st.success(), "{out}\n{err}");
     assert!(d2.join("latency.json").exists());
 }
 
@@ -407,11 +401,13 @@ fn killed_controller_makes_the_plant_stop_the_robot_and_exit_cleanly() {
     let tail = &statuses[last_ok + 1..];
     let held = tail.iter().take_while(|s| *s == "held").count();
     assert!(held <= 5, "{tail:?}");
-    // Then stopped to the end. (A plant that stalled under load may find the controller dead
-    // before its hold ran out: the run then ends with the robot stopped, which the reason says.)
+    // (The plant may notice the death before the hold runs out: then the stop is the run's end.)
     assert!(tail[held..].iter().all(|s| s == "stopped"), "{tail:?}");
     // The next run succeeds.
-    a_short_run_succeeds(&n, "kill-controller-again");
+    let d2 = dir("kill-controller-again");
+    let (st, out, err) =
+        run(&relaxed(&["hil", "--duration", "1", "--no-plots", "--name", &n, "--out", d2.to_str().unwrap()]));
+    assert!(st.success(), "{out}\n{err}");
 }
 
 #[test]
@@ -441,9 +437,10 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     std::thread::sleep(Duration::from_millis(200));
     signal(controller, "CONT");
     let (st, seen) = demo.wait(Duration::from_secs(30));
-    // The run reached its end, but the robot was stopped on the way: not a success.
+    // The files are complete, but a run in which the robot had to be stopped is a failure of
+    // real time: exit 7, and the plant says why.
     assert_eq!(st.code(), Some(7), "{seen:#?}");
-    assert!(seen.iter().any(|l| l.contains("the plant stopped the robot")), "{seen:#?}");
+    assert!(seen.iter().any(|l| l.contains("RUN FAILED: the plant stopped the robot")), "{seen:#?}");
     let lat = json(&d.join("latency.json"));
     println!(
         "misses {} (longest run {}), held {}, stopped {}, stops {}",
@@ -453,10 +450,13 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
         lat["stopped_periods"],
         lat["stop_events"]
     );
-    // The 200 ms without commands, measured on the plant's clock. (Counted in periods it is
-    // ~200 misses on an idle machine, fewer on a loaded one: a plant that was itself not
-    // scheduled skips the releases it missed instead of replaying them.)
-    assert!(lat["longest_command_gap_ns"].as_u64().unwrap() >= 150_000_000, "{lat:#}");
+    // The plant's own measure of the stop: the longest gap between two commands it received
+    // (the controller was stopped for 200 ms; its last command before the stop may reach a
+    // preempted plant late). Not the count of missed periods: a plant that is itself
+    // preempted on a loaded machine skips the releases it fell behind (counted apart), so
+    // how many of the 200 periods it ran depends on the machine.
+    let gap = lat["longest_command_gap_ns"].as_u64().unwrap();
+    assert!((150_000_000..2_000_000_000).contains(&gap), "{lat:#}");
     assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");
@@ -484,24 +484,19 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
     let _g = serial();
     let d = dir("names");
     let n = name("names");
-    // Two demos at once on two CPUs: they sleep between messages (hybrid) rather than spin.
-    let mut first = Demo::start(&[
+    let mut first = Demo::start(&relaxed(&[
         "hil",
         "--duration",
         "4",
         "--wait",
         "hybrid",
-        "--hold-periods",
-        LOADED_HOLD,
-        "--max-miss-fraction",
-        "1",
         "--no-plots",
         "--quiet",
         "--name",
         &n,
         "--out",
         d.join("first").to_str().unwrap(),
-    ]);
+    ]));
     first.plant_pid();
     std::thread::sleep(Duration::from_millis(500));
     let (st, _, err) = run(&[
@@ -522,22 +517,18 @@ fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
     assert_eq!(st.code(), Some(5), "{err}");
     // Another name runs beside it.
     let other = name("names-other");
-    let (st, out, err) = run(&[
+    let (st, out, err) = run(&relaxed(&[
         "hil",
         "--duration",
         "1",
         "--no-plots",
         "--wait",
         "hybrid",
-        "--hold-periods",
-        LOADED_HOLD,
-        "--max-miss-fraction",
-        "1",
         "--name",
         &other,
         "--out",
         d.join("other").to_str().unwrap(),
-    ]);
+    ]));
     assert!(st.success(), "{out}\n{err}");
     let (st, seen) = first.wait(Duration::from_secs(30));
     // (Starved by the runs beside it on a loaded machine, the first demo may have stopped its
@@ -632,4 +623,94 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
     // The plant's files say so too.
     let lat = json(&d.join("latency.json"));
     assert!(lat["end"].as_str().unwrap().contains("scenario mismatch"), "{lat:#}");
+}
+
+#[test]
+fn a_signal_to_either_process_alone_ends_the_run_with_130_and_its_files() {
+    let _g = serial();
+    // SIGTERM to the `hil` process (the controller), as a supervisor sends it; SIGINT to the
+    // plant alone.
+    for (tag, sig, to_plant) in [("term-hil", "TERM", false), ("int-plant", "INT", true)] {
+        let d = dir(tag);
+        let n = name(tag);
+        let mut demo = Demo::start(&relaxed(&[
+            "hil",
+            "--duration",
+            "20",
+            "--log-every",
+            "1",
+            "--no-plots",
+            "--quiet",
+            "--name",
+            &n,
+            "--out",
+            d.to_str().unwrap(),
+        ]));
+        let plant = demo.plant_pid();
+        std::thread::sleep(Duration::from_millis(1000));
+        signal(if to_plant { plant } else { demo.child.id() }, sig);
+        let (st, seen) = demo.wait(Duration::from_secs(20));
+        assert_eq!(st.code(), Some(130), "{tag}: {seen:#?}");
+        let end = Instant::now() + Duration::from_secs(5);
+        while alive(plant) {
+            assert!(Instant::now() < end, "{tag}: the plant is still running");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        // The files of the part that ran are written and agree with each other.
+        let lat = json(&d.join("latency.json"));
+        let reason = lat["end"].as_str().unwrap();
+        assert!(reason.starts_with("interrupted at cycle"), "{tag}: {reason}");
+        let cycle: usize = reason.rsplit(' ').next().unwrap().parse().unwrap();
+        assert!((100..20_000).contains(&cycle), "{tag}: {reason}");
+        let statuses = csv_statuses(&d.join("timeseries.csv"));
+        assert!(statuses.len().abs_diff(cycle) <= 1, "{tag}: {} rows, {reason}", statuses.len());
+        let summary = json(&d.join("summary.json"));
+        assert_eq!(summary["ended_early"], true, "{tag}: {summary:#}");
+    }
+}
+
+#[test]
+fn two_demos_with_one_name_started_at_once_never_cross() {
+    let _g = serial();
+    let d = dir("same-moment");
+    let n = name("same-moment");
+    for i in 0..5 {
+        let outs = [d.join(format!("{i}a")), d.join(format!("{i}b"))];
+        let children: Vec<_> = outs
+            .iter()
+            .map(|o| {
+                companion(&relaxed(&[
+                    "hil",
+                    "--duration",
+                    "1",
+                    "--no-plots",
+                    "--quiet",
+                    "--name",
+                    &n,
+                    "--out",
+                    o.to_str().unwrap(),
+                ]))
+                .stdout(Stdio::null())
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+            })
+            .collect();
+        let ends: Vec<_> = children.into_iter().map(|c| c.wait_with_output().unwrap()).collect();
+        let codes: Vec<_> = ends.iter().map(|e| e.status.code()).collect();
+        let errs: Vec<_> = ends.iter().map(|e| String::from_utf8_lossy(&e.stderr).into_owned()).collect();
+        // One runs to the end with its own plant; the other is refused at once and writes
+        // nothing. (Or, if the first was done before the second looked, both ran in turn.)
+        let ran: Vec<usize> = (0..2).filter(|&k| codes[k] == Some(0)).collect();
+        let refused: Vec<usize> = (0..2).filter(|&k| codes[k] == Some(5)).collect();
+        assert_eq!(ran.len() + refused.len(), 2, "try {i}: {codes:?}\n{errs:#?}");
+        assert!(!ran.is_empty(), "try {i}: {codes:?}\n{errs:#?}");
+        for &k in &ran {
+            assert_eq!(json(&outs[k].join("latency.json"))["cycles"], 1001, "try {i}");
+        }
+        for &k in &refused {
+            assert!(errs[k].contains("is already running"), "try {i}: {}", errs[k]);
+            assert!(!outs[k].exists(), "try {i}: the refused demo left {}", outs[k].display());
+        }
+    }
 }

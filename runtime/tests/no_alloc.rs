@@ -252,8 +252,8 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
          in the controller (not ours)",
         link.transport
     );
-    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!(plant_end, companion_runtime::hil::PlantEnd::Completed);
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!(cycles, steps + 1);
     assert!(stats.answered > steps / 2, "{} answers", stats.answered);
     assert_eq!(n_plant, 0, "the plant's loop allocated {n_plant} times in {cycles} periods");

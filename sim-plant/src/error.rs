@@ -17,6 +17,10 @@ pub enum Rule {
     NotAboveMinusOne,
     /// The initial steering state must lie within the steering limit.
     BeyondSteeringLimit,
+    /// The actuator lag must be at least [`MIN_ACTUATOR_LAG`](crate::MIN_ACTUATOR_LAG): a
+    /// step longer than the lag is integrated in sub-steps no longer than it, so a lag of
+    /// 1e-300 s would never finish a step.
+    BelowMinimumLag,
 }
 
 impl core::fmt::Display for Rule {
@@ -27,6 +31,7 @@ impl core::fmt::Display for Rule {
             Rule::Negative => "must be >= 0",
             Rule::NotAboveMinusOne => "must be > -1",
             Rule::BeyondSteeringLimit => "must lie within the steering limit",
+            Rule::BelowMinimumLag => "must be >= 1e-4 s",
         })
     }
 }
@@ -35,7 +40,7 @@ impl core::fmt::Display for Rule {
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 pub enum PlantError {
     /// A plant parameter or initial value breaks a rule.
-    #[error("plant parameter `{param}` {rule} (got {value})")]
+    #[error("plant parameter `{param}` {rule} (got {})", Shown(*value))]
     Invalid {
         /// The parameter, e.g. `"actuator_lag"` or `"initial.joints"`.
         param: &'static str,
@@ -47,6 +52,21 @@ pub enum PlantError {
     /// The arm's geometry is invalid.
     #[error("arm: {0}")]
     Arm(ParamError),
+}
+
+/// A value in a message: as usual when of a readable size, in scientific notation when not
+/// (`1e-300`, not 300 digits).
+struct Shown(f64);
+
+impl core::fmt::Display for Shown {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        let a = self.0.abs();
+        if a == 0.0 || !a.is_finite() || (1e-4..1e9).contains(&a) {
+            write!(f, "{}", self.0)
+        } else {
+            write!(f, "{:e}", self.0)
+        }
+    }
 }
 
 impl PlantError {

@@ -3,6 +3,12 @@
 
 use crate::error::{PlantError, Rule};
 
+/// The shortest actuator lag admitted (s). RK4 integrates a step longer than the lag in
+/// sub-steps no longer than it, so the work per step grows as `dt / τ`; 0.1 ms is far below
+/// any real drive's lag and keeps a step of the longest admitted period (1 s) under 10⁴
+/// sub-steps.
+pub const MIN_ACTUATOR_LAG: f64 = 1e-4;
+
 /// Gaussian measurement noise: one standard deviation per kind of quantity. Applied by
 /// [`Plant::measure`](crate::Plant::measure) to what the controller sees, never to the
 /// true state.
@@ -104,6 +110,13 @@ impl Imperfections {
                 return Err(PlantError::Invalid {
                     param: "actuator_lag",
                     rule: Rule::NotPositive,
+                    value: tau,
+                });
+            }
+            if tau < MIN_ACTUATOR_LAG {
+                return Err(PlantError::Invalid {
+                    param: "actuator_lag",
+                    rule: Rule::BelowMinimumLag,
                     value: tau,
                 });
             }

@@ -77,7 +77,7 @@ pub mod trajectory;
 mod tests;
 
 pub use error::{AdvanceError, PlantError, Rule};
-pub use imperfections::{Imperfections, Noise};
+pub use imperfections::{Imperfections, Noise, MIN_ACTUATOR_LAG};
 pub use initial::InitialConditions;
 pub use limits::{
     realistic_limits, realistic_steering_limit, steering_limit, REALISTIC_MAX_STEERING_ANGLE,

@@ -374,6 +374,8 @@ fn invalid_configurations_are_rejected_naming_the_parameter() {
         (lag(0.0), "actuator_lag", Rule::NotPositive),
         (lag(-0.1), "actuator_lag", Rule::NotPositive),
         (lag(f64::NAN), "actuator_lag", Rule::NonFinite),
+        (lag(1e-300), "actuator_lag", Rule::BelowMinimumLag),
+        (lag(0.99e-4), "actuator_lag", Rule::BelowMinimumLag),
         (
             base.with_imperfections(Imperfections {
                 noise: Some(Noise { angle: -1e-3, ..Noise::default() }),
@@ -419,6 +421,16 @@ fn invalid_configurations_are_rejected_naming_the_parameter() {
         Plant::new(base, Rpr { l: -0.4, l_e: 0.15 }, init, Trajectory::Paper1).map(|_| ()).expect_err("bad");
     assert!(matches!(e, PlantError::Arm(_)));
     assert!(e.to_string().contains("`l`"), "{e}");
+}
+
+#[test]
+fn a_value_in_an_error_is_written_short() {
+    let msg =
+        |value| PlantError::Invalid { param: "actuator_lag", rule: Rule::BelowMinimumLag, value }.to_string();
+    assert_eq!(msg(1e-300), "plant parameter `actuator_lag` must be >= 1e-4 s (got 1e-300)");
+    assert!(msg(-1e300).ends_with("(got -1e300)"), "{}", msg(-1e300));
+    assert!(msg(0.05).ends_with("(got 0.05)"));
+    assert!(msg(f64::NAN).ends_with("(got NaN)"));
 }
 
 // ---------------------------------------------------------------- steering limit

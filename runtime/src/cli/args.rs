@@ -108,7 +108,7 @@ pub enum LimitsArg {
 #[derive(Args, Clone, Debug)]
 pub struct ScenarioArgs {
     /// The target's motion: the paper's trajectory 1 (circle) or 2 (Table 1).
-    #[arg(long, default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2))]
+    #[arg(long, default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2), allow_hyphen_values = true)]
     pub trajectory: u8,
     /// A user-defined target motion: a TOML file of piecewise-constant body velocities
     /// (replaces --trajectory).
@@ -122,11 +122,11 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum, default_value = "unicycle")]
     pub platform: PlatformArg,
     /// The control period and integration step, in seconds.
-    #[arg(long, default_value_t = 0.001, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.001, value_name = "SECONDS", allow_hyphen_values = true)]
     pub dt: f64,
     /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil`, `plant` and
     /// `control`].
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub duration: Option<f64>,
     /// The controller's scalar type.
     #[arg(long, value_enum, default_value = "f64")]
@@ -155,28 +155,28 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum)]
     pub limits: Option<LimitsArg>,
     /// Plant imperfection: first-order actuator lag with this time constant, in seconds.
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub actuator_lag: Option<f64>,
     /// Plant imperfection: Gaussian measurement noise (σ = 1 mm, 1 mrad, 0.5 mrad on joints).
     #[arg(long)]
     pub noise: bool,
     /// Plant imperfection: the wheels turn (1 + E) times faster than commanded (E > -1; e.g.
     /// -0.05: 5 % slower).
-    #[arg(long, value_name = "E", allow_negative_numbers = true)]
+    #[arg(long, value_name = "E", allow_hyphen_values = true)]
     pub wheel_scale_error: Option<f64>,
     /// Seed of the plant's noise generator.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_hyphen_values = true)]
     pub seed: u64,
     /// Log one row of timeseries.csv every N steps (the first and last steps always).
-    #[arg(long, default_value_t = 10, value_name = "N")]
+    #[arg(long, default_value_t = 10, value_name = "N", allow_hyphen_values = true)]
     pub log_every: u64,
     /// Refuse a run whose timeseries.csv would exceed this size, in MB (estimated at 330
     /// bytes per row; the message says the size and the --log-every that fits).
-    #[arg(long, default_value_t = DEFAULT_MAX_OUTPUT_BYTES / 1_000_000, value_name = "MB")]
+    #[arg(long, default_value_t = DEFAULT_MAX_OUTPUT_BYTES / 1_000_000, value_name = "MB", allow_hyphen_values = true)]
     pub max_output_mb: u64,
     /// A run in which the law rejects more than this fraction of the steps (answering them
     /// with the safe zero command) fails, with exit code 6; 0 fails on any rejection.
-    #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRACTION", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRACTION", allow_hyphen_values = true)]
     pub max_rejected: f64,
 }
 

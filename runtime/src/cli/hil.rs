@@ -86,11 +86,11 @@ pub struct HilArgs {
     /// The scenario (give both roles the same one). `--duration` defaults to 30 s here.
     pub scenario: ScenarioArgs,
     /// Control rate in Hz (default: 1/--dt, so that simulated time runs at wall-clock speed).
-    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
+    #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
     pub rate: Option<f64>,
     /// Deadline of each command after its period's release, in microseconds (at most the
     /// period).
-    #[arg(long, default_value_t = 500, value_name = "US", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    #[arg(long, default_value_t = 500, value_name = "US", value_parser = clap::value_parser!(u64).range(1..=1_000_000), allow_hyphen_values = true)]
     pub deadline_us: u64,
     /// Lockstep: the plant waits for every command (deterministic, no deadlines; the same
     /// timeseries.csv as `companion sim`).
@@ -107,13 +107,13 @@ pub struct HilArgs {
     #[arg(long)]
     pub rt: bool,
     /// SCHED_FIFO priority with --rt.
-    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99))]
+    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99), allow_hyphen_values = true)]
     pub rt_priority: i32,
     /// The plant's CPU with --rt (default: 1 on a machine with two or more CPUs).
-    #[arg(long, value_name = "CPU")]
+    #[arg(long, value_name = "CPU", allow_hyphen_values = true)]
     pub plant_cpu: Option<usize>,
     /// The controller's CPU with --rt (default: 0).
-    #[arg(long, value_name = "CPU")]
+    #[arg(long, value_name = "CPU", allow_hyphen_values = true)]
     pub control_cpu: Option<usize>,
     /// The demo's name: its iceoryx2 services are companion/NAME/…, so demos with different
     /// names never meet; one process per role and name (a lock in /tmp/companion).
@@ -124,25 +124,25 @@ pub struct HilArgs {
     pub out: PathBuf,
     /// Periods the plant holds the last command after a miss before it stops the robot
     /// (0–100000).
-    #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000))]
+    #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000), allow_hyphen_values = true)]
     pub hold_periods: u32,
     /// A real-time run that misses more than this fraction of its deadlines fails (exit code
     /// 7, with a warning); so does one in which the robot was stopped.
-    #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_hyphen_values = true)]
     pub max_miss_fraction: f64,
     /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs,
     /// at most 1 s).
-    #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000))]
+    #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000), allow_hyphen_values = true)]
     pub spin_margin_us: u64,
     /// Silence (no message) after which a process checks whether its peer is alive (ms,
     /// 1–60000).
-    #[arg(long, default_value_t = 20, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
+    #[arg(long, default_value_t = 20, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000), allow_hyphen_values = true)]
     pub silence_ms: u64,
     /// Give up when the peer is alive but silent for this long (s, at most 3600).
-    #[arg(long, default_value_t = 2.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub peer_timeout: f64,
     /// How long to wait for the peer to join at start (s, at most 86400).
-    #[arg(long, default_value_t = 20.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 20.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub startup_timeout: f64,
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
@@ -165,7 +165,7 @@ pub struct HilArgs {
     /// --hold-periods/2 periods (one every 2 s) — and check that the counts in latency.json
     /// match what was injected (chaos.json; exit code 8 if not). `companion hil` only; at
     /// least 5 s.
-    #[arg(long, value_name = "SEED")]
+    #[arg(long, value_name = "SEED", allow_hyphen_values = true)]
     pub chaos: Option<u64>,
     /// Set by `companion hil --chaos` on the plant it starts: the time the faults count from.
     #[arg(long, hide = true)]

@@ -15,10 +15,10 @@ use super::terminal::Terminal;
 #[derive(Args, Clone, Debug)]
 pub struct LatencyArgs {
     /// Samples per measurement (HIL: cycles at 1 kHz, so 100000 takes 100 s per wait mode).
-    #[arg(long, default_value_t = 20_000, value_name = "N")]
+    #[arg(long, default_value_t = 20_000, value_name = "N", allow_hyphen_values = true)]
     pub cycles: u64,
     /// Unrecorded warm-up iterations before each ping-pong and step measurement.
-    #[arg(long, default_value_t = 1_000, value_name = "N")]
+    #[arg(long, default_value_t = 1_000, value_name = "N", allow_hyphen_values = true)]
     pub warmup: u64,
     /// Output folder (created if missing).
     #[arg(long, default_value = "out/latency", value_name = "DIR")]
@@ -103,7 +103,7 @@ pub struct PeerArgs {
     #[arg(long)]
     pub socket_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub rt_cpu: Option<usize>,
 }
 

@@ -35,7 +35,7 @@ pub struct SimArgs {
     /// (compute and transport; a bridge over a network adds 0.1–5 ms), in seconds: from 0 to
     /// 8 periods (and at most the law's max_delay, 50 ms). The controller is told it and
     /// predicts over it.
-    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub delay: f64,
     /// With --delay: do not tell the controller (to see what the delay does uncompensated).
     #[arg(long)]
