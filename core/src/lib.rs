@@ -63,6 +63,7 @@ pub mod error;
 mod fastmath;
 mod hold;
 pub mod law;
+pub mod lie;
 pub mod measurement;
 pub mod params;
 pub mod platform;
@@ -70,13 +71,16 @@ mod platform_law;
 pub mod primary;
 pub mod scalar;
 pub mod se2;
+pub mod se3;
 pub mod secondary;
+pub mod so3;
 pub mod state;
 
 pub use arm::{Arm, ArmKinematics, Rpr};
 pub use command::{Command, Diagnostics, Output, Rejected};
 pub use error::{Bound, Field, ParamError, Rule, StepError};
 pub use law::{ControlLaw, Controller};
+pub use lie::LieGroup;
 pub use measurement::Measurement;
 pub use params::{
     Discretisation, JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask,
@@ -88,6 +92,7 @@ pub use platform::{
 };
 pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
+pub use se3::Pose3;
 pub use state::{Sent, State, HISTORY};
 
 pub use nalgebra;

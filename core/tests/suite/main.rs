@@ -6,6 +6,7 @@
 //!
 //! | module | what it checks |
 //! |---|---|
+//! | [`lie`] | one conformance suite for SE(2) and SE(3): group law, `exp`/`log`, `Ad`, every Jacobian by differences, every small-angle branch |
 //! | [`se2`] | group axioms, `d_γ` (2), `Ad` (5), velocities (3), (4), (6)–(9) by differences |
 //! | [`transverse`] | Lemma 1's determinant, Lemma 2's transversality, `H̄(α)` (13)–(15), (57)–(60), `∂ξ_f/∂α`, (59) |
 //! | [`derivatives`] | every analytic derivative of the arm, `e_p`, `e_m`, `h_s1`, `h_s2`, `h_s` by differences |
@@ -28,6 +29,7 @@ mod closed_loop;
 mod derivatives;
 mod hold;
 mod joint_guard;
+mod lie;
 mod params;
 mod platform_law;
 mod precision;
