@@ -74,7 +74,9 @@ pub mod se2;
 pub mod se3;
 pub mod secondary;
 pub mod so3;
+pub mod space;
 pub mod state;
+pub mod task;
 
 pub use arm::{Arm, ArmKinematics, Rpr};
 pub use command::{Command, Diagnostics, Output, Rejected};
@@ -93,6 +95,8 @@ pub use platform::{
 pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
 pub use se3::Pose3;
+pub use space::{Planar, Space, Spatial};
 pub use state::{Sent, State, HISTORY};
+pub use task::Manipulator;
 
 pub use nalgebra;

@@ -42,12 +42,12 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::arm::Arm;
 use crate::params::{Discretisation, Precompensation, RestFilter};
 use crate::platform::{CompanionFrame, Platform, PlatformKind};
 use crate::scalar::Real;
 use crate::se2::{inverse3, PoseSc};
 use crate::secondary::{tracking_cost_sc, RestCost};
+use crate::task::Manipulator;
 use crate::ControlLaw;
 
 /// Where the platform law is evaluated.
@@ -113,7 +113,7 @@ pub(crate) struct PlatformStep<T> {
 /// The largest saturation factor reported (the platform stopped).
 const STOPPED: f64 = 3.0e38;
 
-impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
     /// (37) at `pt`, corrected over the hold, mapped to the platform's inputs and saturated.
     #[inline(always)]
     pub(crate) fn platform_step(&self, pt: &PlatformPoint<'_, T>, hold: &Hold<T>) -> PlatformStep<T> {
@@ -316,7 +316,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     }
 }
 
-impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
     /// `w = H̄(α)⁻¹ ū` with `α` advanced linearly implicitly over the hold: `H̄⁻¹` was taken
     /// at `α_e` (predicted with the guess `α̇_g`); at `α + θh α̇`,
     /// `w ≈ w_e + c (θh α̇ − h/2 α̇_g)`, `c = ∂(H̄⁻¹ū)/∂α = −H̄⁻¹ (∂H̄/∂α) w_e`, solved for `α̇`
