@@ -39,6 +39,9 @@ pub enum Rule {
     TooFewJoints,
     /// A joint's home position is not strictly inside its limits.
     HomeOutsideLimits,
+    /// A planar arm's joints must turn about the vertical and slide in the plane, and its
+    /// fixed frames must be rotations about the vertical at height 0.
+    NotPlanar,
     /// `max_time_step` is longer than the period bound derived from the law's rates:
     /// `max_time_step · r_max ≤ 0.1`, with `r_max` the largest of the arm gains `gᵢ`, the
     /// filter rates `σ/ξ` of (26) and `σᵢ/ξ` of (28), and `λ/ξ` of (53)–(54)
@@ -116,6 +119,9 @@ impl fmt::Display for Rule {
             Rule::NotUnitVector => "must be a unit vector",
             Rule::TooFewJoints => "the arm has fewer joints than the task has dimensions (3 planar, 6 spatial)",
             Rule::HomeOutsideLimits => "home position must lie strictly inside the joint limits",
+            Rule::NotPlanar => {
+                "a planar arm's joints must turn about the vertical (axis (0, 0, +-1)) or slide in the plane (axis z = 0), its frames be rotations about z"
+            }
             Rule::TooLarge(b) => return write!(f, "must be <= {:e}", b.value()),
             Rule::PeriodTooLong => {
                 "max_time_step times the law's largest rate (the gains, sigma/xi of the filters, lambda/xi) must be <= 0.1"

@@ -58,6 +58,7 @@ extern crate std;
 
 pub mod arm;
 mod arm_law;
+pub mod chain;
 pub mod command;
 pub mod error;
 mod fastmath;
@@ -78,7 +79,8 @@ pub mod space;
 pub mod state;
 pub mod task;
 
-pub use arm::{Arm, ArmKinematics, Rpr};
+pub use arm::{Arm, ArmKinematics, PlanarArm, Rpr};
+pub use chain::{Chain, DhConvention, DhJoint, FrameData, Joint, JointData, JointKind};
 pub use command::{Command, Diagnostics, Output, Rejected};
 pub use error::{Bound, Field, ParamError, Rule, StepError};
 pub use law::{ControlLaw, Controller};

@@ -228,7 +228,13 @@ fn every_rule_is_exercised() {
     seen.push(Rule::Geometry); // below
     seen.push(Rule::TooLarge(Bound::TransverseSize)); // below
                                                       // In arms.rs (arm descriptions) and spatial.rs (r*_ed in space).
-    seen.extend([Rule::NotOrthonormal, Rule::NotUnitVector, Rule::TooFewJoints, Rule::HomeOutsideLimits]);
+    seen.extend([
+        Rule::NotOrthonormal,
+        Rule::NotUnitVector,
+        Rule::TooFewJoints,
+        Rule::HomeOutsideLimits,
+        Rule::NotPlanar,
+    ]);
     for rule in [
         Rule::NonFinite,
         Rule::NotPositive,
@@ -249,6 +255,7 @@ fn every_rule_is_exercised() {
         Rule::NotUnitVector,
         Rule::TooFewJoints,
         Rule::HomeOutsideLimits,
+        Rule::NotPlanar,
     ] {
         assert!(seen.contains(&rule), "{rule:?} has no case");
         // Exhaustiveness: this match fails to compile when a rule is added.
@@ -268,7 +275,8 @@ fn every_rule_is_exercised() {
             | Rule::NotOrthonormal
             | Rule::NotUnitVector
             | Rule::TooFewJoints
-            | Rule::HomeOutsideLimits => {}
+            | Rule::HomeOutsideLimits
+            | Rule::NotPlanar => {}
         }
         assert!(!format!("{rule}").is_empty());
     }
