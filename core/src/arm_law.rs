@@ -42,7 +42,9 @@
 //! is smooth in `q` rather than switched by the direction of motion), and `W⁻¹∇h_ℓ` is a
 //! damped Newton step on the barrier — near a limit `≈ (b/3)` with `b` the distance to it —
 //! so the null-space motion has rate at most `k_n` however steep the penalty, and a held
-//! command cannot overshoot a limit through it.
+//! command cannot overshoot a limit through it. Near singular configurations the caller may
+//! add `λ² I` to the matrix it inverts (`∂e_m/∂q`, or `S = A W⁻¹ Aᵀ`): the damped,
+//! singularity-robust solution ([`crate::spatial`] says when); the planar arm never does.
 //!
 //! **The joint guard.** In continuous time the penalty (20)–(21) keeps the joints inside
 //! their limits; a held command can still step over one when `u_q` is very large. The guard
@@ -103,8 +105,16 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
     a: &SMatrix<T, N, N>,
     rhs: &SVector<T, N>,
     drhs: &SMatrix<T, N, 3>,
+    damping: T,
     half: T,
 ) -> Result<(SVector<T, N>, SMatrix<T, N, 3>, T), StepError> {
+    let damped;
+    let a = if damping > T::zero() {
+        damped = a + SMatrix::<T, N, N>::identity() * damping;
+        &damped
+    } else {
+        a
+    };
     let inv = a.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
     let u_q = inv * rhs;
     // Only the hold-aware discretisation guesses with it.
@@ -115,7 +125,6 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
 
 /// The redundant solution of the module docs: `u_q = A_W⁺ v + (I − A_W⁺ A) z` with
 /// `W = diag(w)`, its sensitivity `A_W⁺ ∂v/∂u_b`, and the condition number of `A W⁻¹ Aᵀ`.
-#[allow(dead_code)] // Until the spatial arms use it.
 #[inline(always)]
 pub(crate) fn solve_redundant<T: Real, const M: usize, const N: usize>(
     a: &SMatrix<T, M, N>,
@@ -123,12 +132,19 @@ pub(crate) fn solve_redundant<T: Real, const M: usize, const N: usize>(
     z: &SVector<T, N>,
     rhs: &SVector<T, M>,
     drhs: &SMatrix<T, M, 3>,
+    damping: impl FnOnce(&SMatrix<T, M, M>) -> T,
     half: T,
 ) -> Result<(SVector<T, N>, SMatrix<T, N, 3>, T), StepError> {
     let w_inv = w.map(|x| T::one() / x);
-    // B = W⁻¹ Aᵀ (N×M), S = A B.
+    // B = W⁻¹ Aᵀ (N×M), S = A B (+ λ² I).
     let b = SMatrix::<T, N, M>::from_fn(|i, j| a[(j, i)] * w_inv[i]);
-    let s = a * b;
+    let mut s = a * b;
+    let lambda2 = damping(&s);
+    if lambda2 > T::zero() {
+        for i in 0..M {
+            s[(i, i)] += lambda2;
+        }
+    }
     let s_inv = s.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
     let pinv = b * s_inv;
     // (I − A⁺A) z = z − A⁺ (A z).

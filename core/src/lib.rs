@@ -76,6 +76,7 @@ pub mod se3;
 pub mod secondary;
 pub mod so3;
 pub mod space;
+pub mod spatial;
 pub mod state;
 pub mod task;
 
@@ -98,6 +99,7 @@ pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
 pub use se3::Pose3;
 pub use space::{Planar, Space, Spatial};
+pub use spatial::{SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms};
 pub use state::{Sent, State, HISTORY};
 pub use task::Manipulator;
 

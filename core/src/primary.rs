@@ -83,13 +83,14 @@ pub fn filter_rate<T: Real, const N: usize>(
     d * (-sigma / (xi + n))
 }
 
-/// The arguments of the primary task at one point.
+/// The arguments of the primary task at one point (`R`: the pose type of `r_bd`, planar by
+/// default; [`SpatialPoint`](crate::SpatialPoint) in space).
 #[derive(Clone, Copy, Debug)]
-pub struct PrimaryPoint<'a, T, const N: usize> {
+pub struct PrimaryPoint<'a, T, const N: usize, R = Pose<T>> {
     /// Joint positions `q`.
     pub q: &'a SVector<T, N>,
     /// The target's pose seen from the base, `r_bd`.
-    pub r_bd: &'a Pose<T>,
+    pub r_bd: &'a R,
     /// `Γ` of (22) (the scalar of `Γ I`).
     pub gamma: T,
     /// `Γ̇`.
@@ -263,7 +264,7 @@ impl<T: Real, A: Arm<T, N>, const N: usize> Manipulator<T, N> for A {
             drhs,
         };
         let (rhs, drhs) = implicit_rhs(&lin, &task.gain, pt.guess, half);
-        let (u_q, sensitivity, condition) = solve_square(&prim.de_m_dq, &rhs, &drhs, half)?;
+        let (u_q, sensitivity, condition) = solve_square(&prim.de_m_dq, &rhs, &drhs, T::zero(), half)?;
         Ok(TaskStep { u_q, sensitivity, condition, e_p: prim.e_p, e_m: prim.e_m, h_l: prim.h_l })
     }
 }
