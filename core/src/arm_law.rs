@@ -55,6 +55,7 @@
 use nalgebra::{SMatrix, SVector};
 
 use crate::error::StepError;
+use crate::linalg;
 use crate::platform::Platform;
 use crate::scalar::Real;
 use crate::task::{Manipulator, TaskPoint, TaskStep};
@@ -115,7 +116,7 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
     } else {
         a
     };
-    let inv = a.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
+    let inv = linalg::inverse(a).ok_or(StepError::SingularTaskJacobian)?;
     let u_q = inv * rhs;
     // Only the hold-aware discretisation guesses with it.
     let sensitivity = if half > T::zero() { inv * drhs } else { SMatrix::zeros() };
@@ -145,7 +146,7 @@ pub(crate) fn solve_redundant<T: Real, const M: usize, const N: usize>(
             s[(i, i)] += lambda2;
         }
     }
-    let s_inv = s.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
+    let s_inv = linalg::inverse(&s).ok_or(StepError::SingularTaskJacobian)?;
     let pinv = b * s_inv;
     // (I − A⁺A) z = z − A⁺ (A z).
     let u_q = pinv * (rhs - a * z) + z;

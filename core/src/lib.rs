@@ -65,6 +65,7 @@ mod fastmath;
 mod hold;
 pub mod law;
 pub mod lie;
+mod linalg;
 pub mod measurement;
 pub mod params;
 pub mod platform;

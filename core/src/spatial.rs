@@ -59,19 +59,26 @@
 //! along directions the arm can hardly produce is given up rather than demanded at
 //! unbounded speed — which is what happens while a target is out of reach (far, or beyond
 //! a joint limit: a joint deep in its band weighs `wᵢ ≫ 1`, which takes its column out of
-//! `S`). `ρ` is the ratio below for six joints, and `S`'s own `det S/∏ Sᵢᵢ` for more (it
-//! sees the joints the weights take out). Without it, a far target drives a seven-joint
+//! `S`). `ρ` is the measure below for six joints, and for more `S`'s own (it
+//! sees the joints the weights take out; its Hadamard ratio `det S/∏ Sᵢᵢ`). Without it, a far target drives a seven-joint
 //! arm into its limits or a singular configuration within a second (measured: stuck there,
 //! every step refused, from the paper's start on the omnidirectional platform).
 //!
 //! The step is refused ([`StepError::SingularArm`]) when
-//! `ρ = det(J Jᵀ)/∏ᵢ |Jᵢ|² < ` [`SpatialArm::singular_below`] (default `10⁻¹⁰`), with
-//! `J = [Mᵀ W; Mᵀ Z]` — the arm's own Jacobian at the desired target frame, in that frame —
-//! and `Jᵢ` its rows: the Hadamard ratio, 1 for orthogonal rows, 0 when they lose rank,
-//! independent of the rows' units. Not `∂e_p/∂q` itself: its position rows carry the lever
-//! arm of the tracking error (`tᵢ = wᵢ + zᵢ × a`), which makes them nearly dependent on the
-//! rotation rows whenever the target is far, whatever the arm's posture. The measure falls
-//! as the square of the distance to a singular configuration.
+//!
+//! ```text
+//! ρ = det(J Jᵀ) / ((|W|²/3)³ (|Z|²/3)³) < ρ_min,     J = [W; Z]
+//! ```
+//!
+//! ([`SpatialArm::singular_below`], default `10⁻¹⁰`): `J` is the arm's own Jacobian at the
+//! point where the target should be (`W`'s columns move that point, `Z`'s turn the frame),
+//! and the normalisation by the mean squared norms of its position and rotation rows makes
+//! `ρ ∈ [0, 1]` (Fischer's and the arithmetic–geometric mean inequalities), 0 only at a
+//! singular configuration, and independent of the frame the rows are written in and of the
+//! unit of length. Not `∂e_p/∂q` itself: its position rows carry the lever arm of the
+//! tracking error (`tᵢ = wᵢ + zᵢ × a`), which makes them nearly dependent on the rotation
+//! rows whenever the target is far, whatever the arm's posture. `ρ` falls as the square of
+//! the distance to a singular configuration.
 //!
 //! **The platform** runs the planar law on §5's projection of the target ([`crate::space`]);
 //! its preferred pose `r_*` is where the arm at home holds the target at `r*_ed`
@@ -82,6 +89,7 @@ use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 use crate::arm_law::{implicit_rhs, solve_redundant, solve_square, Linearised};
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule, StepError};
+use crate::linalg;
 use crate::params::{JointLimits, PaperRun, Params, PrimaryTask, SecondaryTask, Weight, WeightMargins};
 use crate::primary::{penalty, PrimaryPoint};
 use crate::scalar::Real;
@@ -145,8 +153,7 @@ pub struct SpatialTerms<T, const N: usize> {
     pub hess_l: SVector<T, N>,
     /// `h_ℓ(q)`, eq. (20).
     pub h_l: T,
-    /// The Hadamard ratio `det(J Jᵀ)/∏ |Jᵢ|²` of the arm's Jacobian `J = [Mᵀ W; Mᵀ Z]` at
-    /// the desired target frame (1: orthogonal rows, 0: singular); 1 when `N < 6` (not
+    /// The arm's measure `ρ ∈ [0, 1]` (module docs; 0: singular); 1 when `N < 6` (not
     /// computed).
     pub singularity: T,
 }
@@ -491,15 +498,7 @@ pub fn terms<T: Real, const N: usize>(
     de_m_du.fixed_columns_mut::<3>(3).copy_from(&right);
     let de_m_dt_explicit = dq * gamma_rate - q_hat_rate * gamma;
 
-    // The arm's own Jacobian at the desired target frame, in that frame: [Mᵀ W; Mᵀ Z].
-    let singularity = if N >= 6 {
-        let mut arm = SMatrix::<T, 6, N>::zeros();
-        arm.fixed_rows_mut::<3>(0).copy_from(&(mt * w_cols));
-        arm.fixed_rows_mut::<3>(3).copy_from(&(mt * z_cols));
-        hadamard(&arm)
-    } else {
-        T::one()
-    };
+    let singularity = if N >= 6 { manipulability(&w_cols, &z_cols) } else { T::one() };
     SpatialTerms {
         e_p,
         de_p_dq,
@@ -536,15 +535,32 @@ fn hadamard_sym<T: Real>(s: &Matrix6<T>) -> T {
         prod *= s[(i, i)];
     }
     if prod > T::zero() {
-        s.determinant() / prod
+        linalg::determinant(s) / prod
     } else {
         T::zero()
     }
 }
 
-/// `det(J Jᵀ)/∏ᵢ |Jᵢ|²` for the rows `Jᵢ` of `J`: in `[0, 1]`, 0 when they are dependent.
-fn hadamard<T: Real, const N: usize>(j: &SMatrix<T, 6, N>) -> T {
-    hadamard_sym(&(j * j.transpose()))
+/// The arm's measure `ρ = det(J Jᵀ)/((|W|²/3)³ (|Z|²/3)³)` of `J = [W; Z]` (module docs):
+/// for six joints `det(J Jᵀ) = det(J)²`.
+fn manipulability<T: Real, const N: usize>(w: &SMatrix<T, 3, N>, z: &SMatrix<T, 3, N>) -> T {
+    let mut j = SMatrix::<T, 6, N>::zeros();
+    j.fixed_rows_mut::<3>(0).copy_from(w);
+    j.fixed_rows_mut::<3>(3).copy_from(z);
+    let det = if N == 6 {
+        let d = linalg::determinant(&SMatrix::<T, 6, 6>::from_fn(|r, c| j[(r, c)]));
+        d * d
+    } else {
+        linalg::determinant(&(j * j.transpose()))
+    };
+    let third = T::one() / T::of(3.0);
+    let (v, r) = (w.norm_squared() * third, z.norm_squared() * third);
+    let scale = v * v * v * r * r * r;
+    if scale > T::zero() {
+        det / scale
+    } else {
+        T::zero()
+    }
 }
 
 macro_rules! spatial_manipulator {
