@@ -27,7 +27,7 @@ PARTS = [
     ("plant step (RK4)", ["Plant<A,_>::advance", "Plant<A, _>::advance", "try_advance", "companion_plant::dynamics"]),
     ("measurement", ["Plant<A,_>::measure", "Plant<A, _>::measure"]),
     ("plant sample (logged end effector)", ["sim::sample", "sim::summary_sample", "end_effector"]),
-    (HANDOFF, ["Recorder::record", "Recorder::logs", "Recorder::join_writer"]),
+    (HANDOFF, ["RecordWriter", "RowSink", "rtrb::", "Recorder::record"]),
     ("progress bar", ["indicatif"]),
 ]
 SUMMARY = "recording: summary over every step"
@@ -60,7 +60,9 @@ def part_of(below, callee):
     return "the loop itself (counter, row, Result)"
 
 
-RECORD = "companion_runtime::record::Recorder::record"
+# The hand-off of a row to the writer thread (the summary is accumulated on that thread since
+# the simulation and the HIL plant share one writer; a direct Recorder still splits it here).
+RECORD = "<companion_runtime::record::writer::RecordWriter as companion_runtime::record::recorder::RowSink>::record"
 
 
 def summary_in(prefix, self_cost, calls, binary):
@@ -115,7 +117,7 @@ def main():
             print(f"{'    ' + part:<56} {c / steps:8.0f}  {100 * c / in_loop:5.1f} %")
     for other in sys.argv[4:]:
         _, _, t = load(other)
-        print(f"{'CSV writer thread (formatting, writing)':<56} {t / steps:8.0f}")
+        print(f"{'CSV writer thread (summary, formatting, writing)':<56} {t / steps:8.0f}")
 
 
 if __name__ == "__main__":

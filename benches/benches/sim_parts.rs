@@ -13,13 +13,13 @@ use std::time::Duration;
 
 use companion_benches::{law, Config, TempDir, CHOICE_CONFIGS};
 use companion_core::{Command, PlatformKind, Rpr, State, Unicycle};
-use companion_plant::Plant;
-use companion_runtime::control::JOINTS;
-use companion_runtime::control::{command_f64, measurement_in};
-use companion_runtime::record::{format_row, Row, SummaryAccumulator};
+use companion_plant::{PaperTrajectory, Plant};
+use companion_runtime::controller::{command_f64, measurement_in, JOINTS};
+use companion_runtime::observe::Silent;
+use companion_runtime::record::csv::CsvFile;
+use companion_runtime::record::{Row, SummaryAccumulator};
 use companion_runtime::sim::{build_plant, run_one, sample};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
-use indicatif::ProgressBar;
 
 const SNAPSHOTS: usize = 2048;
 
@@ -27,7 +27,7 @@ type RprPlant = Plant<Rpr<f64>, JOINTS>;
 
 /// Plant snapshots of the closed loop with the command applied at each.
 fn snapshots(config: Config) -> Vec<(RprPlant, Command<f64, JOINTS>)> {
-    let s = config.scenario(2);
+    let s = config.scenario(PaperTrajectory::Two);
     let law = law::<f64, Unicycle<f64>>(&s);
     let mut plant = build_plant(&s).expect("the paper's plant");
     let steps = s.steps();
@@ -50,7 +50,7 @@ fn snapshots(config: Config) -> Vec<(RprPlant, Command<f64, JOINTS>)> {
 
 fn plant(c: &mut Criterion) {
     let config = CHOICE_CONFIGS[0];
-    let dt = config.scenario(2).dt;
+    let dt = config.scenario(PaperTrajectory::Two).dt;
     let snaps = snapshots(config);
     let mut group = c.benchmark_group("sim_parts");
     let mut i = 0;
@@ -69,23 +69,22 @@ fn plant(c: &mut Criterion) {
         b.iter(|| {
             let p = &snaps[i].0;
             i = (i + 1) % snaps.len();
-            black_box((black_box(p).measure(), sample(p)))
+            black_box((black_box(p).measure(), sample(p, &companion_core::Pose::new(0.5, 0.0, 0.0))))
         });
     });
 
     // The logged rows of a whole run (one every 10 steps).
     let dir = TempDir::new("sim-parts");
     let rows: Vec<Row> =
-        run_one(&config.scenario(2), dir.path(), &ProgressBar::hidden()).expect("the paper's run").rows;
-    let mut line = String::with_capacity(512);
+        run_one(&config.scenario(PaperTrajectory::Two), dir.path(), &Silent).expect("the paper's run").rows;
+    // Formatted and written into the void (the csv writer's buffer is flushed as it fills).
+    let mut csv = CsvFile::new(std::io::sink(), PlatformKind::Unicycle).expect("a sink takes anything");
     let mut i = 0;
     group.bench_function("csv_row", |b| {
         b.iter(|| {
             let row = &rows[i];
             i = (i + 1) % rows.len();
-            line.clear();
-            format_row(&mut line, PlatformKind::Unicycle, black_box(row));
-            black_box(line.len())
+            csv.write_row(black_box(row)).expect("a sink takes anything");
         });
     });
     let lim = companion_core::Params::<f64, 3>::paper_limits();

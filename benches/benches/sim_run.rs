@@ -13,20 +13,20 @@ use std::hint::black_box;
 use std::time::Duration;
 
 use companion_benches::{TempDir, CHOICE_CONFIGS};
+use companion_plant::PaperTrajectory;
+use companion_runtime::observe::Silent;
 use companion_runtime::sim::run_one;
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
-use indicatif::ProgressBar;
 
 fn whole_run(c: &mut Criterion) {
     let mut group = c.benchmark_group("sim_run");
     group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for config in [CHOICE_CONFIGS[0], CHOICE_CONFIGS[2]] {
-        let s = config.scenario(2);
+        let s = config.scenario(PaperTrajectory::Two);
         let dir = TempDir::new(&s.name);
-        let progress = ProgressBar::hidden();
         group.throughput(Throughput::Elements(s.steps() + 1));
         group.bench_function(s.name.clone(), |b| {
-            b.iter(|| black_box(run_one(&s, dir.path(), &progress).expect("the paper's run").summary));
+            b.iter(|| black_box(run_one(&s, dir.path(), &Silent).expect("the paper's run").summary));
         });
     }
     group.finish();

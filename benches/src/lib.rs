@@ -33,80 +33,50 @@
 //! Times depend on the machine and its load; instruction counts do not (they move only when
 //! the code does), so decisions are better made on the counts.
 
-use clap::Parser;
 use companion_core::{
-    CarLike, ControlLaw, Measurement, Omnidirectional, Platform, Real, Rpr, State, Unicycle,
+    CarLike, ControlLaw, Measurement, Omnidirectional, PaperRun, Platform, PlatformKind, Real, Rpr, State,
+    Unicycle,
 };
-use companion_runtime::control::{command_f64, measurement_in};
-use companion_runtime::scenario::{ControllerSpec, Scenario, ScenarioArgs};
+use companion_plant::PaperTrajectory;
+use companion_runtime::controller::{
+    command_f64, measurement_in, platform_name, run_name, ControllerSpec, Scalar,
+};
+use companion_runtime::scenario::Scenario;
 
 /// The arm's joint count (the paper's RPR arm).
 pub const JOINTS: usize = 3;
 
-/// The wheeled platform of a benchmarked configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum PlatformName {
-    /// Unicycle-like, Lemma 1.
-    Unicycle,
-    /// Car-like, Lemma 2, with the runtime's default `K̄` and velocity limits.
-    Car,
-    /// Omnidirectional.
-    Omni,
-}
-
-/// The controller's scalar type.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ScalarName {
-    /// `f64`.
-    F64,
-    /// `f32`.
-    F32,
-}
-
-/// The paper's control variants (§4.3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ChoiceName {
-    /// `Ψ = 1`, Choice 1 with (51).
-    A,
-    /// `Ψ` filtered, Choice 1 with (40).
-    B,
-    /// `Ψ` filtered, Choice 2.
-    C,
-    /// `Ψ` filtered, Choice 3.
-    D,
-}
-
 /// One benchmarked controller configuration.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Config {
-    /// The platform.
-    pub platform: PlatformName,
+    /// The platform (the car with the runtime's default `K̄` and velocity limits).
+    pub platform: PlatformKind,
     /// The scalar type.
-    pub scalar: ScalarName,
+    pub scalar: Scalar,
     /// The paper's variant.
-    pub choice: ChoiceName,
+    pub choice: PaperRun,
 }
 
-const fn cfg(platform: PlatformName, scalar: ScalarName, choice: ChoiceName) -> Config {
+const fn cfg(platform: PlatformKind, scalar: Scalar, choice: PaperRun) -> Config {
     Config { platform, scalar, choice }
 }
 
 /// Each platform × scalar type, variant (a).
 pub const PLATFORM_CONFIGS: [Config; 6] = [
-    cfg(PlatformName::Unicycle, ScalarName::F64, ChoiceName::A),
-    cfg(PlatformName::Unicycle, ScalarName::F32, ChoiceName::A),
-    cfg(PlatformName::Car, ScalarName::F64, ChoiceName::A),
-    cfg(PlatformName::Car, ScalarName::F32, ChoiceName::A),
-    cfg(PlatformName::Omni, ScalarName::F64, ChoiceName::A),
-    cfg(PlatformName::Omni, ScalarName::F32, ChoiceName::A),
+    cfg(PlatformKind::Unicycle, Scalar::F64, PaperRun::A),
+    cfg(PlatformKind::Unicycle, Scalar::F32, PaperRun::A),
+    cfg(PlatformKind::Car, Scalar::F64, PaperRun::A),
+    cfg(PlatformKind::Car, Scalar::F32, PaperRun::A),
+    cfg(PlatformKind::Omni, Scalar::F64, PaperRun::A),
+    cfg(PlatformKind::Omni, Scalar::F32, PaperRun::A),
 ];
 
 /// The paper's four variants on the unicycle in `f64`.
 pub const CHOICE_CONFIGS: [Config; 4] = [
-    cfg(PlatformName::Unicycle, ScalarName::F64, ChoiceName::A),
-    cfg(PlatformName::Unicycle, ScalarName::F64, ChoiceName::B),
-    cfg(PlatformName::Unicycle, ScalarName::F64, ChoiceName::C),
-    cfg(PlatformName::Unicycle, ScalarName::F64, ChoiceName::D),
+    cfg(PlatformKind::Unicycle, Scalar::F64, PaperRun::A),
+    cfg(PlatformKind::Unicycle, Scalar::F64, PaperRun::B),
+    cfg(PlatformKind::Unicycle, Scalar::F64, PaperRun::C),
+    cfg(PlatformKind::Unicycle, Scalar::F64, PaperRun::D),
 ];
 
 /// Every distinct configuration ([`PLATFORM_CONFIGS`] then the rest of [`CHOICE_CONFIGS`]).
@@ -123,36 +93,12 @@ pub fn all_configs() -> Vec<Config> {
 impl Config {
     /// `unicycle-f64-a`, `car-f32-a`, …
     pub fn name(&self) -> String {
-        format!("{}-{}-{}", self.platform_flag(), self.scalar_flag(), self.choice_flag())
+        format!("{}-{}-{}", platform_name(self.platform), self.scalar.name(), run_name(self.choice))
     }
 
     /// The configuration named `name` (as [`name`](Self::name) writes it).
     pub fn from_name(name: &str) -> Option<Self> {
         all_configs().into_iter().find(|c| c.name() == name)
-    }
-
-    fn platform_flag(&self) -> &'static str {
-        match self.platform {
-            PlatformName::Unicycle => "unicycle",
-            PlatformName::Car => "car",
-            PlatformName::Omni => "omni",
-        }
-    }
-
-    fn scalar_flag(&self) -> &'static str {
-        match self.scalar {
-            ScalarName::F64 => "f64",
-            ScalarName::F32 => "f32",
-        }
-    }
-
-    fn choice_flag(&self) -> &'static str {
-        match self.choice {
-            ChoiceName::A => "a",
-            ChoiceName::B => "b",
-            ChoiceName::C => "c",
-            ChoiceName::D => "d",
-        }
     }
 
     /// The runtime's scenario for this configuration on the paper's trajectory 1 (40 s, as
@@ -161,39 +107,13 @@ impl Config {
     /// velocity limits.
     ///
     /// # Panics
-    /// If the runtime rejects the flags (a bug here).
-    pub fn scenario(&self, trajectory: u8) -> Scenario {
-        let duration = if trajectory == 1 { "40" } else { "120" };
-        let traj = trajectory.to_string();
-        scenario(&[
-            "--trajectory",
-            &traj,
-            "--duration",
-            duration,
-            "--platform",
-            self.platform_flag(),
-            "--scalar",
-            self.scalar_flag(),
-            "--choice",
-            self.choice_flag(),
-        ])
+    /// If the runtime rejects the paper's parameters (a bug).
+    pub fn scenario(&self, trajectory: PaperTrajectory) -> Scenario {
+        Scenario::builder(trajectory, self.choice, self.platform)
+            .scalar(self.scalar)
+            .build()
+            .unwrap_or_else(|e| panic!("the paper's scenario {}: {e}", self.name()))
     }
-}
-
-#[derive(Parser, Debug)]
-struct Flags {
-    #[command(flatten)]
-    scenario: ScenarioArgs,
-}
-
-/// A scenario from `companion sim`-style flags, e.g. `["--trajectory", "2"]`.
-///
-/// # Panics
-/// If the flags do not parse or describe an invalid scenario (a bug in the caller).
-pub fn scenario(flags: &[&str]) -> Scenario {
-    let parsed = Flags::try_parse_from(std::iter::once("bench").chain(flags.iter().copied()))
-        .unwrap_or_else(|e| panic!("bad flags {flags:?}: {e}"));
-    Scenario::from_args(&parsed.scenario).unwrap_or_else(|e| panic!("bad scenario {flags:?}: {e:#}"))
 }
 
 /// A platform that can be built from the runtime's controller description.
@@ -270,7 +190,7 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
     let mut rejected = 0;
     let mut the_law = None;
     let mut dt = T::zero();
-    for trajectory in [1, 2] {
+    for trajectory in [PaperTrajectory::One, PaperTrajectory::Two] {
         let s = config.scenario(trajectory);
         let law = law::<T, P>(&s);
         dt = T::of(s.dt);
@@ -323,8 +243,8 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
 #[macro_export]
 macro_rules! dispatch {
     ($config:expr, $f:ident ( $($arg:expr),* $(,)? )) => {{
-        use $crate::companion_core::{CarLike, Omnidirectional, Unicycle};
-        use $crate::{PlatformName as __P, ScalarName as __S};
+        use $crate::companion_core::{CarLike, Omnidirectional, PlatformKind as __P, Unicycle};
+        use $crate::companion_runtime::controller::Scalar as __S;
         let __config: $crate::Config = $config;
         match (__config.platform, __config.scalar) {
             (__P::Unicycle, __S::F64) => $f::<f64, Unicycle<f64>>($($arg),*),
@@ -337,7 +257,7 @@ macro_rules! dispatch {
     }};
 }
 
-pub use companion_core;
+pub use {companion_core, companion_runtime};
 
 /// One benchmarked step: restore the recorded state, step the law on the recorded
 /// measurement. Returns the output and the advanced state, for the caller to `black_box`.
@@ -398,15 +318,15 @@ mod tests {
 
     #[test]
     fn the_car_gets_the_runtimes_k_bar_and_limits() {
-        let s = PLATFORM_CONFIGS[2].scenario(1);
+        let s = PLATFORM_CONFIGS[2].scenario(PaperTrajectory::One);
         let p = s.controller.params::<f64>();
         assert_eq!(
             p.secondary.k_bar,
-            companion_core::nalgebra::Vector3::from(companion_runtime::scenario::CAR_K_BAR)
+            companion_core::nalgebra::Vector3::from(companion_runtime::controller::CAR_K_BAR)
         );
         assert_eq!(p.velocity_limits, companion_plant::realistic_limits());
         assert_eq!((s.dt, s.duration), (1e-3, 40.0));
-        assert_eq!(PLATFORM_CONFIGS[2].scenario(2).duration, 120.0);
+        assert_eq!(PLATFORM_CONFIGS[2].scenario(PaperTrajectory::Two).duration, 120.0);
     }
 
     /// The recorded inputs are the same on every run (the closed loop is deterministic)

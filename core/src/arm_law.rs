@@ -56,10 +56,10 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::error::StepError;
 use crate::linalg;
-use crate::platform::Platform;
+use crate::params::Params;
 use crate::scalar::Real;
+use crate::space::Space;
 use crate::task::{Manipulator, TaskPoint, TaskStep};
-use crate::ControlLaw;
 
 /// A task function `e` linearised at the evaluation point: `ė = A u_q + …`.
 #[derive(Clone, Copy, Debug)]
@@ -155,7 +155,16 @@ pub(crate) fn solve_redundant<T: Real, const M: usize, const N: usize>(
     Ok((u_q, sensitivity, condition))
 }
 
-impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+/// The arm law of a [`ControlLaw`](crate::ControlLaw): its parameters, its arm and what the
+/// arm's task precomputes from `r*_ed` (borrowed for one step).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ArmLaw<'a, T: Real, A: Manipulator<T, N>, const N: usize> {
+    pub params: &'a Params<T, N, A::Space>,
+    pub arm: &'a A,
+    pub star: &'a <A::Space as Space<T>>::Star,
+}
+
+impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
     /// (30) at `pt` for a hold of `period` seconds, `half` into it, with the joint guard
     /// from the joints `q_start` at which the command starts to act.
     #[inline(always)]
@@ -167,7 +176,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         half: T,
     ) -> Result<ArmStep<T, N, A::Space>, StepError> {
         let mut task =
-            self.arm.arm_law(&self.params.primary, &self.params.joint_limits, &self.star, pt, half)?;
+            self.arm.arm_law(&self.params.primary, &self.params.joint_limits, self.star, pt, half)?;
         let joint_scale = self.joint_guard(q_start, &task.u_q, period);
         if joint_scale > T::one() {
             task.u_q /= joint_scale;

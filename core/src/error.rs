@@ -3,6 +3,8 @@
 
 use core::fmt;
 
+use crate::scalar::Real;
+
 /// The rule a parameter breaks.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rule {
@@ -203,3 +205,40 @@ impl fmt::Display for StepError {
 }
 
 impl core::error::Error for StepError {}
+
+// ---------------------------------------------------------------------------------------
+// The checks every `validate` is made of.
+
+pub(crate) fn check_nonneg<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
+    if !v.finite() {
+        Err(ParamError::new(name, Rule::NonFinite))
+    } else if v < T::zero() {
+        Err(ParamError::new(name, Rule::Negative))
+    } else {
+        at_most(name, v, bound)
+    }
+}
+
+/// `v` finite, `> 0` and at most `bound`.
+pub(crate) fn check_positive<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
+    positive(name, v)?;
+    at_most(name, v, bound)
+}
+
+pub(crate) fn at_most<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
+    if v.abs() > T::of(bound.value()) {
+        Err(ParamError::new(name, Rule::TooLarge(bound)))
+    } else {
+        Ok(())
+    }
+}
+
+pub(crate) fn positive<T: Real>(name: &'static str, v: T) -> Result<(), ParamError> {
+    if !v.finite() {
+        Err(ParamError::new(name, Rule::NonFinite))
+    } else if v <= T::zero() {
+        Err(ParamError::new(name, Rule::NotPositive))
+    } else {
+        Ok(())
+    }
+}

@@ -29,13 +29,14 @@
 
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
+use crate::arm_law::ArmLaw;
 use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
 use crate::hold::{self, advance_inside, Start};
 use crate::measurement::Measurement;
 use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
 use crate::platform::{Platform, PlatformKind};
-use crate::platform_law::{Hold, PlatformPoint};
+use crate::platform_law::{Hold, PlatformLaw, PlatformPoint};
 use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
@@ -49,13 +50,13 @@ use crate::task::{Manipulator, TaskPoint};
 /// in space (§5).
 #[derive(Clone, Copy, Debug)]
 pub struct ControlLaw<T: Real, P, A: Manipulator<T, N>, const N: usize> {
-    pub(crate) params: Params<T, N, A::Space>,
-    pub(crate) platform: P,
-    pub(crate) arm: A,
+    params: Params<T, N, A::Space>,
+    platform: P,
+    arm: A,
     /// What the arm law precomputes from `r*_ed`.
-    pub(crate) star: <A::Space as Space<T>>::Star,
+    star: <A::Space as Space<T>>::Star,
     /// `r_*⁻¹` with its sine and cosine.
-    pub(crate) r_star_inv: PoseSc<T>,
+    r_star_inv: PoseSc<T>,
     /// Whether `Ψ ≢ 1`, so that `h_s2` and the rest filter are needed.
     rest_needed: bool,
     /// `h/2` is used (the midpoint discretisation).
@@ -181,7 +182,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// # Errors
     /// A bad measurement, period or delay: a [`Rejected`] with the reason and the safe
     /// command; the state is left as it was.
-    #[inline]
+    #[inline(always)]
     pub fn step_delayed(
         &self,
         state: &mut St<T, A, N>,
@@ -360,6 +361,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
 
     /// `Ψ` and its rate (or the `σᵢ` rates) for filter values `psi`/`sigma` at joints `q`,
     /// filtered joints `q̂` moving at `q̂̇`.
+    #[inline(always)]
     fn weight_at(
         &self,
         psi: T,
@@ -501,8 +503,10 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             xi_error,
             xi: start.xi,
         };
-        let plat = self
-            .platform_step(&point, &Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w });
+        let platform_law =
+            PlatformLaw { params: prm, platform: &self.platform, r_star_inv: &self.r_star_inv };
+        let hold = Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w };
+        let plat = platform_law.platform_step(&point, &hold);
 
         // 5. The arm law at t_e, along the new platform command.
         let xi_mid = start.xi + plat.v_xi * half;
@@ -525,14 +529,19 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         } else {
             guess.joints
         };
-        let q_e = advance_inside(&start.q, &(guess_joints * half), lim, half_t);
+        let q_e = if half > T::zero() {
+            advance_inside(&start.q, &(guess_joints * half), lim, half_t)
+        } else {
+            start.q
+        };
         let gamma = if p.regularisation_gain > T::zero() {
             p.regularisation_gain * (-p.regularisation_decay * t_e).exponential()
         } else {
             T::zero()
         };
         let q_hat_rate_e = filter_rate(&q_hat_e, &q_e, p.filter_sigma, p.filter_xi);
-        let arm = self.arm_step(
+        let arm_law = ArmLaw { params: prm, arm: &self.arm, star: &self.star };
+        let arm = arm_law.arm_step(
             &TaskPoint {
                 q: &q_e,
                 r_bd: &r_bd_e,

@@ -3,8 +3,9 @@
 
 use nalgebra::{SVector, Vector3};
 
+use crate::error::{at_most, check_nonneg, check_positive, positive};
 use crate::error::{Bound, ParamError, Rule};
-use crate::platform::{positive, VelocityLimits};
+use crate::platform::VelocityLimits;
 use crate::scalar::Real;
 use crate::se2::Pose;
 use crate::space::{Planar, Space};
@@ -365,30 +366,6 @@ impl<T: Real> Params<T, 3> {
             max_delay: T::of(0.05),
             max_turn_per_step: T::of(0.5),
         }
-    }
-}
-
-fn check_nonneg<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
-    if !v.finite() {
-        Err(ParamError::new(name, Rule::NonFinite))
-    } else if v < T::zero() {
-        Err(ParamError::new(name, Rule::Negative))
-    } else {
-        at_most(name, v, bound)
-    }
-}
-
-/// `v` finite, `> 0` and at most `bound`.
-pub(crate) fn check_positive<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
-    positive(name, v)?;
-    at_most(name, v, bound)
-}
-
-fn at_most<T: Real>(name: &'static str, v: T, bound: Bound) -> Result<(), ParamError> {
-    if v.abs() > T::of(bound.value()) {
-        Err(ParamError::new(name, Rule::TooLarge(bound)))
-    } else {
-        Ok(())
     }
 }
 

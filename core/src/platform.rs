@@ -16,8 +16,8 @@
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
+use crate::error::check_positive;
 use crate::error::{Bound, ParamError, Rule};
-use crate::params::check_positive;
 use crate::scalar::Real;
 use crate::se2::{inverse3, Pose};
 
@@ -581,15 +581,5 @@ impl<T: Real> Platform<T> for Omnidirectional {
     #[inline]
     fn saturation_scale(l: &VelocityLimits<T>, w: &Vector3<T>) -> T {
         within(within(within(T::one(), w[0], l.forward), w[1], l.lateral), w[2], l.angular)
-    }
-}
-
-pub(crate) fn positive<T: Real>(name: &'static str, v: T) -> Result<(), ParamError> {
-    if !v.finite() {
-        Err(ParamError::new(name, Rule::NonFinite))
-    } else if v <= T::zero() {
-        Err(ParamError::new(name, Rule::NotPositive))
-    } else {
-        Ok(())
     }
 }

@@ -42,13 +42,12 @@
 
 use nalgebra::{Matrix3, Vector3};
 
-use crate::params::{Discretisation, Precompensation, RestFilter};
+use crate::params::{Discretisation, Params, Precompensation, RestFilter};
 use crate::platform::{CompanionFrame, Platform, PlatformKind};
 use crate::scalar::Real;
 use crate::se2::{inverse3, PoseSc};
 use crate::secondary::{tracking_cost_sc, RestCost};
-use crate::task::Manipulator;
-use crate::ControlLaw;
+use crate::space::Space;
 
 /// Where the platform law is evaluated.
 #[derive(Clone, Copy, Debug)]
@@ -110,10 +109,20 @@ pub(crate) struct PlatformStep<T> {
     pub f_inv: PoseSc<T>,
 }
 
+/// The platform law of a [`ControlLaw`](crate::ControlLaw): its parameters, its platform and
+/// the constant `r_*⁻¹` (borrowed for one step). It reads only the space-independent
+/// parameters: the platform works on the target's projection on the plane.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PlatformLaw<'a, T: Real, P, const N: usize, S: Space<T>> {
+    pub params: &'a Params<T, N, S>,
+    pub platform: &'a P,
+    pub r_star_inv: &'a PoseSc<T>,
+}
+
 /// The largest saturation factor reported (the platform stopped).
 const STOPPED: f64 = 3.0e38;
 
-impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P, N, S> {
     /// (37) at `pt`, corrected over the hold, mapped to the platform's inputs and saturated.
     #[inline(always)]
     pub(crate) fn platform_step(&self, pt: &PlatformPoint<'_, T>, hold: &Hold<T>) -> PlatformStep<T> {
@@ -316,7 +325,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     }
 }
 
-impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P, N, S> {
     /// `w = H̄(α)⁻¹ ū` with `α` advanced linearly implicitly over the hold: `H̄⁻¹` was taken
     /// at `α_e` (predicted with the guess `α̇_g`); at `α + θh α̇`,
     /// `w ≈ w_e + c (θh α̇ − h/2 α̇_g)`, `c = ∂(H̄⁻¹ū)/∂α = −H̄⁻¹ (∂H̄/∂α) w_e`, solved for `α̇`

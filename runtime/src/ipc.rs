@@ -40,6 +40,7 @@ use iceoryx2::port::publisher::{Publisher, PublisherCreateError};
 use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::prelude::*;
 
+use crate::link::{Link, PeerState};
 use crate::wire::{CommandMsg, MeasurementMsg};
 
 /// The iceoryx2 prefix of every file and shared-memory segment of this project.
@@ -122,17 +123,6 @@ pub fn quiet_logs() {
 
 fn node_name(name: &str, role: Role) -> String {
     format!("{name}/{}", role.as_str())
-}
-
-/// What [`Endpoint::peer_state`] found.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PeerState {
-    /// The peer's node exists and its process is alive (pid).
-    Alive(i32),
-    /// The peer's process died without cleaning up (pid).
-    Dead(i32),
-    /// No node of the peer exists (it has not started, or it exited cleanly).
-    Absent,
 }
 
 /// Finds the node of `role` in demo `name`.
@@ -354,11 +344,6 @@ where
         }
     }
 
-    /// Whether this endpoint waits on events.
-    pub fn has_events(&self) -> bool {
-        self.listener.is_some()
-    }
-
     /// In event mode: sleeps until the peer notifies or `timeout` passes (never unbounded),
     /// draining all pending notifications. Without events: returns at once.
     ///
@@ -394,7 +379,7 @@ where
             if let Some(why) = abort() {
                 return Err(anyhow!("{why}"));
             }
-            if crate::rt::termination_requested() {
+            if crate::signals::termination_requested() {
                 return Err(anyhow!("interrupted while waiting for the {}", self.role.peer().as_str()));
             }
             if start.elapsed() > timeout {
@@ -424,15 +409,33 @@ where
     pub fn cleanup_dead_nodes(&self) -> u64 {
         self.node.try_cleanup_dead_nodes().cleanups
     }
+}
 
-    /// The demo's name.
-    pub fn name(&self) -> &str {
-        &self.name
+impl<Tx, Rx> Link for Endpoint<Tx, Rx>
+where
+    Tx: std::fmt::Debug + ZeroCopySend + Copy + 'static,
+    Rx: std::fmt::Debug + ZeroCopySend + Copy + 'static,
+{
+    type Tx = Tx;
+    type Rx = Rx;
+
+    #[inline]
+    fn publish(&mut self, msg: &Tx) -> Result<()> {
+        self.send(msg)
     }
 
-    /// The iceoryx2 configuration in use.
-    pub fn iceoryx_config(&self) -> &Config {
-        &self.cfg
+    #[inline]
+    fn try_receive(&mut self) -> Result<Option<Rx>> {
+        Endpoint::try_receive(self)
+    }
+
+    #[inline]
+    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+        Endpoint::wait_event(self, timeout)
+    }
+
+    fn peer_state(&mut self) -> Result<PeerState> {
+        Endpoint::peer_state(self)
     }
 }
 

@@ -1,29 +1,41 @@
 //! # companion-runtime
 //!
 //! Processes and time for the companion controller: everything that is not the law
-//! (`companion-core`) or the physics (`companion-plant`).
+//! (`companion-core`) or the physics (`companion-plant`). A library of typed values with a
+//! thin command-line edge (the `companion` binary's `cli` module: clap, progress bars,
+//! printing, exit codes); nothing in the library parses a flag or prints.
 //!
-//! - [`scenario`]: a run's description, from flags and a TOML file;
-//! - [`control`]: one controller of any platform × scalar behind one type;
-//! - [`sim`]: the in-process simulation (`companion sim`);
-//! - [`record`]: `timeseries.csv` and `summary.json`;
-//! - [`plots`]: SVG figures and the index page;
-//! - [`hil`]: the hardware-in-the-loop demo — plant and controller as two processes over
-//!   iceoryx2 shared memory, with deadlines (`companion hil`, `plant`, `control`);
-//! - [`latency`]: the worst-case latency benchmark (`companion latency`);
-//! - [`wire`]: the two `#[repr(C)]` messages of the HIL loop (the interface a hardware bridge
-//!   implements); [`ipc`]: their iceoryx2 services; [`rt`]: real-time setup (the crate's only
-//!   `unsafe`); [`clock`]: time behind a trait.
+//! Layers, each depending only on the ones above it:
+//!
+//! - domain: [`controller`] (the one module that touches the core's controller),
+//!   [`scenario`] (a run's description, built in one expression or from a TOML file),
+//!   [`plant_setup`], [`record`] (`timeseries.csv`, `summary.json`), [`plots`],
+//!   [`histogram`], [`observe`] (progress and messages, for the CLI to show);
+//! - system: [`rt`] (real-time setup, the crate's only `unsafe`), [`signals`], [`clock`]
+//!   (time behind a trait), [`machine`], [`process`];
+//! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
+//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2);
+//! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
+//!   `control`), [`latency`] (`companion latency`).
+//!
+//! A test in `companion-tests` (`module_cycles`) checks that no module depends on another in
+//! a cycle, in every crate of the workspace.
 
 pub mod clock;
-pub mod control;
+pub mod controller;
 pub mod hil;
+pub mod histogram;
 pub mod ipc;
 pub mod latency;
+pub mod link;
+pub mod machine;
+pub mod observe;
 pub mod plant_setup;
 pub mod plots;
+pub mod process;
 pub mod record;
 pub mod rt;
 pub mod scenario;
+pub mod signals;
 pub mod sim;
 pub mod wire;

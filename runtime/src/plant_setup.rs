@@ -4,8 +4,8 @@ use anyhow::{Context, Result};
 use companion_core::Rpr;
 use companion_plant::{Imperfections, Noise, Plant, PlantConfig, Trajectory};
 
-use crate::control::JOINTS;
-use crate::scenario::{Scenario, TargetSpec};
+use crate::controller::JOINTS;
+use crate::scenario::{Scenario, Target};
 
 /// The plant of `s`: platform, imperfections, target and initial conditions.
 ///
@@ -13,10 +13,8 @@ use crate::scenario::{Scenario, TargetSpec};
 /// A bad target file or plant parameter, with the reason.
 pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>> {
     let trajectory = match &s.target {
-        TargetSpec::Paper(1) => Trajectory::Paper1,
-        TargetSpec::Paper(2) => Trajectory::Paper2,
-        TargetSpec::Paper(n) => anyhow::bail!("there is no paper trajectory {n} (1 or 2)"),
-        TargetSpec::File(path) => {
+        Target::Paper(t) => Trajectory::from(*t),
+        Target::File(path) => {
             Trajectory::load(path).with_context(|| format!("target file {}", path.display()))?
         }
     };
@@ -27,12 +25,12 @@ pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>> {
         noise: p.noise.map(|n| Noise {
             position: n.position,
             angle: n.angle,
-            joints: n.joint,
-            ..Noise::typical()
+            joints: n.joints,
+            steering: n.steering,
         }),
         wheel_scale_error: p.wheel_scale_error.unwrap_or(0.0),
         seed: p.seed.unwrap_or(1),
     };
-    let config = PlantConfig::new(s.controller.kind()).with_imperfections(imperfections);
+    let config = PlantConfig::new(s.controller.platform).with_imperfections(imperfections);
     Plant::new(config, Rpr::paper(), initial, trajectory).context("plant parameters")
 }

@@ -17,8 +17,6 @@
 //! (`clock_nanosleep(TIMER_ABSTIME)`), so sleeping never accumulates drift.
 #![allow(unsafe_code)]
 
-use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
-
 /// `CLOCK_MONOTONIC` in nanoseconds.
 #[inline]
 pub fn monotonic_ns() -> u64 {
@@ -47,7 +45,7 @@ pub fn sleep_until_ns(t_ns: u64) {
         if r != libc::EINTR {
             return;
         }
-        if termination_requested() {
+        if crate::signals::termination_requested() {
             return;
         }
     }
@@ -143,11 +141,9 @@ pub fn apply(cfg: &RtConfig) -> RtReport {
 }
 
 impl RtReport {
-    /// Prints the warnings, if any, as one line on stderr (`who`: the process's role).
-    pub fn warn(&self, who: &str) {
-        if !self.warnings.is_empty() {
-            eprintln!("warning: {who}: {}", self.warnings.join("; "));
-        }
+    /// The warnings, if any, as one line (`who`: the process's role).
+    pub fn warning(&self, who: &str) -> Option<String> {
+        (!self.warnings.is_empty()).then(|| format!("{who}: {}", self.warnings.join("; ")))
     }
 }
 
@@ -200,15 +196,6 @@ pub fn rt_throttling() -> Option<(i64, i64)> {
     Some((read("/proc/sys/kernel/sched_rt_runtime_us")?, read("/proc/sys/kernel/sched_rt_period_us")?))
 }
 
-static TERMINATION: AtomicBool = AtomicBool::new(false);
-static LAST_SIGNAL: AtomicI32 = AtomicI32::new(0);
-
-extern "C" fn on_termination(sig: libc::c_int) {
-    // Only async-signal-safe work: two atomic stores.
-    LAST_SIGNAL.store(sig, Ordering::Relaxed);
-    TERMINATION.store(true, Ordering::Release);
-}
-
 /// Sets the calling thread's timer slack to 1 ns (threads it creates afterwards inherit it).
 ///
 /// Linux lets a normal thread's timed sleep end up to 50 µs late by default, so that wake-ups
@@ -219,34 +206,6 @@ extern "C" fn on_termination(sig: libc::c_int) {
 pub fn tight_timer_slack() {
     // SAFETY: PR_SET_TIMERSLACK takes one integer argument and touches no memory.
     let _ = unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, 1 as libc::c_ulong) };
-}
-
-/// Installs a SIGINT/SIGTERM handler that only sets a flag ([`termination_requested`]); the
-/// loops poll the flag (one atomic load per cycle) and end the run cleanly.
-pub fn install_termination_handler() {
-    let handler = on_termination as extern "C" fn(libc::c_int);
-    for sig in [libc::SIGINT, libc::SIGTERM] {
-        // SAFETY: a zeroed sigaction is valid; the handler only touches atomics, which is
-        // async-signal-safe; SA_RESTART keeps interrupted calls transparent.
-        unsafe {
-            let mut sa: libc::sigaction = std::mem::zeroed();
-            sa.sa_sigaction = handler as libc::sighandler_t;
-            sa.sa_flags = libc::SA_RESTART;
-            libc::sigemptyset(&mut sa.sa_mask);
-            libc::sigaction(sig, &sa, std::ptr::null_mut());
-        }
-    }
-}
-
-/// Whether SIGINT or SIGTERM arrived since [`install_termination_handler`].
-#[inline]
-pub fn termination_requested() -> bool {
-    TERMINATION.load(Ordering::Acquire)
-}
-
-/// The last termination signal received (0 if none).
-pub fn termination_signal() -> i32 {
-    LAST_SIGNAL.load(Ordering::Relaxed)
 }
 
 #[cfg(test)]

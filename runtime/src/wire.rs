@@ -103,6 +103,7 @@
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{Command, Field, Measurement, PlatformCommand, Pose, StepError};
 use iceoryx2::prelude::ZeroCopySend;
+use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
 /// The protocol version both messages carry. Changed whenever the layout or meaning changes.
 pub const PROTOCOL_VERSION: u32 = 1;
@@ -125,12 +126,13 @@ pub mod flags {
     pub const STOPPED: u32 = 4;
 }
 
-// The derive below generates an `unsafe impl ZeroCopySend` (the type is plain old data:
-// `#[repr(C)]`, numbers and arrays of numbers only, no pointers), hence the allow.
+// The derives below generate `unsafe impl`s (`ZeroCopySend`; zerocopy's byte conversions,
+// which zerocopy checks at compile time: `#[repr(C)]`, numbers and arrays of numbers only, no
+// padding), hence the allow.
 /// One measurement of the plant, published once per period. See the module docs for the
 /// layout and the rules.
 #[allow(unsafe_code)]
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
 #[type_name("companion::MeasurementV1")]
 #[repr(C)]
 pub struct MeasurementMsg {
@@ -170,7 +172,7 @@ pub struct MeasurementMsg {
 
 /// One command of the controller, answering one measurement. See the module docs.
 #[allow(unsafe_code)]
-#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend)]
+#[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
 #[type_name("companion::CommandV1")]
 #[repr(C)]
 pub struct CommandMsg {
@@ -221,6 +223,8 @@ pub const COMMAND_SIZE: usize = 200;
 
 const _: () = assert!(core::mem::size_of::<MeasurementMsg>() == MEASUREMENT_SIZE);
 const _: () = assert!(core::mem::size_of::<CommandMsg>() == COMMAND_SIZE);
+// The wire is little-endian and the bytes are the in-memory layout.
+const _: () = assert!(cfg!(target_endian = "little"), "the wire format is little-endian");
 
 /// Why a message was dropped.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -298,6 +302,7 @@ pub fn encode_status(e: Option<StepError>) -> u32 {
         Some(StepError::SingularArm) => 0x400,
         Some(StepError::SingularTaskJacobian) => 0x500,
         Some(StepError::NumericalFailure) => 0x600,
+        Some(StepError::BadDelay) => 0x700,
     }
 }
 
@@ -326,6 +331,7 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
         0x400 => Some(StepError::SingularArm),
         0x500 => Some(StepError::SingularTaskJacobian),
         0x600 => Some(StepError::NumericalFailure),
+        0x700 => Some(StepError::BadDelay),
         _ => return Err(WireError::Status(code)),
     })
 }
@@ -390,49 +396,15 @@ impl MeasurementMsg {
         self.flags & flag != 0
     }
 
-    /// The message as bytes, little-endian, in the documented layout.
+    /// The message as bytes, little-endian, in the documented layout (the in-memory
+    /// layout: no padding, checked by `zerocopy` at compile time).
     pub fn to_bytes(&self) -> [u8; MEASUREMENT_SIZE] {
-        let mut w = Writer::<MEASUREMENT_SIZE>::new();
-        w.u32(self.version);
-        w.u32(self.flags);
-        w.u64(self.seq);
-        w.u64(self.session);
-        w.u64(self.scenario_hash);
-        w.u64(self.plant_time_ns);
-        w.u64(self.period_ns);
-        w.f64(self.sim_time);
-        w.f64(self.dt);
-        w.f64s(&self.base);
-        w.f64(self.steering);
-        w.f64s(&self.target);
-        w.f64s(&self.target_velocity);
-        w.u32(self.joint_count);
-        w.u32(self.reserved);
-        w.f64s(&self.joints);
-        w.finish()
+        zerocopy::transmute!(*self)
     }
 
     /// The inverse of [`MeasurementMsg::to_bytes`].
     pub fn from_bytes(b: &[u8; MEASUREMENT_SIZE]) -> Self {
-        let mut r = Reader::new(b);
-        Self {
-            version: r.u32(),
-            flags: r.u32(),
-            seq: r.u64(),
-            session: r.u64(),
-            scenario_hash: r.u64(),
-            plant_time_ns: r.u64(),
-            period_ns: r.u64(),
-            sim_time: r.f64(),
-            dt: r.f64(),
-            base: r.f64s(),
-            steering: r.f64(),
-            target: r.f64s(),
-            target_velocity: r.f64s(),
-            joint_count: r.u32(),
-            reserved: r.u32(),
-            joints: r.f64s(),
-        }
+        zerocopy::transmute!(*b)
     }
 }
 
@@ -533,53 +505,12 @@ impl CommandMsg {
 
     /// The message as bytes, little-endian, in the documented layout.
     pub fn to_bytes(&self) -> [u8; COMMAND_SIZE] {
-        let mut w = Writer::<COMMAND_SIZE>::new();
-        w.u32(self.version);
-        w.u32(self.status);
-        w.u64(self.seq);
-        w.u64(self.session);
-        w.u64(self.plant_time_ns);
-        w.u64(self.compute_ns);
-        w.u64(self.received_ns);
-        w.u32(self.skipped);
-        w.u32(self.joint_count);
-        w.f64(self.v);
-        w.f64(self.v_lat);
-        w.f64(self.omega);
-        w.f64(self.v_xi);
-        w.f64s(&self.joints);
-        w.f64(self.ep_norm);
-        w.f64(self.h_s);
-        w.f64(self.psi);
-        w.f64(self.saturation);
-        w.f64s(&self.alpha_rate);
-        w.finish()
+        zerocopy::transmute!(*self)
     }
 
     /// The inverse of [`CommandMsg::to_bytes`].
     pub fn from_bytes(b: &[u8; COMMAND_SIZE]) -> Self {
-        let mut r = Reader::new(b);
-        Self {
-            version: r.u32(),
-            status: r.u32(),
-            seq: r.u64(),
-            session: r.u64(),
-            plant_time_ns: r.u64(),
-            compute_ns: r.u64(),
-            received_ns: r.u64(),
-            skipped: r.u32(),
-            joint_count: r.u32(),
-            v: r.f64(),
-            v_lat: r.f64(),
-            omega: r.f64(),
-            v_xi: r.f64(),
-            joints: r.f64s(),
-            ep_norm: r.f64(),
-            h_s: r.f64(),
-            psi: r.f64(),
-            saturation: r.f64(),
-            alpha_rate: r.f64s(),
-        }
+        zerocopy::transmute!(*b)
     }
 }
 
@@ -659,72 +590,6 @@ pub fn fnv1a(bytes: &[u8]) -> u64 {
         h = h.wrapping_mul(0x0100_0000_01b3);
     }
     h
-}
-
-struct Writer<const S: usize> {
-    buf: [u8; S],
-    at: usize,
-}
-
-impl<const S: usize> Writer<S> {
-    fn new() -> Self {
-        Self { buf: [0; S], at: 0 }
-    }
-    fn put(&mut self, b: &[u8]) {
-        self.buf[self.at..self.at + b.len()].copy_from_slice(b);
-        self.at += b.len();
-    }
-    fn u32(&mut self, v: u32) {
-        self.put(&v.to_le_bytes());
-    }
-    fn u64(&mut self, v: u64) {
-        self.put(&v.to_le_bytes());
-    }
-    fn f64(&mut self, v: f64) {
-        self.put(&v.to_le_bytes());
-    }
-    fn f64s(&mut self, v: &[f64]) {
-        for x in v {
-            self.f64(*x);
-        }
-    }
-    fn finish(self) -> [u8; S] {
-        debug_assert_eq!(self.at, S);
-        self.buf
-    }
-}
-
-struct Reader<'a> {
-    buf: &'a [u8],
-    at: usize,
-}
-
-impl<'a> Reader<'a> {
-    fn new(buf: &'a [u8]) -> Self {
-        Self { buf, at: 0 }
-    }
-    fn take<const K: usize>(&mut self) -> [u8; K] {
-        let mut out = [0u8; K];
-        out.copy_from_slice(&self.buf[self.at..self.at + K]);
-        self.at += K;
-        out
-    }
-    fn u32(&mut self) -> u32 {
-        u32::from_le_bytes(self.take())
-    }
-    fn u64(&mut self) -> u64 {
-        u64::from_le_bytes(self.take())
-    }
-    fn f64(&mut self) -> f64 {
-        f64::from_le_bytes(self.take())
-    }
-    fn f64s<const K: usize>(&mut self) -> [f64; K] {
-        let mut out = [0.0; K];
-        for x in &mut out {
-            *x = self.f64();
-        }
-        out
-    }
 }
 
 #[cfg(test)]

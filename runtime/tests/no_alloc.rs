@@ -10,14 +10,20 @@ use std::collections::VecDeque;
 use std::time::Duration;
 
 use anyhow::Result;
-use clap::Parser;
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
 use companion_runtime::clock::{Clock, FakeClock};
-use companion_runtime::control::AnyController;
-use companion_runtime::hil::control::{serve, ControlEnd, ControlLink, ControlStats, ServeOptions};
-use companion_runtime::hil::plant::{run_real_time, Ids, PlantLink, PlantStats, Progress};
-use companion_runtime::hil::{HilArgs, WaitMode};
-use companion_runtime::ipc::{ControlEndpoint, PeerState, PlantEndpoint};
+use companion_runtime::controller::AnyController;
+use companion_runtime::hil::config::adapt_scenario;
+use companion_runtime::hil::messages::{answer, Stamp};
+use companion_runtime::hil::plant_loop::{run_real_time, PlantSide};
+use companion_runtime::hil::serve::{serve, ServeOptions};
+use companion_runtime::hil::stats::{ControlStats, LiveFigures, PlantStats};
+use companion_runtime::hil::{ControlEnd, Timing, WaitMode};
+use companion_runtime::ipc::{ControlEndpoint, PlantEndpoint};
+use companion_runtime::link::{Link, PeerState};
 use companion_runtime::record::Row;
+use companion_runtime::scenario::Scenario;
 use companion_runtime::wire::{flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg};
 
 struct Counting;
@@ -64,15 +70,29 @@ fn allocations_in<T>(f: impl FnOnce() -> T) -> (u64, T) {
     (ALLOCATIONS.with(Cell::get) - before, r)
 }
 
-#[derive(Parser, Debug)]
-struct T {
-    #[command(flatten)]
-    a: HilArgs,
+/// The HIL demo's timing: 1 kHz, 500 µs deadline, spin.
+const TIMING: Timing = Timing {
+    period_ns: 1_000_000,
+    deadline_ns: 500_000,
+    hold_periods: 20,
+    wait: WaitMode::Spin,
+    spin_margin_ns: 100_000,
+    silence_ns: 20_000_000,
+    peer_timeout_ns: 2_000_000_000,
+    lockstep: false,
+};
+
+/// The HIL demo's scenario: trajectory 1, run (a), unicycle, `duration` s.
+fn scenario(duration: f64) -> Scenario {
+    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+        .duration(duration)
+        .build()
+        .unwrap();
+    adapt_scenario(s, &TIMING)
 }
 
 fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
-    let t = T::parse_from(["x"]);
-    let s = t.a.scenario().unwrap();
+    let s = scenario(30.0);
     let plant = companion_runtime::sim::build_plant(&s).unwrap();
     let header = MeasurementHeader { seq, flags: fl, session: 9, dt: 1e-3, ..MeasurementHeader::default() };
     MeasurementMsg::new(header, &plant.measure())
@@ -133,17 +153,12 @@ struct InstantController {
     clock: std::rc::Rc<FakeClock>,
 }
 
-impl PlantLink for InstantController {
+impl Link for InstantController {
+    type Tx = MeasurementMsg;
+    type Rx = CommandMsg;
     fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
-        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt);
-        let diag = LoggedDiagnostics {
-            ep_norm: r.ep_norm,
-            h_s: r.h_s,
-            psi: r.psi,
-            saturation: r.saturation,
-            alpha_rate: r.alpha_rate,
-        };
-        let mut c = CommandMsg::answer(m, &r.command, r.error, &diag, 0, 0);
+        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
+        let mut c = answer(m, &r, 0, 0);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
         self.pending = Some(c);
@@ -162,9 +177,7 @@ impl PlantLink for InstantController {
 
 #[test]
 fn the_plant_loop_allocates_nothing() {
-    let t = T::parse_from(["x", "--duration", "5", "--wait", "spin"]);
-    let s = t.a.scenario().unwrap();
-    let timing = t.a.timing(&s).unwrap();
+    let s = scenario(5.0);
     let mut plant = companion_runtime::sim::build_plant(&s).unwrap();
     let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
     let mut link = InstantController {
@@ -173,25 +186,25 @@ fn the_plant_loop_allocates_nothing() {
         clock: clock.clone(),
     };
     let mut stats = PlantStats::default();
-    let progress = Progress::default();
+    let live = LiveFigures::default();
     let mut rows: Vec<Row> = Vec::with_capacity(6_000);
     let mut sink = |_: u64, r: &Row, _: bool| {
         rows.push(*r);
         true
     };
+    let stamp = Stamp { session: 1, scenario_hash: 0, period_ns: TIMING.period_ns, dt: s.dt };
+    let steps = s.steps();
     let (n, end) = allocations_in(|| {
-        run_real_time(
-            clock.as_ref(),
-            &mut link,
-            &timing,
-            Ids { session: 1, scenario_hash: 0 },
-            &mut plant,
-            s.steps(),
-            s.dt,
-            &mut stats,
-            &progress,
-            &mut sink,
-        )
+        let mut side = PlantSide {
+            clock: clock.as_ref(),
+            link: &mut link,
+            timing: TIMING,
+            stamp,
+            stats: &mut stats,
+            live: &live,
+            target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
+        };
+        run_real_time(&mut side, &mut plant, steps, &mut sink)
     });
     assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
     assert!(end.is_ok());
@@ -208,7 +221,9 @@ struct Script {
     ready: bool,
 }
 
-impl ControlLink for Script {
+impl Link for Script {
+    type Tx = CommandMsg;
+    type Rx = MeasurementMsg;
     fn publish(&mut self, c: &CommandMsg) -> Result<()> {
         self.sent.push(*c);
         self.ready = true;
@@ -231,8 +246,7 @@ impl ControlLink for Script {
 
 #[test]
 fn the_controller_loop_allocates_nothing() {
-    let t = T::parse_from(["x"]);
-    let s = t.a.scenario().unwrap();
+    let s = scenario(30.0);
     let mut ctrl = AnyController::new(&s.controller).unwrap();
     let m = measurement(0, 0);
     let mut inbox = VecDeque::with_capacity(5_001);
@@ -251,7 +265,7 @@ fn the_controller_loop_allocates_nothing() {
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
-    let (n, end) = allocations_in(|| serve(&clock, &mut link, &mut ctrl, &opt, &[], &mut stats));
+    let (n, end) = allocations_in(|| serve(&clock, &mut link, &mut ctrl, &opt, &mut stats));
     assert_eq!(n, 0, "{n} allocations in {} controller cycles", stats.answered);
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!(link.sent.len(), 5_001);

@@ -1,7 +1,7 @@
 //! An imperfect plant, on request: actuator lag, measurement noise, a wheel-speed scale
 //! error. Off by default ([`Imperfections::default`] is the perfect plant of the paper).
 
-use crate::plant::{PlantError, Rule};
+use crate::error::{PlantError, Rule};
 
 /// Gaussian measurement noise: one standard deviation per kind of quantity. Applied by
 /// [`Plant::measure`](crate::Plant::measure) to what the controller sees, never to the

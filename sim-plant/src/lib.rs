@@ -66,7 +66,9 @@
 #![warn(missing_docs)]
 
 mod dynamics;
+mod error;
 mod imperfections;
+mod initial;
 mod limits;
 mod plant;
 pub mod trajectory;
@@ -74,12 +76,14 @@ pub mod trajectory;
 #[cfg(test)]
 mod tests;
 
+pub use error::{AdvanceError, PlantError, Rule};
 pub use imperfections::{Imperfections, Noise};
+pub use initial::InitialConditions;
 pub use limits::{
     realistic_limits, realistic_steering_limit, steering_limit, REALISTIC_MAX_STEERING_ANGLE,
     REALISTIC_WHEELBASE,
 };
-pub use plant::{AdvanceError, InitialConditions, Plant, PlantConfig, PlantError, PlantState, Rule};
+pub use plant::{Plant, PlantConfig, PlantState};
 pub use trajectory::{
     paper_initial, Location, PaperTrajectory, PiecewiseTrajectory, Segment, Trajectory, TrajectoryError,
     PAPER_INITIAL_JOINTS,

@@ -1,92 +1,16 @@
 //! The simulated robot: configuration, state, and the [`Plant`] that owns them.
 
 use companion_core::nalgebra::{SVector, Vector3};
-use companion_core::{Arm, Command, Measurement, ParamError, PlatformKind, Pose};
+use companion_core::{Arm, Command, Measurement, PlatformKind, Pose};
 use rand::distr::{OpenClosed01, StandardUniform};
 use rand::rngs::ChaCha12Rng;
 use rand::{RngExt, SeedableRng};
 
 use crate::dynamics::{Continuous, Model, Trig};
+use crate::error::{AdvanceError, PlantError, Rule};
 use crate::imperfections::{Imperfections, Noise};
+use crate::initial::InitialConditions;
 use crate::trajectory::Trajectory;
-
-/// The rule a plant parameter breaks.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Rule {
-    /// The value is NaN or infinite.
-    NonFinite,
-    /// The value must be `> 0`.
-    NotPositive,
-    /// The value must be `≥ 0`.
-    Negative,
-    /// The value must be `> −1` (a wheel-speed scale `1 + e` must stay positive).
-    NotAboveMinusOne,
-    /// The initial steering state must lie within the steering limit.
-    BeyondSteeringLimit,
-}
-
-impl core::fmt::Display for Rule {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        f.write_str(match self {
-            Rule::NonFinite => "must be finite",
-            Rule::NotPositive => "must be > 0",
-            Rule::Negative => "must be >= 0",
-            Rule::NotAboveMinusOne => "must be > -1",
-            Rule::BeyondSteeringLimit => "must lie within the steering limit",
-        })
-    }
-}
-
-/// Why a plant could not be built.
-#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-pub enum PlantError {
-    /// A plant parameter or initial value breaks a rule.
-    #[error("plant parameter `{param}` {rule} (got {value})")]
-    Invalid {
-        /// The parameter, e.g. `"actuator_lag"` or `"initial.joints"`.
-        param: &'static str,
-        /// The rule broken.
-        rule: Rule,
-        /// The value given.
-        value: f64,
-    },
-    /// The arm's geometry is invalid.
-    #[error("arm: {0}")]
-    Arm(ParamError),
-}
-
-impl PlantError {
-    pub(crate) fn check_finite(param: &'static str, value: f64) -> Result<(), PlantError> {
-        if value.is_finite() {
-            Ok(())
-        } else {
-            Err(PlantError::Invalid { param, rule: Rule::NonFinite, value })
-        }
-    }
-}
-
-/// Why a step was refused; the plant's state is left as it was.
-#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
-pub enum AdvanceError {
-    /// The time step is NaN, infinite, zero or negative.
-    #[error("time step {dt} s must be finite and > 0")]
-    BadTimeStep {
-        /// The time step given (s).
-        dt: f64,
-    },
-    /// The time step differs from the one of the first step (the plant runs at one fixed
-    /// step so that the time of step `n` is exactly `n·dt`).
-    #[error("time step {dt} s differs from the plant's fixed step {fixed} s")]
-    TimeStepChanged {
-        /// The plant's step (s), set by the first step.
-        fixed: f64,
-        /// The time step given (s).
-        dt: f64,
-    },
-    /// A commanded velocity is NaN or infinite.
-    #[error("the command has a non-finite velocity")]
-    NonFiniteCommand,
-}
 
 /// What the plant simulates: which platform, how imperfect, and the car's end stops.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -133,44 +57,6 @@ impl PlantConfig {
                     value: l,
                 });
             }
-        }
-        Ok(())
-    }
-}
-
-/// The state at `t = 0`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct InitialConditions<const N: usize> {
-    /// Platform pose `r_b` in the fixed frame (m, m, rad).
-    pub base: Pose<f64>,
-    /// Car-like platform: steering state `ξ = tan φ / ℓ` (1/m), 0 for straight wheels.
-    /// Other platforms keep it constant (it means nothing for them).
-    pub steering: f64,
-    /// Joint positions `q` (rad or m).
-    pub joints: SVector<f64, N>,
-    /// Target pose `r_d` in the fixed frame (m, m, rad).
-    pub target: Pose<f64>,
-}
-
-impl<const N: usize> InitialConditions<N> {
-    /// Initial conditions with the target given relative to the platform: `r_d = r_b · r_bd`
-    /// (poses in m, m, rad; joints in rad or m); steering straight.
-    pub fn with_relative_target(base: Pose<f64>, r_bd: Pose<f64>, joints: SVector<f64, N>) -> Self {
-        Self { base, steering: 0.0, joints, target: base.compose(&r_bd) }
-    }
-
-    fn validate(&self) -> Result<(), PlantError> {
-        let base = self.base.to_vector();
-        let target = self.target.to_vector();
-        for v in base.iter() {
-            PlantError::check_finite("initial.base", *v)?;
-        }
-        PlantError::check_finite("initial.steering", self.steering)?;
-        for v in self.joints.iter() {
-            PlantError::check_finite("initial.joints", *v)?;
-        }
-        for v in target.iter() {
-            PlantError::check_finite("initial.target", *v)?;
         }
         Ok(())
     }
@@ -307,6 +193,17 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         self.state.base.compose(&r_eb.inverse())
     }
 
+    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
+    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
+    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
+    pub fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
+        let s = &self.state;
+        let r_bd = s.base.between(&s.target);
+        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
+        let e = target_in_effector.between(&r_ed);
+        Vector3::new(e.x, e.y, e.theta)
+    }
+
     /// What the controller sees at the current step: time, platform pose, steering,
     /// joints, target pose and target velocity `u_d(t)`.
     ///
@@ -355,6 +252,24 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// A time step that is not finite and `> 0`, or differs from the plant's fixed step
     /// (set by the first step), or a non-finite command; the state is left as it was.
     pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        self.try_advance_delayed(command, command, 0.0, dt)
+    }
+
+    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
+    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
+    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
+    /// `delay = 0` this is [`try_advance`](Self::try_advance), to the bit.
+    ///
+    /// # Errors
+    /// As [`try_advance`](Self::try_advance), and a delay that is not finite or not in
+    /// `[0, dt)`; the state is left as it was.
+    pub fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(AdvanceError::BadTimeStep { dt });
         }
@@ -363,8 +278,11 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
                 return Err(AdvanceError::TimeStepChanged { fixed, dt });
             }
         }
-        if !command.is_finite() {
+        if !command.is_finite() || !previous.is_finite() {
             return Err(AdvanceError::NonFiniteCommand);
+        }
+        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
+            return Err(AdvanceError::BadDelay { delay });
         }
         self.dt = Some(dt);
         let model = Self::model(&self.config, &self.trajectory);
@@ -372,7 +290,13 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         let t0 = n as f64 * dt;
         let t1 = (n + 1) as f64 * dt;
         let trig = &mut self.trig;
-        let x = model.rk4(t0, t1, dt, &self.x, command, trig);
+        let x = if delay > 0.0 {
+            let t_switch = t0 + delay;
+            let x = model.rk4(t0, t_switch, delay, &self.x, previous, trig);
+            model.rk4(t_switch, t1, t1 - t_switch, &x, command, trig)
+        } else {
+            model.rk4(t0, t1, dt, &self.x, command, trig)
+        };
         let applied = model.applied(&x, command);
         // u_d(t₁⁺): the piece the target follows over the next step.
         let target_velocity =

@@ -418,7 +418,7 @@ fn invalid_configurations_are_rejected_naming_the_parameter() {
     let e =
         Plant::new(base, Rpr { l: -0.4, l_e: 0.15 }, init, Trajectory::Paper1).map(|_| ()).expect_err("bad");
     assert!(matches!(e, PlantError::Arm(_)));
-    assert!(e.to_string().contains("`L`"), "{e}");
+    assert!(e.to_string().contains("`l`"), "{e}");
 }
 
 // ---------------------------------------------------------------- steering limit

@@ -42,7 +42,7 @@ use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::Pose;
 use serde::Deserialize;
 
-use crate::plant::InitialConditions;
+use crate::initial::InitialConditions;
 
 /// The paper's two target trajectories (§4.3).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -7,26 +7,19 @@
 
 use std::path::PathBuf;
 
-use clap::Parser;
-use companion_runtime::record::Summary;
-use companion_runtime::scenario::{Scenario, ScenarioArgs};
-use companion_runtime::sim::{run_one, RunOutcome};
-use indicatif::ProgressBar;
+use companion_runtime::observe::Silent;
+use companion_runtime::record::{RunOutcome, Summary};
+use companion_runtime::scenario::{Scenario, ScenarioBuilder};
+use companion_runtime::sim::run_one;
 
-#[derive(Parser, Debug)]
-struct Flags {
-    #[command(flatten)]
-    scenario: ScenarioArgs,
-}
+pub mod modgraph;
 
-/// A scenario from `companion sim`-style flags, e.g. `["--trajectory", "2", "--choice", "b"]`.
+/// The scenario `b` builds.
 ///
 /// # Panics
-/// If the flags do not parse or describe an invalid scenario (a test bug).
-pub fn scenario(flags: &[&str]) -> Scenario {
-    let parsed = Flags::try_parse_from(std::iter::once("test").chain(flags.iter().copied()))
-        .unwrap_or_else(|e| panic!("bad test flags {flags:?}: {e}"));
-    Scenario::from_args(&parsed.scenario).unwrap_or_else(|e| panic!("bad scenario {flags:?}: {e:#}"))
+/// If it is invalid (a test bug).
+pub fn scenario(b: ScenarioBuilder) -> Scenario {
+    b.build().unwrap_or_else(|e| panic!("bad test scenario: {e}"))
 }
 
 /// A fresh folder for a test's outputs, under the system's temporary folder.
@@ -54,8 +47,7 @@ pub fn run(s: &Scenario, tag: &str) -> RunOutcome {
 /// If the run fails (a test failure).
 pub fn run_in(s: &Scenario, tag: &str) -> (RunOutcome, PathBuf) {
     let dir = out_dir(tag);
-    let outcome =
-        run_one(s, &dir, &ProgressBar::hidden()).unwrap_or_else(|e| panic!("run {tag} failed: {e:#}"));
+    let outcome = run_one(s, &dir, &Silent).unwrap_or_else(|e| panic!("run {tag} failed: {e:#}"));
     (outcome, dir)
 }
 

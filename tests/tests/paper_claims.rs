@@ -16,7 +16,10 @@
 use std::collections::HashMap;
 use std::sync::OnceLock;
 
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
 use companion_runtime::record::Summary;
+use companion_runtime::scenario::Scenario;
 use companion_tests::{scenario, summaries};
 
 /// Summaries keyed by (trajectory, choice, with the Ψ̇ term).
@@ -26,18 +29,24 @@ fn runs() -> &'static HashMap<(u8, char, bool), Summary> {
         let mut keys = Vec::new();
         let mut list = Vec::new();
         for traj in [1u8, 2] {
-            let duration = if traj == 1 { "40" } else { "120" };
+            let duration = if traj == 1 { 40.0 } else { 120.0 };
             for choice in ['a', 'b', 'c', 'd'] {
                 for psidot in [false, true] {
                     if psidot && !matches!(choice, 'b' | 'd') {
                         continue;
                     }
-                    let (t, c) = (traj.to_string(), choice.to_string());
-                    let mut flags = vec!["--trajectory", &t, "--choice", &c, "--duration", duration];
+                    let t = if traj == 1 { PaperTrajectory::One } else { PaperTrajectory::Two };
+                    let c = match choice {
+                        'a' => PaperRun::A,
+                        'b' => PaperRun::B,
+                        'c' => PaperRun::C,
+                        _ => PaperRun::D,
+                    };
+                    let mut b = Scenario::builder(t, c, PlatformKind::Unicycle).duration(duration);
                     if psidot {
-                        flags.push("--psi-rate-in-drift");
+                        b = b.psi_rate_in_drift(true);
                     }
-                    let s = scenario(&flags);
+                    let s = scenario(b);
                     keys.push((traj, choice, psidot));
                     list.push((s.name.clone(), s));
                 }

@@ -1,17 +1,22 @@
 //! `companion sim` end to end: determinism, f32 against f64, the car-like and
 //! omnidirectional platforms, and the files a run writes.
 
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory::{One, Two};
+use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
+use companion_runtime::observe::Silent;
+use companion_runtime::scenario::Scenario;
 use companion_tests::{out_dir, run_in, scenario, summaries};
 
 /// Same inputs, same bits: running a scenario twice gives byte-identical `timeseries.csv`.
 /// Run (b) on trajectory 2 is the most sensitive (it is chaotic: any difference grows).
 #[test]
 fn a_scenario_run_twice_gives_identical_files() {
-    for flags in [
-        &["--trajectory", "2", "--choice", "b", "--duration", "40"][..],
-        &["--trajectory", "1", "--choice", "c", "--platform", "car", "--scalar", "f32", "--duration", "10"][..],
+    for b in [
+        Scenario::builder(Two, PaperRun::B, PlatformKind::Unicycle).duration(40.0),
+        Scenario::builder(One, PaperRun::C, PlatformKind::Car).scalar(Scalar::F32).duration(10.0),
     ] {
-        let s = scenario(flags);
+        let s = scenario(b);
         let (first, dir1) = run_in(&s, "det-1");
         let (second, dir2) = run_in(&s, "det-2");
         let a = std::fs::read(dir1.join("timeseries.csv")).unwrap();
@@ -25,9 +30,9 @@ fn a_scenario_run_twice_gives_identical_files() {
 /// A run writes its CSV with the documented columns, its summary and its plots.
 #[test]
 fn a_run_writes_csv_summary_and_plots() {
-    let s = scenario(&["--trajectory", "1", "--platform", "car", "--duration", "2", "--log-every", "100"]);
+    let s = scenario(Scenario::builder(One, PaperRun::A, PlatformKind::Car).duration(2.0).log_every(100));
     let dir = out_dir("files");
-    let outcome = companion_runtime::sim::run_one(&s, &dir, &indicatif::ProgressBar::hidden()).unwrap();
+    let outcome = companion_runtime::sim::run_one(&s, &dir, &Silent).unwrap();
     companion_runtime::plots::render_run(&dir, &outcome).unwrap();
     let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
     let mut lines = csv.lines();
@@ -97,21 +102,11 @@ fn a_run_writes_csv_summary_and_plots() {
 #[test]
 fn f32_runs_agree_with_f64_runs() {
     let mut list = Vec::new();
-    for traj in ["1", "2"] {
-        for choice in ["a", "b", "c", "d"] {
-            for scalar in ["f64", "f32"] {
-                let d = if traj == "1" { "40" } else { "120" };
-                let s = scenario(&[
-                    "--trajectory",
-                    traj,
-                    "--choice",
-                    choice,
-                    "--scalar",
-                    scalar,
-                    "--duration",
-                    d,
-                ]);
-                list.push((format!("prec-{traj}-{choice}-{scalar}"), s));
+    for traj in [One, Two] {
+        for choice in [PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D] {
+            for scalar in [Scalar::F64, Scalar::F32] {
+                let s = scenario(Scenario::builder(traj, choice, PlatformKind::Unicycle).scalar(scalar));
+                list.push((format!("prec-{}", s.name), s));
             }
         }
     }
@@ -149,15 +144,9 @@ fn f32_runs_agree_with_f64_runs() {
 #[test]
 fn omnidirectional_platform_tracks_both_trajectories() {
     let list: Vec<(&str, _)> = vec![
-        (
-            "omni-1a",
-            scenario(&["--platform", "omni", "--trajectory", "1", "--choice", "a", "--duration", "40"]),
-        ),
-        ("omni-2a", scenario(&["--platform", "omni", "--trajectory", "2", "--choice", "a"])),
-        (
-            "omni-1c",
-            scenario(&["--platform", "omni", "--trajectory", "1", "--choice", "c", "--duration", "40"]),
-        ),
+        ("omni-1a", Scenario::paper(One, PaperRun::A, PlatformKind::Omni)),
+        ("omni-2a", Scenario::paper(Two, PaperRun::A, PlatformKind::Omni)),
+        ("omni-1c", Scenario::paper(One, PaperRun::C, PlatformKind::Omni)),
     ];
     let out = summaries(&list);
     for s in &out {
@@ -182,11 +171,8 @@ fn omnidirectional_platform_tracks_both_trajectories() {
 #[test]
 fn car_like_platform_tracks_trajectory_1_and_part_of_trajectory_2() {
     let list: Vec<(&str, _)> = vec![
-        (
-            "car-1c",
-            scenario(&["--platform", "car", "--trajectory", "1", "--choice", "c", "--duration", "40"]),
-        ),
-        ("car-2c", scenario(&["--platform", "car", "--trajectory", "2", "--choice", "c"])),
+        ("car-1c", Scenario::paper(One, PaperRun::C, PlatformKind::Car)),
+        ("car-2c", Scenario::paper(Two, PaperRun::C, PlatformKind::Car)),
     ];
     let out = summaries(&list);
     let (t1, t2) = (&out[0], &out[1]);
@@ -231,23 +217,27 @@ fn nyquist_oscillations(csv: &str) -> usize {
 /// statistics as they were (path within 1 %, same maneuvers).
 #[test]
 fn implicit_rest_filter_removes_the_nyquist_oscillation() {
-    for choice in ["b", "c"] {
-        let flags = ["--trajectory", "1", "--choice", choice, "--duration", "10", "--log-every", "1"];
-        let (implicit, dir_i) = run_in(&scenario(&flags), &format!("nyq-{choice}-implicit"));
-        let mut explicit_flags = flags.to_vec();
-        explicit_flags.push("--explicit-rest-filter");
-        let (explicit, dir_e) = run_in(&scenario(&explicit_flags), &format!("nyq-{choice}-explicit"));
+    for (choice, name) in [(PaperRun::B, "b"), (PaperRun::C, "c")] {
+        // The rest filter's update is an option of the sampled law (the hold-aware default
+        // treats every stiff loop linearly implicitly).
+        let b = Scenario::builder(One, choice, PlatformKind::Unicycle)
+            .duration(10.0)
+            .log_every(1)
+            .discretisation(DiscretisationConfig::Sampled);
+        let (implicit, dir_i) = run_in(&scenario(b.clone()), &format!("nyq-{name}-implicit"));
+        let explicit = scenario(b.rest_filter(RestFilterConfig::Explicit));
+        let (explicit, dir_e) = run_in(&explicit, &format!("nyq-{name}-explicit"));
         let n_i = nyquist_oscillations(&std::fs::read_to_string(dir_i.join("timeseries.csv")).unwrap());
         let n_e = nyquist_oscillations(&std::fs::read_to_string(dir_e.join("timeseries.csv")).unwrap());
-        assert!(n_e >= 2, "({choice}) explicit: {n_e} oscillation bursts; expected the Nyquist oscillation");
-        assert_eq!(n_i, 0, "({choice}) implicit: {n_i} oscillation bursts");
+        assert!(n_e >= 2, "({name}) explicit: {n_e} oscillation bursts; expected the Nyquist oscillation");
+        assert_eq!(n_i, 0, "({name}) implicit: {n_i} oscillation bursts");
         let (a, b) = (&implicit.summary, &explicit.summary);
         assert!(
             (a.path_length - b.path_length).abs() < 0.01 * b.path_length,
-            "({choice}) paths {} vs {}",
+            "({name}) paths {} vs {}",
             a.path_length,
             b.path_length
         );
-        assert_eq!(a.maneuvers, b.maneuvers, "({choice}) maneuvers");
+        assert_eq!(a.maneuvers, b.maneuvers, "({name}) maneuvers");
     }
 }

@@ -98,8 +98,8 @@ fn residual<P: Platform<f64>>(
 fn order<P: Platform<f64>>(law: &ControlLaw<f64, P, Rpr<f64>, 3>, pt: &Point) -> Result<(), TestCaseError> {
     let (r1, scale) = residual(law, pt, 1e-3)?;
     let (r2, _) = residual(law, pt, 5e-4)?;
-    // Below ~1e-12 of the scale the residual is rounding, not truncation.
-    prop_assume!(r1 > 1e-11 * scale);
+    // Below ~1e-9 of the scale rounding (amplified by ∂e_m/∂q) disturbs the ratio.
+    prop_assume!(r1 > 1e-9 * scale);
     // Third order: 8 as h → 0 (measured: 7.0 to 8.1 over these points).
     prop_assert!(
         r1 / r2 > 6.0,

@@ -5,9 +5,11 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
-use super::plant::{InvalidCounts, PlantEnd, PlantStats};
-use super::{HilArgs, Timing, WaitMode};
-use crate::latency::stats::{fmt_ns, Percentiles};
+use super::config::{HilConfig, RtPlan, WaitMode};
+use super::end::PlantEnd;
+use super::stats::{InvalidCounts, PlantStats};
+use crate::histogram::Percentiles;
+use crate::machine::Machine;
 use crate::rt::RtReport;
 use crate::scenario::Scenario;
 
@@ -30,31 +32,8 @@ pub struct RtSummary {
     pub warnings: Vec<String>,
 }
 
-/// The machine the run was on.
-#[derive(Clone, Debug, Serialize)]
-pub struct Machine {
-    /// Online CPUs.
-    pub cpus: usize,
-    /// `/proc/loadavg` at the end of the run.
-    pub load_average: String,
-    /// `sched_rt_runtime_us / sched_rt_period_us`.
-    pub rt_throttling_us: Option<(i64, i64)>,
-    /// `uname -r`.
-    pub kernel: String,
-}
-
-impl Machine {
-    /// The machine now.
-    pub fn now() -> Self {
-        let read = |p: &str| std::fs::read_to_string(p).map(|s| s.trim().to_string()).unwrap_or_default();
-        Self {
-            cpus: crate::rt::online_cpus(),
-            load_average: read("/proc/loadavg"),
-            rt_throttling_us: crate::rt::rt_throttling(),
-            kernel: read("/proc/sys/kernel/osrelease"),
-        }
-    }
-}
+/// The `SCHED_FIFO` priority `latency.json` reports when `--rt` is off (the flag's default).
+pub const DEFAULT_PRIORITY: i32 = 80;
 
 /// `latency.json`: the timing of a HIL run, as the plant measured it.
 #[derive(Clone, Debug, Serialize)]
@@ -119,14 +98,14 @@ impl LatencyReport {
     /// The report of a finished run.
     pub fn new(
         s: &Scenario,
-        a: &HilArgs,
-        t: &Timing,
+        cfg: &HilConfig,
         st: &PlantStats,
         rt: Option<&RtReport>,
         end: &PlantEnd,
         wall_time_s: f64,
     ) -> Self {
-        let (pc, cc) = a.cpus();
+        let t = &cfg.timing;
+        let plan = cfg.rt;
         #[allow(clippy::cast_precision_loss)]
         let rate_hz = if t.period_ns > 0 { 1e9 / t.period_ns as f64 } else { 0.0 };
         Self {
@@ -137,12 +116,12 @@ impl LatencyReport {
             deadline_ns: if t.lockstep { 0 } else { t.deadline_ns },
             hold_periods: t.hold_periods,
             rt: RtSummary {
-                requested: a.rt,
+                requested: plan.is_some(),
                 fifo: rt.is_some_and(|r| r.fifo),
-                priority: a.rt_priority,
+                priority: plan.map_or(DEFAULT_PRIORITY, |p: RtPlan| p.priority),
                 memory_locked: rt.is_some_and(|r| r.locked),
-                plant_cpu: rt.and_then(|r| r.pinned).or(a.rt.then_some(pc)),
-                controller_cpu: a.rt.then_some(cc),
+                plant_cpu: rt.and_then(|r| r.pinned).or(plan.map(|p| p.plant_cpu)),
+                controller_cpu: plan.map(|p| p.control_cpu),
                 warnings: rt.map(|r| r.warnings.clone()).unwrap_or_default(),
             },
             cycles: st.cycles,
@@ -197,64 +176,5 @@ pub fn write_svg(dir: &Path, st: &PlantStats, r: &LatencyReport) -> Result<()> {
         r.deadline_misses
     );
     let deadline = (r.deadline_ns > 0).then_some(r.deadline_ns);
-    crate::latency::plot::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)
-}
-
-/// Prints the latency table.
-pub fn print(r: &LatencyReport) {
-    println!(
-        "{:<20} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}",
-        "latency", "p50", "p90", "p99", "p99.9", "p99.99", "max", "samples"
-    );
-    let mut rows = vec![("controller compute", &r.controller_compute_ns), ("round trip", &r.round_trip_ns)];
-    if r.release_jitter_ns.count > 0 {
-        rows.push(("release jitter", &r.release_jitter_ns));
-    }
-    for (name, p) in rows {
-        println!(
-            "{:<20} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}",
-            name,
-            fmt_ns(p.p50),
-            fmt_ns(p.p90),
-            fmt_ns(p.p99),
-            fmt_ns(p.p99_9),
-            fmt_ns(p.p99_99),
-            fmt_ns(p.max),
-            p.count
-        );
-    }
-    let rt = if r.rt.requested {
-        format!(
-            "--rt (SCHED_FIFO {}, memory {}, CPU {:?}/{:?})",
-            if r.rt.fifo { "on" } else { "REFUSED" },
-            if r.rt.memory_locked { "locked" } else { "not locked" },
-            r.rt.plant_cpu,
-            r.rt.controller_cpu
-        )
-    } else {
-        "no --rt".to_string()
-    };
-    if r.mode == "lockstep" {
-        println!(
-            "{} cycles, lockstep, wait {}, {rt}; {} malformed commands dropped",
-            r.cycles,
-            r.wait.as_str(),
-            r.invalid_total
-        );
-    } else {
-        println!(
-            "{} cycles at {:.0} Hz, deadline {}, wait {}, {rt}: {} deadline misses ({} late), {} held, {} stopped \
-             ({} stops), {} malformed commands dropped",
-            r.cycles,
-            r.rate_hz,
-            fmt_ns(r.deadline_ns),
-            r.wait.as_str(),
-            r.deadline_misses,
-            r.late_commands,
-            r.held_periods,
-            r.stopped_periods,
-            r.stop_events,
-            r.invalid_total
-        );
-    }
+    crate::plots::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)
 }

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use anyhow::Result;
 
-use super::WaitMode;
+use super::config::WaitMode;
 use crate::clock::Clock;
 
 /// After this long spinning without a message, hybrid waiting naps instead (ns).

@@ -12,22 +12,24 @@
 
 use std::os::unix::net::UnixDatagram;
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command as Process, Stdio};
+use std::process::{Command as Process, Stdio};
 use std::time::Duration;
 
 use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, ValueEnum};
 use companion_core::Command;
 
-use super::stats::LatencyHistogram;
-use crate::ipc::{ControlEndpoint, PeerState, PlantEndpoint};
+use crate::histogram::LatencyHistogram;
+use crate::ipc::{ControlEndpoint, PlantEndpoint};
+use crate::link::PeerState;
+use crate::observe::Observer;
+use crate::process::ChildGuard;
 use crate::rt;
 use crate::wire::{
     flags, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg, COMMAND_SIZE, MEASUREMENT_SIZE,
 };
 
 /// A ping-pong transport.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Transport {
     /// iceoryx2, both sides busy-poll.
     IoxSpin,
@@ -48,20 +50,16 @@ impl Transport {
     }
 }
 
-/// Flags of the hidden `latency-peer` subcommand (the echoing side).
-#[derive(Args, Clone, Debug)]
-pub struct PeerArgs {
+/// What the hidden `latency-peer` subcommand (the echoing side) does.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct PeerOptions {
     /// The transport.
-    #[arg(long, value_enum)]
     pub transport: Transport,
     /// The iceoryx2 demo name.
-    #[arg(long, default_value = "latency")]
     pub name: String,
     /// The folder of the sockets (uds).
-    #[arg(long)]
     pub socket_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
-    #[arg(long)]
     pub rt_cpu: Option<usize>,
 }
 
@@ -95,10 +93,11 @@ fn ping(seq: u64, last: bool) -> MeasurementMsg {
 ///
 /// # Errors
 /// A transport failure.
-pub fn run_peer(a: &PeerArgs) -> Result<()> {
-    crate::ipc::quiet_logs();
+pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
     if let Some(cpu) = a.rt_cpu {
-        rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warn("latency peer");
+        if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency peer") {
+            observer.warn(&w);
+        }
     }
     match a.transport {
         Transport::IoxSpin | Transport::IoxEvent => peer_iox(&a.name, a.transport == Transport::IoxEvent),
@@ -159,45 +158,6 @@ fn peer_uds(dir: &Path) -> Result<()> {
     }
 }
 
-/// Kills and reaps a child on drop (a benchmark that fails half-way leaves no process).
-#[derive(Debug)]
-pub struct ChildGuard(pub Option<Child>);
-
-impl ChildGuard {
-    /// Waits for the child to exit (up to `timeout`), then kills it if it has not.
-    ///
-    /// # Errors
-    /// Waiting failed.
-    pub fn finish(&mut self, timeout: Duration) -> Result<Option<std::process::ExitStatus>> {
-        if let Some(c) = self.0.as_mut() {
-            let start = std::time::Instant::now();
-            loop {
-                if let Some(s) = c.try_wait()? {
-                    self.0 = None;
-                    return Ok(Some(s));
-                }
-                if start.elapsed() > timeout {
-                    let _ = c.kill();
-                    let s = c.wait()?;
-                    self.0 = None;
-                    return Ok(Some(s));
-                }
-                std::thread::sleep(Duration::from_millis(2));
-            }
-        }
-        Ok(None)
-    }
-}
-
-impl Drop for ChildGuard {
-    fn drop(&mut self) {
-        if let Some(c) = self.0.as_mut() {
-            let _ = c.kill();
-            let _ = c.wait();
-        }
-    }
-}
-
 fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
     let child = Process::new(exe)
         .arg("latency-peer")
@@ -205,7 +165,7 @@ fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
         .stdin(Stdio::null())
         .spawn()
         .with_context(|| format!("starting {} latency-peer", exe.display()))?;
-    Ok(ChildGuard(Some(child)))
+    Ok(ChildGuard::new(child))
 }
 
 /// Where each process runs with `--rt` on this machine: `(benchmark, peer)`. On a single CPU
@@ -230,6 +190,7 @@ pub fn iceoryx(
     events: bool,
     use_rt: bool,
     pace_ns: Option<u64>,
+    observer: &dyn Observer,
 ) -> Result<LatencyHistogram> {
     let name = format!(
         "latency-{}-{}{}",
@@ -250,7 +211,7 @@ pub fn iceoryx(
     let mut child = spawn_peer(exe, &args)?;
     let ep = PlantEndpoint::plant(&name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
-    let _rt = use_rt.then(|| RtScope::enter(own_cpu));
+    let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
     let mut hist = LatencyHistogram::new();
     let total = warmup + iterations;
     let start = rt::monotonic_ns();
@@ -296,11 +257,17 @@ pub fn iceoryx(
 ///
 /// # Errors
 /// The sockets or the peer failed.
-pub fn unix_socket(exe: &Path, iterations: u64, warmup: u64, use_rt: bool) -> Result<LatencyHistogram> {
+pub fn unix_socket(
+    exe: &Path,
+    iterations: u64,
+    warmup: u64,
+    use_rt: bool,
+    observer: &dyn Observer,
+) -> Result<LatencyHistogram> {
     let dir = std::env::temp_dir().join(format!("companion-latency-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir)?;
-    let result = unix_socket_in(exe, &dir, iterations, warmup, use_rt);
+    let result = unix_socket_in(exe, &dir, iterations, warmup, use_rt, observer);
     let _ = std::fs::remove_dir_all(&dir);
     result
 }
@@ -311,6 +278,7 @@ fn unix_socket_in(
     iterations: u64,
     warmup: u64,
     use_rt: bool,
+    observer: &dyn Observer,
 ) -> Result<LatencyHistogram> {
     let sock = UnixDatagram::bind(dir.join("bench.sock")).context("binding the benchmark's socket")?;
     sock.set_read_timeout(Some(Duration::from_secs(10)))?;
@@ -331,7 +299,7 @@ fn unix_socket_in(
         bail!("unexpected greeting from the socket peer");
     }
     sock.connect(dir.join("peer.sock"))?;
-    let _rt = use_rt.then(|| RtScope::enter(own_cpu));
+    let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
     let mut hist = LatencyHistogram::new();
     let total = warmup + iterations;
     for i in 0..total {
@@ -363,9 +331,11 @@ fn unix_socket_in(
 pub struct RtScope;
 
 impl RtScope {
-    /// Applies `--rt` pinned to `cpu` (warnings printed once).
-    pub fn enter(cpu: usize) -> Self {
-        rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warn("latency");
+    /// Applies `--rt` pinned to `cpu` (warnings to `observer`).
+    pub fn enter(cpu: usize, observer: &dyn Observer) -> Self {
+        if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency") {
+            observer.warn(&w);
+        }
         Self
     }
 }

@@ -22,8 +22,8 @@ use core::hint::black_box;
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    CarLike, Command, Controller, Measurement, Omnidirectional, Output, PaperRun, Params, Platform,
-    PlatformKind, Pose, Real, Rejected, Rpr, Unicycle, VelocityLimits,
+    CarLike, Command, Controller, Discretisation, Measurement, Omnidirectional, Output, PaperRun, Params,
+    Platform, PlatformKind, Pose, Real, Rejected, Rpr, Unicycle, VelocityLimits,
 };
 
 /// Control period (s).
@@ -55,14 +55,22 @@ pub struct Case {
     pub run: PaperRun,
     /// `f64` (else `f32`).
     pub double: bool,
+    /// The earlier discretisation, `Discretisation::Sampled` (else the default, `Midpoint`).
+    pub sampled: bool,
 }
 
 const fn case(name: &'static str, plat: Plat, run: PaperRun, double: bool) -> Case {
-    Case { name, plat, run, double }
+    Case { name, plat, run, double, sampled: false }
 }
 
-/// Every case, in output order.
-pub const CASES: [Case; 12] = [
+const fn sampled(name: &'static str, plat: Plat, run: PaperRun, double: bool) -> Case {
+    Case { name, plat, run, double, sampled: true }
+}
+
+/// Every case, in output order. The `Sampled` cases come last, so that in each instance of
+/// `controller_step` the calls of run (a) and then (c) of the default come first (the
+/// single-step count numbers calls per instance).
+pub const CASES: [Case; 17] = [
     case("uni-a-f32", Plat::Uni, PaperRun::A, false),
     case("uni-c-f32", Plat::Uni, PaperRun::C, false),
     case("car-a-f32", Plat::Car, PaperRun::A, false),
@@ -75,6 +83,11 @@ pub const CASES: [Case; 12] = [
     case("car-c-f64", Plat::Car, PaperRun::C, true),
     case("omni-a-f64", Plat::Omni, PaperRun::A, true),
     case("omni-c-f64", Plat::Omni, PaperRun::C, true),
+    sampled("uni-a-f32-sampled", Plat::Uni, PaperRun::A, false),
+    sampled("uni-c-f32-sampled", Plat::Uni, PaperRun::C, false),
+    sampled("car-a-f32-sampled", Plat::Car, PaperRun::A, false),
+    sampled("omni-a-f32-sampled", Plat::Omni, PaperRun::A, false),
+    sampled("uni-a-f64-sampled", Plat::Uni, PaperRun::A, true),
 ];
 
 /// Hooks around each controller step (the firmware counts instructions there).
@@ -226,6 +239,9 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
     if P::KIND == PlatformKind::Car {
         params.velocity_limits = car_limits();
     }
+    if c.sampled {
+        params.discretisation = Discretisation::Sampled;
+    }
     let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) else {
         let _ = writeln!(out, "E {} invalid parameters", c.name);
         return Outcome { steps: 0, rejected: 0, digest: 0, e_p: f64::NAN };
@@ -298,6 +314,9 @@ fn one<T: Real, P: Platform<T>>(c: &Case, platform: P) {
     let mut params = Params::<T, 3>::paper(c.run);
     if P::KIND == PlatformKind::Car {
         params.velocity_limits = car_limits();
+    }
+    if c.sampled {
+        params.discretisation = Discretisation::Sampled;
     }
     if let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) {
         let (target, target_velocity) = target(T::zero());

@@ -19,75 +19,62 @@
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
 pub mod pingpong;
-pub mod plot;
-pub mod stats;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
 
-use anyhow::{anyhow, bail, Context, Result};
-use clap::{Args, Parser};
-use serde::Serialize;
+use anyhow::{bail, Context, Result};
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
+use serde::{Deserialize, Serialize};
 
 use self::pingpong::RtScope;
-use self::stats::{fmt_ns, LatencyHistogram, Percentiles};
 use crate::clock::{Clock, MonotonicClock};
-use crate::control::AnyController;
-use crate::hil::report::Machine;
+use crate::controller::{platform_name, AnyController, Scalar};
 use crate::hil::WaitMode;
-use crate::scenario::{Scenario, ScenarioArgs};
+use crate::histogram::{fmt_ns, LatencyHistogram, Percentiles};
+use crate::machine::Machine;
+use crate::observe::Observer;
+use crate::scenario::{Scenario, ScenarioError};
 
-/// `companion latency` flags.
-#[derive(Args, Clone, Debug)]
-pub struct LatencyArgs {
-    /// Samples per measurement (HIL: cycles at 1 kHz, so 100000 takes 100 s per wait mode).
-    #[arg(long, default_value_t = 20_000, value_name = "N")]
+/// What `companion latency` measures.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LatencyOptions {
+    /// Samples per measurement (HIL: cycles at 1 kHz).
     pub cycles: u64,
     /// Unrecorded warm-up iterations before each ping-pong and step measurement.
-    #[arg(long, default_value_t = 1_000, value_name = "N")]
     pub warmup: u64,
     /// Output folder (created if missing).
-    #[arg(long, default_value = "out/latency", value_name = "DIR")]
     pub out: PathBuf,
-    /// Real-time setup for every part (mlockall, SCHED_FIFO, one CPU per process).
-    #[arg(long)]
+    /// Real-time setup for every part.
     pub rt: bool,
-    /// The HIL wait modes to measure.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "spin,hybrid,event")]
+    /// The HIL wait modes to measure (none: skip part 4).
     pub hil_modes: Vec<WaitMode>,
-    /// Skip part (4), the full HIL cycle.
-    #[arg(long)]
-    pub skip_hil: bool,
-}
-
-#[derive(Parser, Debug)]
-struct ScenarioOnly {
-    #[command(flatten)]
-    s: ScenarioArgs,
-}
-
-fn scenario(platform: &str, scalar: &str, duration_s: f64) -> Result<Scenario> {
-    let d = format!("{duration_s}");
-    let a = ScenarioOnly::try_parse_from(["x", "--platform", platform, "--scalar", scalar, "--duration", &d])
-        .map_err(|e| anyhow!("{e}"))?;
-    Scenario::from_args(&a.s)
 }
 
 /// Part (1): one controller's step times over a simulated run.
 ///
 /// # Errors
 /// A scenario that cannot be built.
-pub fn controller_step(platform: &str, scalar: &str, cycles: u64, warmup: u64) -> Result<LatencyHistogram> {
+pub fn controller_step(
+    platform: PlatformKind,
+    scalar: Scalar,
+    cycles: u64,
+    warmup: u64,
+) -> Result<LatencyHistogram> {
     #[allow(clippy::cast_precision_loss)]
-    let s = scenario(platform, scalar, (cycles + warmup + 1) as f64 * 1e-3)?;
+    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, platform)
+        .scalar(scalar)
+        .duration((cycles + warmup + 1) as f64 * 1e-3)
+        .build()?;
     let mut plant = crate::sim::build_plant(&s)?;
-    let mut ctrl = AnyController::new(&s.controller).map_err(|e| anyhow!("invalid parameter: {e}"))?;
+    let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
     let clock = MonotonicClock;
     let mut h = LatencyHistogram::new();
     for n in 0..cycles + warmup {
         let meas = plant.measure();
         let t0 = clock.now_ns();
-        let r = ctrl.step(&meas, s.dt);
+        let r = ctrl.step(&meas, s.dt, 0.0);
         let t1 = clock.now_ns();
         if n >= warmup {
             h.record(t1 - t0);
@@ -97,8 +84,9 @@ pub fn controller_step(platform: &str, scalar: &str, cycles: u64, warmup: u64) -
     Ok(h)
 }
 
-/// One HIL run's figures as the benchmark reads them from its `latency.json`.
-#[derive(Clone, Debug, Serialize)]
+/// One HIL run's figures as the benchmark reads them from its `latency.json` (every key
+/// must be there: a missing one is an error, not a zero).
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct HilFigures {
     /// Round trip (ns).
     pub round_trip_ns: Percentiles,
@@ -110,23 +98,15 @@ pub struct HilFigures {
     pub cycles: u64,
     /// Deadline misses.
     pub deadline_misses: u64,
-    /// Whether SCHED_FIFO was in force.
-    pub fifo: bool,
+    /// The real-time setup in force.
+    pub rt: RtFigures,
 }
 
-fn percentiles_from(v: &serde_json::Value) -> Percentiles {
-    let g = |k: &str| v.get(k).and_then(serde_json::Value::as_u64).unwrap_or(0);
-    Percentiles {
-        count: g("count"),
-        min: g("min"),
-        p50: g("p50"),
-        p90: g("p90"),
-        p99: g("p99"),
-        p99_9: g("p99.9"),
-        p99_99: g("p99.99"),
-        max: g("max"),
-        mean: v.get("mean").and_then(serde_json::Value::as_f64).unwrap_or(0.0),
-    }
+/// The part of `latency.json`'s `rt` the benchmark reads.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct RtFigures {
+    /// Whether `SCHED_FIFO` was in force.
+    pub fifo: bool,
 }
 
 /// Part (4): a real-time `companion hil` run of `cycles` periods at 1 kHz in `mode`, its output
@@ -168,16 +148,9 @@ pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool
             dir.join("log.txt").display()
         );
     }
-    let text = std::fs::read_to_string(dir.join("latency.json"))?;
-    let v: serde_json::Value = serde_json::from_str(&text)?;
-    Ok(HilFigures {
-        round_trip_ns: percentiles_from(&v["round_trip_ns"]),
-        controller_compute_ns: percentiles_from(&v["controller_compute_ns"]),
-        release_jitter_ns: percentiles_from(&v["release_jitter_ns"]),
-        cycles: v["cycles"].as_u64().unwrap_or(0),
-        deadline_misses: v["deadline_misses"].as_u64().unwrap_or(0),
-        fifo: v["rt"]["fifo"].as_bool().unwrap_or(false),
-    })
+    let path = dir.join("latency.json");
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))
 }
 
 /// One row of the table.
@@ -223,12 +196,12 @@ fn ratio(a: u64, b: u64) -> f64 {
     }
 }
 
-/// `companion latency`.
+/// `companion latency`: measures every part, writes `latency-benchmark.json` and
+/// `latency-benchmark.svg` into `a.out`, and returns the figures.
 ///
 /// # Errors
 /// A child process or a file failed.
-pub fn run(a: &LatencyArgs) -> Result<()> {
-    crate::ipc::quiet_logs();
+pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     if a.cycles == 0 {
         bail!("--cycles must be at least 1");
     }
@@ -239,52 +212,54 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
     let mut rows: Vec<Row> = Vec::new();
     let mut hists: Vec<(String, LatencyHistogram)> = Vec::new();
     let mut push = |part: &'static str, name: String, h: LatencyHistogram, rows: &mut Vec<Row>| {
-        eprintln!("  {name}: p50 {}  max {}", fmt_ns(h.percentiles().p50), fmt_ns(h.percentiles().max));
+        observer.note(&format!(
+            "  {name}: p50 {}  max {}",
+            fmt_ns(h.percentiles().p50),
+            fmt_ns(h.percentiles().max)
+        ));
         rows.push(Row { part, name: name.clone(), ns: h.percentiles() });
         hists.push((name, h));
     };
-    eprintln!("(1) controller step, {} steps per platform and scalar type", a.cycles);
-    for platform in ["unicycle", "car", "omni"] {
-        for scalar in ["f64", "f32"] {
+    observer.note(&format!("(1) controller step, {} steps per platform and scalar type", a.cycles));
+    for platform in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
+        for scalar in [Scalar::F64, Scalar::F32] {
             let h = {
-                let _rt = a.rt.then(|| RtScope::enter(own_cpu));
+                let _rt = a.rt.then(|| RtScope::enter(own_cpu, observer));
                 controller_step(platform, scalar, a.cycles, a.warmup)?
             };
-            push("1", format!("controller step {platform} {scalar}"), h, &mut rows);
+            push("1", format!("controller step {} {}", platform_name(platform), scalar.name()), h, &mut rows);
         }
     }
-    eprintln!("(2) iceoryx2 ping-pong, {} round trips", a.cycles);
-    let iox = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None)?;
+    observer.note(&format!("(2) iceoryx2 ping-pong, {} round trips", a.cycles));
+    let iox = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
     let iox_p50 = iox.percentiles().p50;
     push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
-    let paced = pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000))?;
+    let paced = pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
     let paced_p50 = paced.percentiles().p50;
     push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
-    let iox_ev = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None)?;
+    let iox_ev = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
     let iox_ev_p50 = iox_ev.percentiles().p50;
     push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
-    eprintln!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles);
-    let uds = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt)?;
+    observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
+    let uds = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
     let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
     let mut hil = Vec::new();
-    if !a.skip_hil {
-        for mode in &a.hil_modes {
-            eprintln!("(4) HIL cycle, --wait {}, {} cycles at 1 kHz", mode.as_str(), a.cycles);
-            let f = hil_run(&exe, &a.out.join(format!("hil-{}", mode.as_str())), *mode, a.cycles, a.rt)?;
-            eprintln!(
-                "  round trip p50 {}  max {}",
-                fmt_ns(f.round_trip_ns.p50),
-                fmt_ns(f.round_trip_ns.max)
-            );
-            rows.push(Row {
-                part: "4",
-                name: format!("HIL cycle round trip, {}", mode.as_str()),
-                ns: f.round_trip_ns,
-            });
-            hil.push((*mode, f));
-        }
+    for mode in &a.hil_modes {
+        observer.note(&format!("(4) HIL cycle, --wait {}, {} cycles at 1 kHz", mode.as_str(), a.cycles));
+        let f = hil_run(&exe, &a.out.join(format!("hil-{}", mode.as_str())), *mode, a.cycles, a.rt)?;
+        observer.note(&format!(
+            "  round trip p50 {}  max {}",
+            fmt_ns(f.round_trip_ns.p50),
+            fmt_ns(f.round_trip_ns.max)
+        ));
+        rows.push(Row {
+            part: "4",
+            name: format!("HIL cycle round trip, {}", mode.as_str()),
+            ns: f.round_trip_ns,
+        });
+        hil.push((*mode, f));
     }
     let mut ratios = vec![
         ("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)),
@@ -320,67 +295,74 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         hil,
         ratios,
     };
-    print_table(&bench);
     let path = a.out.join("latency-benchmark.json");
     std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
     let series: Vec<(&str, &LatencyHistogram)> =
         hists.iter().filter(|(n, _)| !n.contains("f32")).map(|(n, h)| (n.as_str(), h)).collect();
     let svg = a.out.join("latency-benchmark.svg");
-    if let Err(e) =
-        plot::latency_svg(&svg, "companion latency: step, transports (HIL runs: see hil-*/)", &series, None)
-    {
-        eprintln!("warning: plot: {e:#}");
+    if let Err(e) = crate::plots::latency_svg(
+        &svg,
+        "companion latency: step, transports (HIL runs: see hil-*/)",
+        &series,
+        None,
+    ) {
+        observer.warn(&format!("plot: {e:#}"));
     }
-    println!("wrote {} and {}", path.display(), svg.display());
-    Ok(())
+    Ok(bench)
 }
 
-fn print_table(b: &Benchmark) {
-    println!(
-        "companion latency: {} samples each, messages {}/{} bytes, {}; {} CPUs, load {} → {}",
-        b.cycles,
-        b.message_bytes.0,
-        b.message_bytes.1,
-        if b.rt { "--rt" } else { "no --rt" },
-        b.machine.cpus,
-        b.load_average_at_start,
-        b.machine.load_average
-    );
-    println!(
-        "{:<3} {:<44} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-        "", "measurement", "p50", "p90", "p99", "p99.9", "p99.99", "max"
-    );
-    for r in &b.rows {
-        let p = &r.ns;
-        println!(
-            "{:<3} {:<44} {:>9} {:>9} {:>9} {:>9} {:>9} {:>9}",
-            format!("({})", r.part),
-            r.name,
-            fmt_ns(p.p50),
-            fmt_ns(p.p90),
-            fmt_ns(p.p99),
-            fmt_ns(p.p99_9),
-            fmt_ns(p.p99_99),
-            fmt_ns(p.max)
-        );
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::hil::end::PlantEnd;
+    use crate::hil::report::LatencyReport;
+    use crate::hil::stats::PlantStats;
+    use crate::hil::{HilConfig, Timing};
+
+    fn report_json() -> serde_json::Value {
+        let s = Scenario::paper(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
+        let timing = Timing {
+            period_ns: 1_000_000,
+            deadline_ns: 500_000,
+            hold_periods: 20,
+            wait: WaitMode::Spin,
+            spin_margin_ns: 0,
+            silence_ns: 1,
+            peer_timeout_ns: 1,
+            lockstep: false,
+        };
+        let cfg = HilConfig {
+            name: "t".into(),
+            out: PathBuf::new(),
+            timing,
+            startup_timeout: Duration::from_secs(1),
+            rt: None,
+            no_plots: true,
+        };
+        let mut st = PlantStats { cycles: 7, deadline_misses: 2, ..PlantStats::default() };
+        st.round_trip.record(5_000);
+        let r = LatencyReport::new(&s, &cfg, &st, None, &PlantEnd::Completed, 1.0);
+        serde_json::to_value(&r).unwrap()
     }
-    for (mode, f) in &b.hil {
-        println!(
-            "HIL {:<6}: {} cycles, {} deadline misses (500 µs), compute p50 {} max {}, release jitter p99.99 {} \
-             max {}{}",
-            mode.as_str(),
-            f.cycles,
-            f.deadline_misses,
-            fmt_ns(f.controller_compute_ns.p50),
-            fmt_ns(f.controller_compute_ns.max),
-            fmt_ns(f.release_jitter_ns.p99_99),
-            fmt_ns(f.release_jitter_ns.max),
-            if b.rt && !f.fifo { " (SCHED_FIFO refused)" } else { "" }
-        );
+
+    #[test]
+    fn the_benchmark_reads_back_what_the_plant_writes() {
+        let f: HilFigures = serde_json::from_value(report_json()).unwrap();
+        assert_eq!((f.cycles, f.deadline_misses, f.round_trip_ns.count), (7, 2, 1));
+        assert!(!f.rt.fifo);
     }
-    println!("ratios of medians:");
-    for (name, r) in &b.ratios {
-        println!("  {name:<54} {r:>6.2}");
+
+    #[test]
+    fn a_missing_key_in_latency_json_is_an_error_not_a_zero() {
+        let mut v = report_json();
+        v.as_object_mut().unwrap().remove("deadline_misses");
+        let e = serde_json::from_value::<HilFigures>(v).unwrap_err();
+        assert!(e.to_string().contains("deadline_misses"), "{e}");
+        let mut v = report_json();
+        v["round_trip_ns"].as_object_mut().unwrap().remove("p99.99");
+        assert!(serde_json::from_value::<HilFigures>(v).is_err());
     }
 }

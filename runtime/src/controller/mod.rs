@@ -1,13 +1,21 @@
-//! One controller of any platform × scalar type behind one concrete type, and the report of
-//! one step that both the simulation and the HIL loop record.
+//! Everything the runtime knows about `companion-core`'s controller, in one place: how a
+//! controller is described and built ([`ControllerSpec`]), one controller of any platform × scalar type
+//! behind one concrete type ([`AnyController`]), and the report of one step that both the
+//! simulation and the HIL loop record ([`StepReport`]). A change of the law's inputs or
+//! parameters is merged here.
+
+mod spec;
+
+pub use spec::{
+    platform_name, run_name, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig, LimitsConfig,
+    RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR,
+};
 
 use companion_core::nalgebra::Vector3;
 use companion_core::{
     CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformCommand, PlatformKind,
     Pose, Real, Rpr, StepError, Unicycle,
 };
-
-use crate::scenario::{ControllerSpec, Scalar};
 
 /// The number of joints of the paper's arm (the wire and the logs carry this many).
 pub const JOINTS: usize = 3;
@@ -33,8 +41,8 @@ pub struct StepReport {
 }
 
 impl StepReport {
-    /// The report of a rejected step: the safe command and no diagnostics.
-    pub fn rejected(error: StepError) -> Self {
+    /// The zero command with no diagnostics (NaN), rejected for `error` if given.
+    pub fn zero(error: Option<StepError>) -> Self {
         Self {
             command: Command::zero(),
             ep_norm: f64::NAN,
@@ -42,8 +50,13 @@ impl StepReport {
             psi: f64::NAN,
             saturation: f64::NAN,
             alpha_rate: [f64::NAN; 2],
-            error: Some(error),
+            error,
         }
+    }
+
+    /// The report of a rejected step: the safe command and no diagnostics.
+    pub fn rejected(error: StepError) -> Self {
+        Self::zero(Some(error))
     }
 }
 
@@ -74,7 +87,7 @@ impl AnyController {
     /// # Errors
     /// An invalid parameter.
     pub fn new(spec: &ControllerSpec) -> Result<Self, ParamError> {
-        Ok(match (spec.kind(), spec.scalar) {
+        Ok(match (spec.platform, spec.scalar) {
             (PlatformKind::Unicycle, Scalar::F64) => {
                 Self::UnicycleF64(Box::new(Controller::new(spec.params(), spec.unicycle(), spec.arm())?))
             }
@@ -96,16 +109,19 @@ impl AnyController {
         })
     }
 
-    /// One step on an f64 measurement (converted to f32 for the f32 controllers).
+    /// One step on an f64 measurement (converted to f32 for the f32 controllers): the command
+    /// to hold for `period` seconds, taking effect `delay` seconds after the measurement.
     #[inline]
-    pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, dt: f64) -> StepReport {
+    pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, period: f64, delay: f64) -> StepReport {
+        #[allow(clippy::cast_possible_truncation)]
+        let (p32, d32) = (period as f32, delay as f32);
         match self {
-            Self::UnicycleF64(c) => report(c.step(meas, dt)),
-            Self::UnicycleF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
-            Self::CarF64(c) => report(c.step(meas, dt)),
-            Self::CarF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
-            Self::OmniF64(c) => report(c.step(meas, dt)),
-            Self::OmniF32(c) => report(c.step(&measurement_in(meas), dt as f32)),
+            Self::UnicycleF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::UnicycleF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
+            Self::CarF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::CarF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
+            Self::OmniF64(c) => report(c.step_delayed(meas, period, delay)),
+            Self::OmniF32(c) => report(c.step_delayed(&measurement_in(meas), p32, d32)),
         }
     }
 

@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
-use super::stats::LatencyHistogram;
+use crate::histogram::LatencyHistogram;
 
 const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),

@@ -2,7 +2,7 @@
 //! percentiles as written to `latency.json`.
 
 use hdrhistogram::Histogram;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The largest value a histogram holds exactly (100 s); larger values are clamped to it.
 pub const MAX_NS: u64 = 100_000_000_000;
@@ -87,7 +87,7 @@ impl LatencyHistogram {
 
 /// Percentiles of a latency distribution, in nanoseconds (3 significant digits: each value is
 /// the upper edge of its histogram bucket).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Percentiles {
     /// Values recorded.
     pub count: u64,

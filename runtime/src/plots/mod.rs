@@ -13,9 +13,15 @@ use companion_core::Params;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::record::Row;
-use crate::scenario::{Choice, PlatformArg, TargetSpec};
-use crate::sim::RunOutcome;
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
+
+pub use self::latency::latency_svg;
+use crate::controller::run_name;
+use crate::record::{Row, RunOutcome};
+use crate::scenario::Target;
+
+mod latency;
 
 const W: u32 = 640;
 const H: u32 = 400;
@@ -68,27 +74,27 @@ pub fn render_all(dir: &Path, runs: &[RunOutcome]) -> Result<()> {
          paper's control variants; rows follow the paper's Figures 3–6 (trajectory 1) and 7–10 \
          (trajectory 2). Each image links to its run's folder (CSV, JSON, all figures).</p>",
     );
-    let find = |traj: u8, choice: Choice, platform: PlatformArg, psidot: bool| {
+    let find = |traj: PaperTrajectory, choice: PaperRun, platform: PlatformKind, psidot: bool| {
         runs.iter().find(|r| {
             let c = &r.scenario.controller;
-            r.scenario.target == TargetSpec::Paper(traj)
+            r.scenario.target == Target::Paper(traj)
                 && c.choice == choice
                 && c.platform == platform
                 && (c.overrides.psi_rate_in_drift == Some(true)) == psidot
         })
     };
-    let choices = [Choice::A, Choice::B, Choice::C, Choice::D];
-    for (traj, first_fig) in [(1u8, 3u8), (2, 7)] {
-        let _ = write!(html, "<h2>Trajectory {traj}</h2>");
+    let choices = [PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D];
+    for (traj, n, first_fig) in [(PaperTrajectory::One, 1, 3u8), (PaperTrajectory::Two, 2, 7)] {
+        let _ = write!(html, "<h2>Trajectory {n}</h2>");
         for (k, (file, title)) in FIGURES.iter().take(4).enumerate() {
             let _ = write!(html, "<h3>Figure {} — {title}</h3><div class=row>", first_fig as usize + k);
             for c in choices {
-                if let Some(r) = find(traj, c, PlatformArg::Unicycle, false) {
+                if let Some(r) = find(traj, c, PlatformKind::Unicycle, false) {
                     let n = &r.scenario.name;
                     let _ = write!(
                         html,
                         "<figure><a href=\"{n}/index.html\"><img src=\"{n}/{file}\"></a><figcaption>({})</figcaption></figure>",
-                        format!("{c:?}").to_lowercase()
+                        run_name(c)
                     );
                 }
             }
@@ -96,10 +102,10 @@ pub fn render_all(dir: &Path, runs: &[RunOutcome]) -> Result<()> {
         }
     }
     html.push_str("<h2>With the Ψ̇ term in the drift (runs b and d)</h2><p>SPEC §3: with it, b and d chatter.</p><div class=row>");
-    for traj in [1u8, 2] {
-        for c in [Choice::B, Choice::D] {
+    for traj in [PaperTrajectory::One, PaperTrajectory::Two] {
+        for c in [PaperRun::B, PaperRun::D] {
             for psidot in [false, true] {
-                if let Some(r) = find(traj, c, PlatformArg::Unicycle, psidot) {
+                if let Some(r) = find(traj, c, PlatformKind::Unicycle, psidot) {
                     let n = &r.scenario.name;
                     let _ = write!(
                         html,
@@ -110,7 +116,7 @@ pub fn render_all(dir: &Path, runs: &[RunOutcome]) -> Result<()> {
         }
     }
     html.push_str("</div><h2>Car-like and omnidirectional platforms</h2><div class=row>");
-    for r in runs.iter().filter(|r| r.scenario.controller.platform != PlatformArg::Unicycle) {
+    for r in runs.iter().filter(|r| r.scenario.controller.platform != PlatformKind::Unicycle) {
         let n = &r.scenario.name;
         let _ = write!(
             html,
@@ -169,7 +175,7 @@ fn render_figures(dir: &Path, run: &RunOutcome) -> Result<()> {
     }
     let name = &run.scenario.name;
     path_plot(&dir.join("path.svg"), name, rows).map_err(err)?;
-    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.report.ep_norm).map_err(err)?;
+    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.plant.ep_norm).map_err(err)?;
     log_plot(&dir.join("hs.svg"), &format!("{name}: h_s"), rows, |r| r.report.h_s).map_err(err)?;
     velocity_plot(&dir.join("velocities.svg"), name, rows, run.scenario.controller.platform).map_err(err)?;
     joints_plot(&dir.join("joints.svg"), name, rows).map_err(err)?;
@@ -290,13 +296,13 @@ fn velocity_plot(
     file: &Path,
     name: &str,
     rows: &[Row],
-    platform: PlatformArg,
+    platform: PlatformKind,
 ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let root: Area<'_> = SVGBackend::new(file, (W, H)).into_drawing_area();
     root.fill(&WHITE)?;
     let second: (&str, fn(&Row) -> f64) = match platform {
-        PlatformArg::Car => ("v_ξ (1/(m·s))", |r| r.report.command.platform.v_xi),
-        PlatformArg::Unicycle | PlatformArg::Omni => ("ω (rad/s)", |r| r.report.command.platform.omega),
+        PlatformKind::Car => ("v_ξ (1/(m·s))", |r| r.report.command.platform.v_xi),
+        PlatformKind::Unicycle | PlatformKind::Omni => ("ω (rad/s)", |r| r.report.command.platform.omega),
     };
     let v = |r: &Row| r.report.command.platform.v;
     let (y0, y1) = bounds(rows.iter().flat_map(|r| [v(r), second.1(r)]));
@@ -316,7 +322,7 @@ fn velocity_plot(
         .draw_series(LineSeries::new(rows.iter().map(|r| (r.plant.t, second.1(r))), SECOND.stroke_width(1)))?
         .label(second.0)
         .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], SECOND));
-    if platform == PlatformArg::Omni {
+    if platform == PlatformKind::Omni {
         chart
             .draw_series(LineSeries::new(
                 rows.iter().map(|r| (r.plant.t, r.report.command.platform.v_lat)),

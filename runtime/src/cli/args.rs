@@ -1,0 +1,248 @@
+//! The scenario flags shared by `sim`, `hil`, `plant` and `control` (the command line's
+//! "low-level" arguments), and the one place where they become a typed [`Scenario`].
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::{Args, ValueEnum};
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
+use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
+use companion_runtime::scenario::{ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target};
+
+/// The wheeled platform.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum PlatformArg {
+    /// Unicycle-like (differential drive), the paper's §4.
+    Unicycle,
+    /// Car-like, the paper's §5 (Lemma 2).
+    Car,
+    /// Omnidirectional.
+    Omni,
+}
+
+impl From<PlatformArg> for PlatformKind {
+    fn from(p: PlatformArg) -> Self {
+        match p {
+            PlatformArg::Unicycle => PlatformKind::Unicycle,
+            PlatformArg::Car => PlatformKind::Car,
+            PlatformArg::Omni => PlatformKind::Omni,
+        }
+    }
+}
+
+/// The paper's control variants (a)–(d) of §4.3.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ChoiceArg {
+    /// Ψ = 1, Choice 1 with (51).
+    A,
+    /// Ψ by (52)–(53), Choice 1 with (40).
+    B,
+    /// Ψ by (52)–(53), Choice 2 (no pre-compensation).
+    C,
+    /// Ψ by (52)–(53), Choice 3 (partial pre-compensation).
+    D,
+}
+
+impl From<ChoiceArg> for PaperRun {
+    fn from(c: ChoiceArg) -> Self {
+        match c {
+            ChoiceArg::A => PaperRun::A,
+            ChoiceArg::B => PaperRun::B,
+            ChoiceArg::C => PaperRun::C,
+            ChoiceArg::D => PaperRun::D,
+        }
+    }
+}
+
+/// The controller's scalar type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ScalarArg {
+    /// Double precision (the reference).
+    F64,
+    /// Single precision (what a Cortex-M4F runs).
+    F32,
+}
+
+impl From<ScalarArg> for Scalar {
+    fn from(s: ScalarArg) -> Self {
+        match s {
+            ScalarArg::F64 => Scalar::F64,
+            ScalarArg::F32 => Scalar::F32,
+        }
+    }
+}
+
+/// The discretisation on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum DiscretisationArg {
+    /// The law at the state predicted for the middle of the hold (the default).
+    Midpoint,
+    /// The law at the measured state (the literal sampling; first order in the period).
+    Sampled,
+}
+
+impl From<DiscretisationArg> for DiscretisationConfig {
+    fn from(d: DiscretisationArg) -> Self {
+        match d {
+            DiscretisationArg::Midpoint => DiscretisationConfig::Midpoint,
+            DiscretisationArg::Sampled => DiscretisationConfig::Sampled,
+        }
+    }
+}
+
+/// Velocity limits on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LimitsArg {
+    /// None (the paper's runs), unless the config file sets some.
+    None,
+    /// A realistic robot's limits (see `companion_plant::realistic_limits`).
+    Realistic,
+}
+
+/// The scenario flags shared by `sim` and `hil`.
+#[derive(Args, Clone, Debug)]
+pub struct ScenarioArgs {
+    /// The target's motion: the paper's trajectory 1 (circle) or 2 (Table 1).
+    #[arg(long, default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2))]
+    pub trajectory: u8,
+    /// A user-defined target motion: a TOML file of piecewise-constant body velocities
+    /// (replaces --trajectory).
+    #[arg(long, value_name = "FILE")]
+    pub target_file: Option<PathBuf>,
+    /// The control variant of the paper's §4.3: a = Ψ≡1 + Choice 1 (51); b = Ψ filtered +
+    /// Choice 1 (40); c = Ψ filtered + Choice 2; d = Ψ filtered + Choice 3.
+    #[arg(long, value_enum, default_value = "a")]
+    pub choice: ChoiceArg,
+    /// The wheeled platform.
+    #[arg(long, value_enum, default_value = "unicycle")]
+    pub platform: PlatformArg,
+    /// The control period and integration step, in seconds.
+    #[arg(long, default_value_t = 0.001, value_name = "SECONDS")]
+    pub dt: f64,
+    /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil`, `plant` and
+    /// `control`].
+    #[arg(long, value_name = "SECONDS")]
+    pub duration: Option<f64>,
+    /// The controller's scalar type.
+    #[arg(long, value_enum, default_value = "f64")]
+    pub scalar: ScalarArg,
+    /// A TOML file overriding parameters, in tables `controller`, `unicycle`, `car`,
+    /// `velocity_limits` and `plant`; each key is the name of the field it sets in
+    /// companion-core (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
+    #[arg(long, value_name = "FILE")]
+    pub config: Option<PathBuf>,
+    /// Put the Ψ̇ (h_s1 − h_s2) term in the pre-compensated drift ∂h_s/∂t (the paper preset
+    /// leaves it out; with it runs b and d chatter).
+    #[arg(long)]
+    pub psi_rate_in_drift: bool,
+    /// Advance the rest filter (28) by explicit Euler, as a literal discretisation of the
+    /// paper would; at dt = 1 ms runs b–d then chatter at the Nyquist frequency during
+    /// transients. The default is linearly implicit (see companion-core's `RestFilter`).
+    #[arg(long)]
+    pub explicit_rest_filter: bool,
+    /// How the control law becomes a command held over one period: `midpoint` evaluates it
+    /// at the state predicted for the middle of the hold (second order in the period,
+    /// compensates the measurement delay; the default); `sampled` at the measured state
+    /// (first order: the literal sampling of the paper's continuous law).
+    #[arg(long, value_enum)]
+    pub discretisation: Option<DiscretisationArg>,
+    /// Platform velocity limits, met by one common scale factor.
+    #[arg(long, value_enum)]
+    pub limits: Option<LimitsArg>,
+    /// Plant imperfection: first-order actuator lag with this time constant, in seconds.
+    #[arg(long, value_name = "SECONDS")]
+    pub actuator_lag: Option<f64>,
+    /// Plant imperfection: Gaussian measurement noise (σ = 1 mm, 1 mrad, 0.5 mrad on joints).
+    #[arg(long)]
+    pub noise: bool,
+    /// Plant imperfection: the wheels turn (1 + E) times faster than commanded.
+    #[arg(long, value_name = "E")]
+    pub wheel_scale_error: Option<f64>,
+    /// Seed of the plant's noise generator.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Log one row of timeseries.csv every N steps (the first and last steps always).
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    pub log_every: u64,
+}
+
+impl ScenarioArgs {
+    /// The target the flags name.
+    pub fn target(&self) -> Target {
+        match &self.target_file {
+            Some(p) => Target::File(p.clone()),
+            None if self.trajectory == 2 => Target::Paper(PaperTrajectory::Two),
+            None => Target::Paper(PaperTrajectory::One),
+        }
+    }
+
+    /// The `--config` file (empty without the flag).
+    ///
+    /// # Errors
+    /// The file cannot be read or has an error.
+    pub fn config_file(&self) -> Result<ConfigFile> {
+        Ok(match &self.config {
+            Some(path) => ConfigFile::load(path)?,
+            None => ConfigFile::default(),
+        })
+    }
+
+    /// The builder of `target`, `choice` on `platform` with the config `file`'s overrides and
+    /// every other flag applied (flags override the file); `default_duration` if
+    /// `--duration` is not given.
+    pub fn builder(
+        &self,
+        file: ConfigFile,
+        target: Target,
+        choice: PaperRun,
+        platform: PlatformKind,
+        default_duration: f64,
+    ) -> ScenarioBuilder {
+        let file_has_seed = file.plant.seed.is_some();
+        let file_has_noise = file.plant.noise.is_some();
+        let mut b = Scenario::builder(target, choice, platform)
+            .config(file)
+            .scalar(self.scalar.into())
+            .dt(self.dt)
+            .duration(self.duration.unwrap_or(default_duration))
+            .log_every(self.log_every);
+        if self.psi_rate_in_drift {
+            b = b.psi_rate_in_drift(true);
+        }
+        if self.explicit_rest_filter {
+            b = b.rest_filter(RestFilterConfig::Explicit);
+        }
+        if let Some(d) = self.discretisation {
+            b = b.discretisation(d.into());
+        }
+        match self.limits {
+            Some(LimitsArg::Realistic) => b = b.limits(LimitsChoice::Realistic),
+            Some(LimitsArg::None) => b = b.limits(LimitsChoice::Unlimited),
+            None => {}
+        }
+        if let Some(tau) = self.actuator_lag {
+            b = b.actuator_lag(tau);
+        }
+        if self.noise && !file_has_noise {
+            b = b.noise(NoiseConfig::default());
+        }
+        if let Some(e) = self.wheel_scale_error {
+            b = b.wheel_scale_error(e);
+        }
+        if !file_has_seed {
+            b = b.seed(self.seed);
+        }
+        b
+    }
+
+    /// The scenario the flags describe (`default_duration` if `--duration` is not given).
+    ///
+    /// # Errors
+    /// A bad flag value or config file, with a message saying which and why.
+    pub fn scenario(&self, default_duration: f64) -> Result<Scenario> {
+        let file = self.config_file()?;
+        let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
+        Ok(b.build()?)
+    }
+}

@@ -1,0 +1,538 @@
+//! `companion hil`, `companion plant` and `companion control`: their flags, their progress
+//! line, their tables and their exit codes.
+
+use std::ffi::OsString;
+use std::path::PathBuf;
+use std::process::{Command as Process, ExitCode, ExitStatus, Stdio};
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{anyhow, bail, Result};
+use clap::{Args, ValueEnum};
+use companion_runtime::hil::config::adapt_scenario;
+use companion_runtime::hil::control::{run_as_parent, session, ParentOutcome, Session};
+use companion_runtime::hil::fault::Corruption;
+use companion_runtime::hil::report::LatencyReport;
+use companion_runtime::hil::stats::LiveFigures;
+use companion_runtime::hil::{ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode};
+use companion_runtime::histogram::fmt_ns;
+use companion_runtime::ipc::{self, NameInUse, Role};
+use companion_runtime::process::ChildGuard;
+use companion_runtime::scenario::Scenario;
+
+use super::args::ScenarioArgs;
+use super::exit::{EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG, EXIT_PEER_LOST};
+use super::sim::print_table;
+use super::terminal::Terminal;
+
+/// The default simulated duration of a HIL run when `--duration` is not given (s).
+pub const DEFAULT_DURATION: f64 = 30.0;
+
+/// `--wait`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum WaitArg {
+    /// Busy-poll.
+    Spin,
+    /// iceoryx2 event service with bounded `timed_wait`.
+    Event,
+    /// Sleep until shortly before the expected message, then spin.
+    Hybrid,
+}
+
+impl From<WaitArg> for WaitMode {
+    fn from(w: WaitArg) -> Self {
+        match w {
+            WaitArg::Spin => WaitMode::Spin,
+            WaitArg::Event => WaitMode::Event,
+            WaitArg::Hybrid => WaitMode::Hybrid,
+        }
+    }
+}
+
+/// Flags of `companion hil`, `companion plant` and `companion control` (one set, so that the
+/// demo can hand its own flags to the plant it starts; each role uses the flags it needs).
+#[derive(Args, Clone, Debug)]
+pub struct HilArgs {
+    #[command(flatten)]
+    /// The scenario (give both roles the same one). `--duration` defaults to 30 s here.
+    pub scenario: ScenarioArgs,
+    /// Control rate in Hz (default: 1/--dt, so that simulated time runs at wall-clock speed).
+    #[arg(long, value_name = "HZ")]
+    pub rate: Option<f64>,
+    /// Deadline of each command after its period's release, in microseconds.
+    #[arg(long, default_value_t = 500, value_name = "US")]
+    pub deadline_us: u64,
+    /// Lockstep: the plant waits for every command (deterministic, no deadlines; the same
+    /// timeseries.csv as `companion sim`).
+    #[arg(long)]
+    pub lockstep: bool,
+    /// How each process waits for the other's message [default: spin on a machine with two
+    /// or more CPUs, hybrid with --rt (a SCHED_FIFO spinner is parked by the kernel's
+    /// real-time throttling) or on one CPU].
+    #[arg(long, value_enum)]
+    pub wait: Option<WaitArg>,
+    /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
+    /// privilege is a warning).
+    #[arg(long)]
+    pub rt: bool,
+    /// SCHED_FIFO priority with --rt.
+    #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99))]
+    pub rt_priority: i32,
+    /// The plant's CPU with --rt (default: 1 on a machine with two or more CPUs).
+    #[arg(long, value_name = "CPU")]
+    pub plant_cpu: Option<usize>,
+    /// The controller's CPU with --rt (default: 0).
+    #[arg(long, value_name = "CPU")]
+    pub control_cpu: Option<usize>,
+    /// The demo's name: its iceoryx2 services are companion/NAME/…, so demos with different
+    /// names never meet.
+    #[arg(long, default_value = "demo")]
+    pub name: String,
+    /// Output folder (the plant writes it).
+    #[arg(long, default_value = "out/hil", value_name = "DIR")]
+    pub out: PathBuf,
+    /// Periods the plant holds the last command after a miss before it stops the robot.
+    #[arg(long, default_value_t = 20, value_name = "K")]
+    pub hold_periods: u32,
+    /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs).
+    #[arg(long, default_value_t = 100, value_name = "US")]
+    pub spin_margin_us: u64,
+    /// Silence (no message) after which a process checks whether its peer is alive (ms).
+    #[arg(long, default_value_t = 20, value_name = "MS")]
+    pub silence_ms: u64,
+    /// Give up when the peer is alive but silent for this long (s).
+    #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
+    pub peer_timeout: f64,
+    /// How long to wait for the peer to join at start (s).
+    #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
+    pub startup_timeout: f64,
+    /// Skip the plots (CSV and JSON only).
+    #[arg(long)]
+    pub no_plots: bool,
+    /// No live progress line.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Testing: the controller also sends corrupted commands, e.g. `version@100,nan@200,seq@300,
+    /// session@400` (each is sent once, before the good answer to the first measurement with
+    /// at least that sequence number).
+    #[arg(long, hide = true, value_name = "LIST")]
+    pub inject: Option<String>,
+    /// Set by `companion hil` on the plant it starts.
+    #[arg(long, hide = true)]
+    pub child: bool,
+}
+
+#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+fn secs_to_ns(s: f64) -> u64 {
+    (s * 1e9).round() as u64
+}
+
+impl HilArgs {
+    /// The timing options.
+    ///
+    /// # Errors
+    /// A rate, deadline or timeout out of range.
+    pub fn timing(&self, s: &Scenario) -> Result<Timing> {
+        let rate = self.rate.unwrap_or(1.0 / s.dt);
+        if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
+            bail!("--rate must be between 1 and 100000 Hz, got {rate}");
+        }
+        let period_ns = secs_to_ns(1.0 / rate);
+        let deadline_ns = self.deadline_us * 1000;
+        if !self.lockstep && (deadline_ns == 0 || deadline_ns > period_ns) {
+            bail!(
+                "--deadline-us must be in (0, period] = (0, {}] µs at {rate} Hz, got {}",
+                period_ns / 1000,
+                self.deadline_us
+            );
+        }
+        if !(self.peer_timeout.is_finite() && self.peer_timeout > 0.0) {
+            bail!("--peer-timeout must be a positive number of seconds");
+        }
+        if self.silence_ms == 0 {
+            bail!("--silence-ms must be at least 1");
+        }
+        Ok(Timing {
+            period_ns: if self.lockstep { 0 } else { period_ns },
+            deadline_ns,
+            hold_periods: self.hold_periods,
+            wait: self.wait.map_or_else(|| WaitMode::default_for(self.rt), WaitMode::from),
+            spin_margin_ns: self.spin_margin_us * 1000,
+            silence_ns: self.silence_ms * 1_000_000,
+            peer_timeout_ns: secs_to_ns(self.peer_timeout),
+            lockstep: self.lockstep,
+        })
+    }
+
+    /// The typed configuration and the scenario (adapted to the HIL: see `adapt_scenario`).
+    ///
+    /// # Errors
+    /// A bad flag value or config file.
+    pub fn resolve(&self) -> Result<(HilConfig, Scenario)> {
+        let s = self.scenario.scenario(DEFAULT_DURATION)?;
+        let timing = self.timing(&s)?;
+        let startup_timeout = Duration::try_from_secs_f64(self.startup_timeout).map_err(|_| {
+            anyhow!("--startup-timeout must be a number of seconds, got {}", self.startup_timeout)
+        })?;
+        let (plant_cpu, control_cpu) = RtPlan::default_cpus();
+        let rt = self.rt.then(|| RtPlan {
+            priority: self.rt_priority,
+            plant_cpu: self.plant_cpu.unwrap_or(plant_cpu),
+            control_cpu: self.control_cpu.unwrap_or(control_cpu),
+        });
+        let cfg = HilConfig {
+            name: self.name.clone(),
+            out: self.out.clone(),
+            timing,
+            startup_timeout,
+            rt,
+            no_plots: self.no_plots,
+        };
+        Ok((cfg, adapt_scenario(s, &timing)))
+    }
+
+    /// `--inject`, parsed.
+    ///
+    /// # Errors
+    /// An unknown kind or a bad number.
+    pub fn injections(&self) -> Result<Vec<(u64, Corruption)>> {
+        self.inject.as_deref().map_or_else(|| Ok(Vec::new()), parse_injections)
+    }
+}
+
+/// Parses `version@100,nan@200,seq@300,session@400`.
+///
+/// # Errors
+/// An unknown kind or a bad number.
+pub fn parse_injections(s: &str) -> Result<Vec<(u64, Corruption)>> {
+    s.split(',')
+        .filter(|x| !x.trim().is_empty())
+        .map(|item| {
+            let (kind, at) =
+                item.trim().split_once('@').ok_or_else(|| anyhow!("--inject item {item:?}: KIND@SEQ"))?;
+            let kind = match kind {
+                "version" => Corruption::Version,
+                "nan" => Corruption::Nan,
+                "seq" => Corruption::Seq,
+                "session" => Corruption::Session,
+                _ => bail!("--inject: unknown kind {kind:?} (version, nan, seq, session)"),
+            };
+            Ok((at.parse::<u64>().map_err(|e| anyhow!("--inject {item:?}: {e}"))?, kind))
+        })
+        .collect()
+}
+
+/// The exit code of a plant's run.
+fn plant_exit_code(end: &PlantEnd) -> u8 {
+    match end {
+        PlantEnd::Completed => 0,
+        PlantEnd::Interrupted { .. } => EXIT_INTERRUPTED,
+        PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. } => EXIT_PEER_LOST,
+        PlantEnd::ControllerHung { .. } => EXIT_PEER_HUNG,
+    }
+}
+
+/// The exit code of a controller's run.
+fn control_exit_code(end: &ControlEnd) -> u8 {
+    match end {
+        ControlEnd::EndOfRun => 0,
+        ControlEnd::PlantDied { .. } | ControlEnd::PlantGone { .. } => EXIT_PEER_LOST,
+        ControlEnd::PlantHung { .. } => EXIT_PEER_HUNG,
+        ControlEnd::Interrupted => EXIT_INTERRUPTED,
+    }
+}
+
+/// Prints a [`NameInUse`] error and returns its exit code; other errors go up.
+fn name_in_use_or(e: anyhow::Error) -> Result<ExitCode> {
+    if let Some(n) = e.downcast_ref::<NameInUse>() {
+        eprintln!("error: {n}");
+        return Ok(ExitCode::from(EXIT_NAME_IN_USE));
+    }
+    Err(e)
+}
+
+/// What every role does first: quiet iceoryx2 logs, SIGINT/SIGTERM handlers, a tight timer
+/// slack.
+fn setup() -> Result<()> {
+    ipc::quiet_logs();
+    companion_runtime::signals::install_termination_handler()?;
+    companion_runtime::rt::tight_timer_slack();
+    Ok(())
+}
+
+/// The flags after the `hil` subcommand in this process's command line, without the
+/// controller-only `--inject` (handed to the plant).
+fn forwarded_args() -> Vec<OsString> {
+    let args: Vec<OsString> = std::env::args_os().collect();
+    let after = match args.iter().position(|a| a == "hil") {
+        Some(i) => &args[i + 1..],
+        None => &[][..],
+    };
+    let mut fwd = Vec::new();
+    let mut skip = false;
+    for x in after {
+        if skip {
+            skip = false;
+        } else if x == "--inject" {
+            skip = true;
+        } else if !x.to_string_lossy().starts_with("--inject=") {
+            fwd.push(x.clone());
+        }
+    }
+    fwd
+}
+
+fn code_of(st: Option<ExitStatus>) -> u8 {
+    st.and_then(|s| s.code()).and_then(|c| u8::try_from(c).ok()).unwrap_or(EXIT_ERROR)
+}
+
+/// `companion hil`: starts the plant, runs the controller against it, waits for it.
+///
+/// # Errors
+/// A bad flag, or the plant could not be started.
+pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
+    setup()?;
+    let (cfg, s) = a.resolve()?;
+    let inject = a.injections()?;
+    ipc::validate_name(&cfg.name)?;
+    if let Some(w) = cfg.cpu_warning() {
+        eprintln!("warning: {w}");
+    }
+    let iox = ipc::config()?;
+    for role in [Role::Control, Role::Plant] {
+        if let Err(e) = ipc::ensure_name_free(&iox, &cfg.name, role) {
+            return name_in_use_or(e);
+        }
+    }
+    let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
+    let child = Process::new(&exe)
+        .arg("plant")
+        .args(forwarded_args())
+        .arg("--child")
+        .stdin(Stdio::null())
+        .spawn()
+        .map_err(|e| anyhow!("starting the plant ({} plant): {e}", exe.display()))?;
+    eprintln!("started the plant (pid {}); controller is pid {}", child.id(), std::process::id());
+    let term = Terminal::lines();
+    Ok(ExitCode::from(match run_as_parent(&cfg, &s, &inject, ChildGuard::new(child), &term)? {
+        ParentOutcome::PlantExitedEarly(st) => code_of(Some(st)),
+        ParentOutcome::Failed(_) => EXIT_ERROR,
+        ParentOutcome::Finished { end, plant } => {
+            let code = code_of(plant);
+            if end == ControlEnd::Interrupted && code == 0 {
+                EXIT_INTERRUPTED
+            } else {
+                code
+            }
+        }
+        ParentOutcome::PlantLost(end) => control_exit_code(&end),
+    }))
+}
+
+/// The progress line of a real-time plant run, drawn by a thread of its own from the loop's
+/// live figures.
+fn spawn_progress(live: Arc<LiveFigures>, steps: u64, dt: f64) -> Option<std::thread::JoinHandle<()>> {
+    std::thread::Builder::new()
+        .name("progress".into())
+        .spawn(move || {
+            while !live.is_done() {
+                std::thread::sleep(Duration::from_millis(250));
+                let c = live.cycle.load(Ordering::Relaxed);
+                #[allow(clippy::cast_precision_loss)]
+                let t = c as f64 * dt;
+                eprint!(
+                    "\r  cycle {c:>7}/{}  t {t:6.1} s  misses {:>5}  round trip p99 {:>9}{}   ",
+                    steps + 1,
+                    live.misses.load(Ordering::Relaxed),
+                    fmt_ns(live.p99_ns.load(Ordering::Relaxed)),
+                    if live.stopped.load(Ordering::Relaxed) { "  ROBOT STOPPED" } else { "" }
+                );
+            }
+            eprint!("\r{:100}\r", "");
+        })
+        .ok()
+}
+
+/// `companion plant`.
+///
+/// # Errors
+/// A bad flag, a transport failure, or files that cannot be written.
+pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
+    setup()?;
+    let (cfg, s) = a.resolve()?;
+    let show_progress = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let live = Arc::new(LiveFigures::default());
+    // Lockstep: a bar; real time: a line drawn from the live figures. Helper threads start
+    // before the loop raises its priority, so that they do not inherit it.
+    let term = match (cfg.timing.lockstep, a.child) {
+        (true, false) => Terminal::bar(s.steps() + 1, !show_progress),
+        (true, true) => Terminal::bar(s.steps() + 1, !show_progress).without_notes(),
+        (false, false) => Terminal::lines(),
+        (false, true) => Terminal::warnings_only(),
+    };
+    let progress = (!cfg.timing.lockstep && show_progress)
+        .then(|| spawn_progress(Arc::clone(&live), s.steps(), s.dt))
+        .flatten();
+    let result = companion_runtime::hil::plant::run(&cfg, &s, &live, &term);
+    live.finish();
+    if let Some(p) = progress {
+        let _ = p.join();
+    }
+    term.finish();
+    let outcome = match result {
+        Ok(o) => o,
+        Err(e) => return name_in_use_or(e),
+    };
+    print_table(std::slice::from_ref(&outcome.run));
+    print_latency(&outcome.latency);
+    if outcome.end != PlantEnd::Completed {
+        eprintln!("plant: {}", outcome.end.describe());
+    }
+    println!("wrote {}", cfg.out.display());
+    Ok(ExitCode::from(plant_exit_code(&outcome.end)))
+}
+
+/// `companion control`.
+///
+/// # Errors
+/// A bad flag or a transport failure.
+pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
+    setup()?;
+    let (cfg, s) = a.resolve()?;
+    let inject = a.injections()?;
+    eprintln!("controller: demo '{}' waiting for its plant (companion plant --name {})", cfg.name, cfg.name);
+    let Session { end, stats } = match session(&cfg, &s, &inject, &Terminal::lines(), || None) {
+        Ok(x) => x,
+        Err(e) => return name_in_use_or(e),
+    };
+    eprintln!("{}", stats.line());
+    if end != ControlEnd::EndOfRun {
+        eprintln!("controller: {}", end.describe());
+    }
+    Ok(ExitCode::from(control_exit_code(&end)))
+}
+
+/// Prints the latency table of a HIL run.
+fn print_latency(r: &LatencyReport) {
+    println!(
+        "{:<20} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}",
+        "latency", "p50", "p90", "p99", "p99.9", "p99.99", "max", "samples"
+    );
+    let mut rows = vec![("controller compute", &r.controller_compute_ns), ("round trip", &r.round_trip_ns)];
+    if r.release_jitter_ns.count > 0 {
+        rows.push(("release jitter", &r.release_jitter_ns));
+    }
+    for (name, p) in rows {
+        println!(
+            "{:<20} {:>10} {:>10} {:>10} {:>10} {:>10} {:>10} {:>9}",
+            name,
+            fmt_ns(p.p50),
+            fmt_ns(p.p90),
+            fmt_ns(p.p99),
+            fmt_ns(p.p99_9),
+            fmt_ns(p.p99_99),
+            fmt_ns(p.max),
+            p.count
+        );
+    }
+    let rt = if r.rt.requested {
+        format!(
+            "--rt (SCHED_FIFO {}, memory {}, CPU {:?}/{:?})",
+            if r.rt.fifo { "on" } else { "REFUSED" },
+            if r.rt.memory_locked { "locked" } else { "not locked" },
+            r.rt.plant_cpu,
+            r.rt.controller_cpu
+        )
+    } else {
+        "no --rt".to_string()
+    };
+    if r.mode == "lockstep" {
+        println!(
+            "{} cycles, lockstep, wait {}, {rt}; {} malformed commands dropped",
+            r.cycles,
+            r.wait.as_str(),
+            r.invalid_total
+        );
+    } else {
+        println!(
+            "{} cycles at {:.0} Hz, deadline {}, wait {}, {rt}: {} deadline misses ({} late), {} held, {} stopped \
+             ({} stops), {} malformed commands dropped",
+            r.cycles,
+            r.rate_hz,
+            fmt_ns(r.deadline_ns),
+            r.wait.as_str(),
+            r.deadline_misses,
+            r.late_commands,
+            r.held_periods,
+            r.stopped_periods,
+            r.stop_events,
+            r.invalid_total
+        );
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    use super::*;
+
+    #[derive(Parser, Debug)]
+    struct T {
+        #[command(flatten)]
+        a: HilArgs,
+    }
+
+    #[test]
+    fn defaults_give_30_s_at_1_khz_with_a_500_us_deadline() {
+        let t = T::parse_from(["x"]);
+        let (cfg, s) = t.a.resolve().unwrap();
+        assert_eq!(s.duration, 30.0);
+        let tm = cfg.timing;
+        assert_eq!(tm.period_ns, 1_000_000);
+        assert_eq!(tm.deadline_ns, 500_000);
+        assert_eq!(tm.hold_periods, 20);
+        let expected =
+            if companion_runtime::rt::online_cpus() >= 2 { WaitMode::Spin } else { WaitMode::Hybrid };
+        assert_eq!(tm.wait, expected);
+        assert!(!tm.lockstep);
+        // The joint guard leaves room for the held periods.
+        assert_eq!(s.controller.overrides.joint_step_fraction, Some(1.0 / 22.0));
+        let t = T::parse_from(["x", "--rt"]);
+        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Hybrid);
+        let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
+        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Spin);
+    }
+
+    #[test]
+    fn a_deadline_beyond_the_period_is_refused() {
+        let t = T::parse_from(["x", "--rate", "2000", "--deadline-us", "600"]);
+        let e = t.a.resolve().unwrap_err().to_string();
+        assert!(e.contains("--deadline-us"), "{e}");
+    }
+
+    #[test]
+    fn a_startup_timeout_that_is_not_a_duration_is_an_error() {
+        for bad in ["--startup-timeout=nan", "--startup-timeout=-1", "--startup-timeout=inf"] {
+            let t = T::parse_from(["x", bad]);
+            let e = t.a.resolve().unwrap_err().to_string();
+            assert!(e.contains("--startup-timeout"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn injections_parse() {
+        assert_eq!(
+            parse_injections("version@1,nan@2,seq@3,session@4").unwrap(),
+            vec![
+                (1, Corruption::Version),
+                (2, Corruption::Nan),
+                (3, Corruption::Seq),
+                (4, Corruption::Session)
+            ]
+        );
+        assert!(parse_injections("bogus@1").is_err());
+        assert!(parse_injections("nan").is_err());
+    }
+}

@@ -1,0 +1,113 @@
+//! `companion sim`.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use companion_runtime::record::RunOutcome;
+use companion_runtime::scenario::Target;
+use companion_runtime::sim::{all_scenarios, run_one};
+use rayon::prelude::*;
+
+use super::args::ScenarioArgs;
+use super::terminal::Terminal;
+
+/// `companion sim` flags.
+#[derive(Args, Clone, Debug)]
+pub struct SimArgs {
+    #[command(flatten)]
+    /// The scenario.
+    pub scenario: ScenarioArgs,
+    /// Run every paper run (trajectories 1 and 2 × a–d), b and d with the Ψ̇ term, the car-like
+    /// and omnidirectional platforms, and write an index page laying them out like the paper's
+    /// Figures 3–10. Scenario flags other than --dt, --scalar, --log-every are ignored.
+    #[arg(long)]
+    pub all: bool,
+    /// Output folder (created if missing).
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Skip the plots (CSV and JSON only).
+    #[arg(long)]
+    pub no_plots: bool,
+    /// Simulate a pure delay between a measurement and the moment its command takes effect
+    /// (compute and transport; a bridge over a network adds 0.1–5 ms), in seconds: from 0 to
+    /// 8 periods (and at most the law's max_delay, 50 ms). The controller is told it and
+    /// predicts over it.
+    #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
+    pub delay: f64,
+    /// With --delay: do not tell the controller (to see what the delay does uncompensated).
+    #[arg(long)]
+    pub no_delay_compensation: bool,
+}
+
+/// `sim`'s duration when `--duration` is not given (s).
+const DEFAULT_DURATION: f64 = 120.0;
+
+/// `companion sim`.
+///
+/// # Errors
+/// A bad flag, config file or I/O failure.
+pub fn run(args: &SimArgs) -> Result<()> {
+    if args.all {
+        // Each run's builder has every flag applied; `all_scenarios` sets target, variant,
+        // platform, duration and the Ψ̇ term.
+        let a = &args.scenario;
+        let file = a.config_file()?;
+        let list = all_scenarios(&|t, c, p| {
+            a.builder(file.clone(), Target::Paper(t), c, p, DEFAULT_DURATION)
+                .delay(args.delay)
+                .delay_compensation(!args.no_delay_compensation)
+        })?;
+        let total: u64 = list.iter().map(|s| s.steps() + 1).sum();
+        let term = Terminal::bar(total, false);
+        let outcomes: Vec<RunOutcome> = list
+            .par_iter()
+            .map(|s| run_one(s, &args.out.join(&s.name), &term))
+            .collect::<Result<Vec<_>>>()?;
+        term.finish();
+        if !args.no_plots {
+            companion_runtime::plots::render_all(&args.out, &outcomes)?;
+        }
+        print_table(&outcomes);
+        println!("wrote {} runs into {}", outcomes.len(), args.out.display());
+        if !args.no_plots {
+            println!("open {}", args.out.join("index.html").display());
+        }
+    } else {
+        let a = &args.scenario;
+        let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
+        let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
+        let term = Terminal::bar(s.steps() + 1, false);
+        let outcome = run_one(&s, &args.out, &term)?;
+        term.finish();
+        if !args.no_plots {
+            companion_runtime::plots::render_run(&args.out, &outcome)?;
+        }
+        print_table(std::slice::from_ref(&outcome));
+        println!("wrote {}", args.out.display());
+    }
+    Ok(())
+}
+
+/// Prints one line per run with the main figures.
+pub fn print_table(outcomes: &[RunOutcome]) {
+    println!(
+        "{:<26} {:>10} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8} {:>9}",
+        "run", "final|ep|", "max|ep|>20", "tracked", "path m", "v sgn", "max|v|", "max|w|", "wall s"
+    );
+    for o in outcomes {
+        let s = &o.summary;
+        println!(
+            "{:<26} {:>10.2e} {:>10.2e} {:>7.1}% {:>9.2} {:>7} {:>8.3} {:>8.3} {:>9.3}",
+            s.scenario,
+            s.final_ep_norm,
+            s.max_ep_norm_after_20s,
+            100.0 * s.fraction_ep_below_1e_3_after_20s,
+            s.path_length,
+            s.v_sign_changes,
+            s.max_abs_v,
+            s.max_abs_omega,
+            s.wall_time_s
+        );
+    }
+}

@@ -1,0 +1,149 @@
+//! The typed configuration of a HIL run: timing, waiting, real-time setup, names and folders
+//! (made from the command line by the CLI layer, or in one expression by a test).
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use serde::{Deserialize, Serialize};
+
+use crate::ipc::Role;
+use crate::rt::RtConfig;
+use crate::scenario::Scenario;
+
+/// How a process waits for its peer's message.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum WaitMode {
+    /// Busy-poll.
+    Spin,
+    /// iceoryx2 event service with bounded `timed_wait`.
+    Event,
+    /// Sleep until shortly before the expected message, then spin.
+    Hybrid,
+}
+
+impl WaitMode {
+    /// The command-line spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Spin => "spin",
+            Self::Event => "event",
+            Self::Hybrid => "hybrid",
+        }
+    }
+
+    /// The default: `spin` where each process can have a CPU of its own and `rt` is off;
+    /// `hybrid` otherwise.
+    ///
+    /// On this project's 2-vCPU VMs a timed sleep at 1 kHz wakes ~30 µs late at the median but
+    /// milliseconds late at p99 (a bare `clock_nanosleep` loop), so the modes that sleep miss
+    /// far more 500 µs deadlines than spinning does (10 s runs: spin 19 and 23 misses, hybrid
+    /// 26 and 793, event 69 and 1 102). With `SCHED_FIFO` a spinner is parked for ~50 ms of
+    /// every second by the kernel's real-time throttling, and on one CPU two spinners take
+    /// turns by time slices: hybrid there.
+    pub fn default_for(rt: bool) -> Self {
+        if rt || crate::rt::online_cpus() < 2 {
+            Self::Hybrid
+        } else {
+            Self::Spin
+        }
+    }
+}
+
+/// The timing options both loops use.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Timing {
+    /// The period (ns); 0 in lockstep.
+    pub period_ns: u64,
+    /// The deadline after release (ns).
+    pub deadline_ns: u64,
+    /// Hold periods before stopping.
+    pub hold_periods: u32,
+    /// The wait mode.
+    pub wait: WaitMode,
+    /// Hybrid spin margin (ns).
+    pub spin_margin_ns: u64,
+    /// Silence before a liveness check (ns).
+    pub silence_ns: u64,
+    /// Alive-but-silent limit (ns).
+    pub peer_timeout_ns: u64,
+    /// Lockstep.
+    pub lockstep: bool,
+}
+
+/// The real-time setup (`--rt`): priority and the CPU of each process.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RtPlan {
+    /// `SCHED_FIFO` priority (1–99).
+    pub priority: i32,
+    /// The plant's CPU.
+    pub plant_cpu: usize,
+    /// The controller's CPU.
+    pub control_cpu: usize,
+}
+
+impl RtPlan {
+    /// The CPUs by default: the plant on CPU 1 and the controller on 0 (both on 0 with one
+    /// CPU).
+    pub fn default_cpus() -> (usize, usize) {
+        (usize::from(crate::rt::online_cpus() >= 2), 0)
+    }
+
+    /// The setup of `role`'s loop thread.
+    pub fn for_role(&self, role: Role) -> RtConfig {
+        let cpu = if role == Role::Plant { self.plant_cpu } else { self.control_cpu };
+        RtConfig { priority: self.priority, ..RtConfig::with_cpu(Some(cpu)) }
+    }
+}
+
+/// Everything a HIL role needs besides the scenario.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HilConfig {
+    /// The demo's name (its iceoryx2 services are `companion/NAME/…`).
+    pub name: String,
+    /// The output folder (the plant writes it).
+    pub out: PathBuf,
+    /// Timing.
+    pub timing: Timing,
+    /// How long to wait for the peer to join at start.
+    pub startup_timeout: Duration,
+    /// The real-time setup, if asked for.
+    pub rt: Option<RtPlan>,
+    /// Skip the plots.
+    pub no_plots: bool,
+}
+
+impl HilConfig {
+    /// A warning if the real-time setup puts both processes on one CPU with busy waiting (a
+    /// `SCHED_FIFO` spinner never yields its CPU to a peer of the same priority).
+    pub fn cpu_warning(&self) -> Option<String> {
+        let rt = self.rt?;
+        let wait = self.timing.wait;
+        (rt.plant_cpu == rt.control_cpu && wait != WaitMode::Event).then(|| {
+            format!(
+                "--rt puts plant and controller on the same CPU ({}); with --wait {} they take turns \
+                 only when the kernel throttles real-time tasks: use --wait event, or two CPUs",
+                rt.plant_cpu,
+                wait.as_str()
+            )
+        })
+    }
+
+    /// The real-time setup of `role`, if any.
+    pub fn rt_config(&self, role: Role) -> Option<RtConfig> {
+        self.rt.map(|r| r.for_role(role))
+    }
+}
+
+/// The scenario as a real-time HIL run needs it: the plant may hold a command for
+/// `hold_periods` periods after the one it was meant for, so the joint guard leaves room for
+/// all of them (`κ ≤ 1/(hold + 2)`) and a held command never drives a joint onto its limit.
+/// Lockstep runs are left as they are (they must equal `companion sim`).
+pub fn adapt_scenario(mut s: Scenario, timing: &Timing) -> Scenario {
+    if !timing.lockstep {
+        let o = &mut s.controller.overrides;
+        let kappa = o.joint_step_fraction.unwrap_or(0.5).min(1.0 / (f64::from(timing.hold_periods) + 2.0));
+        o.joint_step_fraction = Some(kappa);
+    }
+    s
+}

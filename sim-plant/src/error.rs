@@ -1,0 +1,89 @@
+//! Why a plant could not be built or advanced: the errors every other module of the crate
+//! reports (a leaf module, so that the modules that validate depend on it and not on the
+//! plant).
+
+use companion_core::ParamError;
+
+/// The rule a plant parameter breaks.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rule {
+    /// The value is NaN or infinite.
+    NonFinite,
+    /// The value must be `> 0`.
+    NotPositive,
+    /// The value must be `≥ 0`.
+    Negative,
+    /// The value must be `> −1` (a wheel-speed scale `1 + e` must stay positive).
+    NotAboveMinusOne,
+    /// The initial steering state must lie within the steering limit.
+    BeyondSteeringLimit,
+}
+
+impl core::fmt::Display for Rule {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Rule::NonFinite => "must be finite",
+            Rule::NotPositive => "must be > 0",
+            Rule::Negative => "must be >= 0",
+            Rule::NotAboveMinusOne => "must be > -1",
+            Rule::BeyondSteeringLimit => "must lie within the steering limit",
+        })
+    }
+}
+
+/// Why a plant could not be built.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum PlantError {
+    /// A plant parameter or initial value breaks a rule.
+    #[error("plant parameter `{param}` {rule} (got {value})")]
+    Invalid {
+        /// The parameter, e.g. `"actuator_lag"` or `"initial.joints"`.
+        param: &'static str,
+        /// The rule broken.
+        rule: Rule,
+        /// The value given.
+        value: f64,
+    },
+    /// The arm's geometry is invalid.
+    #[error("arm: {0}")]
+    Arm(ParamError),
+}
+
+impl PlantError {
+    pub(crate) fn check_finite(param: &'static str, value: f64) -> Result<(), PlantError> {
+        if value.is_finite() {
+            Ok(())
+        } else {
+            Err(PlantError::Invalid { param, rule: Rule::NonFinite, value })
+        }
+    }
+}
+
+/// Why a step was refused; the plant's state is left as it was.
+#[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
+pub enum AdvanceError {
+    /// The time step is NaN, infinite, zero or negative.
+    #[error("time step {dt} s must be finite and > 0")]
+    BadTimeStep {
+        /// The time step given (s).
+        dt: f64,
+    },
+    /// The time step differs from the one of the first step (the plant runs at one fixed
+    /// step so that the time of step `n` is exactly `n·dt`).
+    #[error("time step {dt} s differs from the plant's fixed step {fixed} s")]
+    TimeStepChanged {
+        /// The plant's step (s), set by the first step.
+        fixed: f64,
+        /// The time step given (s).
+        dt: f64,
+    },
+    /// A commanded velocity is NaN or infinite.
+    #[error("the command has a non-finite velocity")]
+    NonFiniteCommand,
+    /// The delay within a step is not finite or not in `[0, dt)`.
+    #[error("the delay within a step {delay} s must lie in [0, dt)")]
+    BadDelay {
+        /// The delay given (s).
+        delay: f64,
+    },
+}
