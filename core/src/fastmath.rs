@@ -451,6 +451,36 @@ mod tests {
         w
     }
 
+    /// [`worst`] over the bit patterns `lo..=hi` (and their negatives if `both_signs`), split
+    /// over every core: the exhaustive sweeps of CI.
+    fn worst_par(lo: u32, hi: u32, both_signs: bool, f: fn(f32) -> f32, g: fn(f64) -> f64) -> Worst {
+        let threads = std::thread::available_parallelism().map_or(1, core::num::NonZeroUsize::get) as u32;
+        let chunk = (hi - lo) / threads + 1;
+        std::thread::scope(|scope| {
+            let handles: Vec<_> = (0..threads)
+                .map(|i| {
+                    let a = lo.saturating_add(i * chunk);
+                    let b = a.saturating_add(chunk - 1).min(hi);
+                    scope.spawn(move || {
+                        if a > hi {
+                            return Worst { max: 0.0, at: 0.0 };
+                        }
+                        let xs = patterns(a, b, 1);
+                        if both_signs {
+                            worst(xs.flat_map(|x| [x, -x]), f, g)
+                        } else {
+                            worst(xs, f, g)
+                        }
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("a sweep thread"))
+                .fold(Worst { max: 0.0, at: 0.0 }, |a, b| if b.max > a.max || b.max.is_nan() { b } else { a })
+        })
+    }
+
     fn check(name: &str, w: &Worst, bound: f64) {
         std::eprintln!("{name}: max {:.3} ulp at {:e} ({:#010x})", w.max, w.at, w.at.to_bits());
         assert!(w.max <= bound, "{name}: {} ulp at {:e} ({:#010x})", w.max, w.at, w.at.to_bits());
@@ -481,10 +511,14 @@ mod tests {
         sin_cos_two_turns(thin(17));
     }
 
+    /// Every f32 in [−2π, 2π] (CI runs the `#[ignore]`d sweeps: `cargo test --release -p
+    /// companion-core --lib fastmath -- --ignored`).
     #[test]
-    #[ignore = "every f32 in [-2π, 2π]: about a minute in release"]
+    #[ignore = "every f32 in [-2π, 2π]: run by CI (.ci/run), about a minute on 2 cores"]
     fn sin_cos_two_turns_exhaustive() {
-        sin_cos_two_turns(1);
+        let (lo, hi) = (1, core::f32::consts::TAU.to_bits());
+        check("sin |x| ≤ 2π, every f32", &worst_par(lo, hi, true, sin_, libm::sin), 1.0);
+        check("cos |x| ≤ 2π, every f32", &worst_par(lo, hi, true, cos_, libm::cos), 1.0);
     }
 
     #[test]
@@ -498,12 +532,13 @@ mod tests {
         check("cos large", &worst(cold(), cos_, libm::cos), 1.0);
     }
 
+    /// Every f32 in (2π, 128]: with the sweep above, every argument of the hot path.
     #[test]
-    #[ignore = "every f32 in [-128, 128]: minutes in release"]
+    #[ignore = "every f32 in (2π, 128]: run by CI (.ci/run), a minute on 2 cores"]
     fn sin_cos_exhaustive_hot_range() {
-        let xs = || range(f32::from_bits(1), 128.0, 1);
-        check("sin |x| ≤ 128", &worst(xs(), sin_, libm::sin), 1.0);
-        check("cos |x| ≤ 128", &worst(xs(), cos_, libm::cos), 1.0);
+        let (lo, hi) = (core::f32::consts::TAU.to_bits() + 1, 128f32.to_bits());
+        check("sin 2π < |x| ≤ 128, every f32", &worst_par(lo, hi, true, sin_, libm::sin), 1.0);
+        check("cos 2π < |x| ≤ 128, every f32", &worst_par(lo, hi, true, cos_, libm::cos), 1.0);
     }
 
     #[test]
@@ -546,9 +581,10 @@ mod tests {
     }
 
     #[test]
-    #[ignore = "every f32 in [-104, 89]: about a minute in release"]
+    #[ignore = "every f32 in [-104, 89]: run by CI (.ci/run), half a minute on 2 cores"]
     fn exp_exhaustive() {
-        exp_range(1);
+        check("exp x ≥ 0, every f32", &worst_par(0, EXP_MAX.to_bits(), false, exp, libm::exp), 1.0);
+        check("exp x < 0, every f32", &worst_par(SIGN, EXP_MIN.to_bits(), false, exp, libm::exp), 1.0);
     }
 
     #[test]

@@ -177,7 +177,8 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// One control step: the command to hold for `period` seconds (s), starting `delay`
     /// seconds after the measurement was taken (compute and transport time; `0 ≤ delay ≤
     /// max_delay` and at most [`HISTORY`] periods). On success the state has advanced by
-    /// `period`. With [`Discretisation::Sampled`] the delay is checked but not used.
+    /// `period`. With [`Discretisation::Sampled`] the delay is checked and used by the joint
+    /// guard only (the joints when the command starts to act).
     ///
     /// # Errors
     /// A bad measurement, period or delay: a [`Rejected`] with the reason and the safe
@@ -412,6 +413,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let p = &prm.primary;
         let sec = &prm.secondary;
         let half_t = T::of(0.5);
+        let measured_delay = delay;
         let (half, delay) = if self.midpoint { (h * half_t, delay) } else { (T::zero(), T::zero()) };
         let is_car = P::KIND == PlatformKind::Car;
 
@@ -422,6 +424,14 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             hold::in_flight::<T, P, A::Space, N>(st, meas, delay, lim)
         } else {
             Start::measured(meas)
+        };
+        // The joint guard's reference: the joints when the command starts to act, also in the
+        // sampled law, which otherwise ignores the delay (with a delay the command in flight
+        // keeps moving them towards a limit).
+        let q_guard = if !self.midpoint && measured_delay > T::zero() {
+            hold::in_flight::<T, P, A::Space, N>(st, meas, measured_delay, lim).q
+        } else {
+            start.q
         };
         let guess = st.last_sent();
         let sc_b = meas.base.theta.sincos();
@@ -553,7 +563,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
                 q_hat_rate: &q_hat_rate_e,
                 guess: &guess_joints,
             },
-            &start.q,
+            &q_guard,
             h,
             half,
         )?;

@@ -11,8 +11,9 @@
 //!   [`scenario`] (a run's description, built in one expression or from a TOML file),
 //!   [`plant_setup`], [`record`] (`timeseries.csv`, `summary.json`), [`plots`],
 //!   [`histogram`], [`observe`] (progress and messages, for the CLI to show);
-//! - system: [`rt`] (real-time setup, the crate's only `unsafe`), [`signals`], [`clock`]
-//!   (time behind a trait), [`machine`], [`process`];
+//! - system: [`rt`] (real-time setup), [`signals`], [`clock`] (time behind a trait),
+//!   [`machine`], [`process`] (children and signals), [`lock`] (one process per role and demo
+//!   name) — `rt`, `process` and `lock` hold the crate's only `unsafe` (plain libc calls);
 //! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
 //!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2);
 //! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
@@ -28,6 +29,7 @@ pub mod histogram;
 pub mod ipc;
 pub mod latency;
 pub mod link;
+pub mod lock;
 pub mod machine;
 pub mod observe;
 pub mod plant_setup;

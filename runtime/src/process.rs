@@ -1,4 +1,6 @@
-//! Child processes that never outlive the run that started them.
+//! Child processes that never outlive the run that started them, and signals to processes
+//! (SIGTERM to hand an interruption on, SIGSTOP/SIGCONT for `--chaos`).
+#![allow(unsafe_code)]
 
 use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
@@ -62,4 +64,43 @@ pub fn exit_text(st: ExitStatus) -> String {
         (None, Some(sig)) => format!("killed by signal {sig}"),
         _ => "unknown".into(),
     }
+}
+
+/// A signal this program sends to another process.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Signal {
+    /// End cleanly (the run is interrupted, its files written).
+    Terminate,
+    /// Freeze (`--chaos`).
+    Stop,
+    /// Thaw after [`Signal::Stop`].
+    Continue,
+}
+
+/// Sends `sig` to process `pid`. Refuses pids that name no single other process (0, 1,
+/// negative ones, this process).
+///
+/// # Errors
+/// The pid is refused, or the process does not exist.
+pub fn send_signal(pid: i32, sig: Signal) -> std::io::Result<()> {
+    let own = i32::try_from(std::process::id()).unwrap_or(0);
+    if pid <= 1 || pid == own {
+        return Err(std::io::Error::new(std::io::ErrorKind::InvalidInput, format!("no signal to pid {pid}")));
+    }
+    let n = match sig {
+        Signal::Terminate => libc::SIGTERM,
+        Signal::Stop => libc::SIGSTOP,
+        Signal::Continue => libc::SIGCONT,
+    };
+    // SAFETY: kill takes a pid and a signal number; no memory is passed.
+    if unsafe { libc::kill(pid, n) } == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
+/// This process's parent's pid.
+pub fn parent_pid() -> i32 {
+    i32::try_from(std::os::unix::process::parent_id()).unwrap_or(0)
 }

@@ -196,6 +196,25 @@ pub fn rt_throttling() -> Option<(i64, i64)> {
     Some((read("/proc/sys/kernel/sched_rt_runtime_us")?, read("/proc/sys/kernel/sched_rt_period_us")?))
 }
 
+/// The machine's CPU pressure: the share of the last 10 s in which some runnable task waited
+/// for a CPU (`/proc/pressure/cpu`, "some avg10", in %), if the kernel reports it. Reads the
+/// file into a buffer on the stack: a few system calls, no allocation.
+pub fn cpu_pressure() -> Option<f64> {
+    use std::io::Read;
+    let mut buf = [0u8; 256];
+    let mut f = std::fs::File::open("/proc/pressure/cpu").ok()?;
+    let n = f.read(&mut buf).ok()?;
+    parse_pressure(buf.get(..n)?)
+}
+
+/// "some avg10=X ..." → X.
+fn parse_pressure(text: &[u8]) -> Option<f64> {
+    let text = std::str::from_utf8(text).ok()?;
+    let line = text.lines().find(|l| l.starts_with("some "))?;
+    let field = line.split_whitespace().find_map(|f| f.strip_prefix("avg10="))?;
+    field.parse().ok()
+}
+
 /// Sets the calling thread's timer slack to 1 ns (threads it creates afterwards inherit it).
 ///
 /// Linux lets a normal thread's timed sleep end up to 50 µs late by default, so that wake-ups
@@ -220,6 +239,18 @@ mod tests {
         assert!(b >= a + 2_000_000, "slept {} ns", b - a);
         // A deadline in the past returns at once (no assertion on time: only that it returns).
         sleep_until_ns(a);
+    }
+
+    #[test]
+    fn cpu_pressure_is_read_from_the_kernels_line() {
+        let text = b"some avg10=98.03 avg60=98.21 avg300=96.91 total=5320524078\nfull avg10=0.00 avg60=0.00";
+        assert_eq!(parse_pressure(text), Some(98.03));
+        assert_eq!(parse_pressure(b"full avg10=1.00"), None);
+        assert_eq!(parse_pressure(b"some avg60=1.00"), None);
+        // Whatever the machine, a reading is a percentage.
+        if let Some(p) = cpu_pressure() {
+            assert!((0.0..=100.0).contains(&p), "{p}");
+        }
     }
 
     #[test]

@@ -15,8 +15,10 @@ use crate::controller::{AnyController, StepReport, JOINTS};
 use crate::observe::Observer;
 pub use crate::plant_setup::build as build_plant;
 use crate::record::recorder::{summary_for, Log};
+use crate::record::verdict::rejection_failure;
 use crate::record::{
-    write_summary, CommandSource, PlantSample, RecordWriter, Row, RowSink, RunOutcome, SummaryAccumulator,
+    write_summary, Acceptance, CommandSource, PlantSample, RecordWriter, Row, RowSink, RunOutcome,
+    SummaryAccumulator,
 };
 use crate::scenario::{Scenario, ScenarioBuilder, ScenarioError};
 
@@ -128,10 +130,24 @@ fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64
     }
 }
 
-/// How often the loop reports progress (steps).
+/// How often the loop reports progress and looks for SIGINT/SIGTERM (steps).
 const PROGRESS_EVERY: u64 = 4096;
 
+/// How [`run_loop`] ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LoopEnd {
+    /// Every step ran.
+    Completed,
+    /// SIGINT or SIGTERM: the loop recorded step `last` as the last one and stopped.
+    Interrupted {
+        /// The last step recorded.
+        last: u64,
+    },
+}
+
 /// Runs steps `0..=steps` of a scenario in lockstep: measure, exchange, record, advance.
+/// After SIGINT or SIGTERM (looked for every 4096 steps, one atomic load) the step at hand
+/// is recorded as the last one, so that the files end cleanly.
 ///
 /// # Errors
 /// The exchange or the recording failed.
@@ -141,18 +157,22 @@ pub fn run_loop<E: Exchange, R: RowSink>(
     exchange: &mut E,
     sink: &mut R,
     observer: &dyn Observer,
-) -> Result<()> {
+) -> Result<LoopEnd> {
     let steps = s.steps();
     let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
     let star = s.controller.params::<f64>().primary.target_in_effector;
     for n in 0..=steps {
         let meas = plant.measure();
         let report = exchange.exchange(n, &meas)?;
-        let last = n == steps;
+        let interrupted = n % PROGRESS_EVERY == 0 && n < steps && crate::signals::termination_requested();
+        let last = n == steps || interrupted;
         let plant_sample =
             if sink.logs(n, last) { sample(plant, &star) } else { summary_sample(plant, &star) };
         let row = Row { plant: plant_sample, report, source: CommandSource::Fresh };
         sink.record(n, &row, last)?;
+        if interrupted {
+            return Ok(LoopEnd::Interrupted { last: n });
+        }
         if n < steps {
             match &mut delay {
                 None => plant.advance(&report.command, s.dt),
@@ -166,7 +186,7 @@ pub fn run_loop<E: Exchange, R: RowSink>(
             observer.advance(PROGRESS_EVERY.min(steps + 1 - n));
         }
     }
-    Ok(())
+    Ok(LoopEnd::Completed)
 }
 
 /// The ring between the simulation and its CSV writer thread (logged rows).
@@ -195,11 +215,27 @@ impl RowSink for Background {
     }
 }
 
-/// Runs one scenario in process and writes its files into `dir`.
+/// Runs one scenario in process and writes its files into `dir`, held to the default
+/// [`Acceptance`] (see [`run_one_with`]).
 ///
 /// # Errors
 /// A bad scenario or an I/O failure.
 pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunOutcome> {
+    run_one_with(s, dir, observer, &Acceptance::default())
+}
+
+/// Runs one scenario in process and writes its files into `dir`; the summary's `failures`
+/// say whether the run met `acceptance` (and `ended_early`, whether SIGINT or SIGTERM cut it
+/// short).
+///
+/// # Errors
+/// A bad scenario or an I/O failure.
+pub fn run_one_with(
+    s: &Scenario,
+    dir: &Path,
+    observer: &dyn Observer,
+    acceptance: &Acceptance,
+) -> Result<RunOutcome> {
     let mut plant = build_plant(s)?;
     let mut exchange = InProcess::new(s)?;
     let log = RecordWriter::spawn(Log::for_scenario(s, dir)?, WRITER_RING, Duration::from_secs(1))?;
@@ -207,8 +243,15 @@ pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunO
     let start = Instant::now();
     let looped = run_loop(s, &mut plant, &mut exchange, &mut sink, observer);
     let log = sink.log.finish()?;
-    looped?;
-    let summary = sink.summary.finish(start.elapsed().as_secs_f64());
+    let end = looped?;
+    let mut summary = sink.summary.finish(start.elapsed().as_secs_f64());
+    summary.ended_early = end != LoopEnd::Completed;
+    summary.failures.extend(rejection_failure(
+        &summary.rejections,
+        summary.steps,
+        summary.first_rejection_at_s,
+        acceptance.max_rejected,
+    ));
     write_summary(dir, s, &summary)?;
     Ok(RunOutcome { scenario: s.clone(), summary, rows: log.rows })
 }

@@ -12,6 +12,7 @@ use companion_runtime::record::{RunOutcome, Summary};
 use companion_runtime::scenario::{Scenario, ScenarioBuilder};
 use companion_runtime::sim::run_one;
 
+pub mod fuzz;
 pub mod modgraph;
 
 /// The scenario `b` builds.

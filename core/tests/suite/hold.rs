@@ -188,6 +188,14 @@ proptest! {
             // The target moves with u_d for τ; time advances by τ.
             at_tau.target = pose(&flow(&v3(&m.target), &m.target_velocity, tau));
             at_tau.t = m.t + tau;
+            // The law's prediction stops a joint at 90 % of its way to a limit (a delayed
+            // measurement never predicts the arm through one): no such point either.
+            let lim = p.joint_limits;
+            for i in 0..3 {
+                let moved = at_tau.joints[i] - m.joints[i];
+                let room = if moved > 0.0 { lim.upper[i] - m.joints[i] } else { m.joints[i] - lim.lower[i] };
+                prop_assume!(moved.abs() < 0.9 * room, "joint {} would pass 90 % of its way to a limit", i + 1);
+            }
             let (mut sa, mut sb) = (st, st);
             let a = step(&mut sa, &m, tau).map_err(|r| TestCaseError::fail(format!("delayed: {:?}", r.error)))?;
             // (The commands in flight may take a joint to its limit: no such point.)

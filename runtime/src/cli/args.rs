@@ -8,7 +8,11 @@ use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
-use companion_runtime::scenario::{ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target};
+use companion_runtime::record::verdict::DEFAULT_MAX_REJECTED;
+use companion_runtime::record::Acceptance;
+use companion_runtime::scenario::{
+    ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
+};
 
 /// The wheeled platform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -118,11 +122,11 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum, default_value = "unicycle")]
     pub platform: PlatformArg,
     /// The control period and integration step, in seconds.
-    #[arg(long, default_value_t = 0.001, value_name = "SECONDS")]
+    #[arg(long, default_value_t = 0.001, value_name = "SECONDS", allow_negative_numbers = true)]
     pub dt: f64,
     /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil`, `plant` and
     /// `control`].
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub duration: Option<f64>,
     /// The controller's scalar type.
     #[arg(long, value_enum, default_value = "f64")]
@@ -151,13 +155,14 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum)]
     pub limits: Option<LimitsArg>,
     /// Plant imperfection: first-order actuator lag with this time constant, in seconds.
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
     pub actuator_lag: Option<f64>,
     /// Plant imperfection: Gaussian measurement noise (σ = 1 mm, 1 mrad, 0.5 mrad on joints).
     #[arg(long)]
     pub noise: bool,
-    /// Plant imperfection: the wheels turn (1 + E) times faster than commanded.
-    #[arg(long, value_name = "E")]
+    /// Plant imperfection: the wheels turn (1 + E) times faster than commanded (E > -1; e.g.
+    /// -0.05: 5 % slower).
+    #[arg(long, value_name = "E", allow_negative_numbers = true)]
     pub wheel_scale_error: Option<f64>,
     /// Seed of the plant's noise generator.
     #[arg(long, default_value_t = 1)]
@@ -165,6 +170,14 @@ pub struct ScenarioArgs {
     /// Log one row of timeseries.csv every N steps (the first and last steps always).
     #[arg(long, default_value_t = 10, value_name = "N")]
     pub log_every: u64,
+    /// Refuse a run whose timeseries.csv would exceed this size, in MB (estimated at 330
+    /// bytes per row; the message says the size and the --log-every that fits).
+    #[arg(long, default_value_t = DEFAULT_MAX_OUTPUT_BYTES / 1_000_000, value_name = "MB")]
+    pub max_output_mb: u64,
+    /// A run in which the law rejects more than this fraction of the steps (answering them
+    /// with the safe zero command) fails, with exit code 6; 0 fails on any rejection.
+    #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRACTION", allow_negative_numbers = true)]
+    pub max_rejected: f64,
 }
 
 impl ScenarioArgs {
@@ -206,7 +219,8 @@ impl ScenarioArgs {
             .scalar(self.scalar.into())
             .dt(self.dt)
             .duration(self.duration.unwrap_or(default_duration))
-            .log_every(self.log_every);
+            .log_every(self.log_every)
+            .max_output_bytes(self.max_output_mb.saturating_mul(1_000_000));
         if self.psi_rate_in_drift {
             b = b.psi_rate_in_drift(true);
         }
@@ -236,13 +250,32 @@ impl ScenarioArgs {
         b
     }
 
-    /// The scenario the flags describe (`default_duration` if `--duration` is not given).
+    /// The scenario the flags describe (`default_duration` if `--duration` is not given),
+    /// with its plant built once to check the target file and the plant's parameters.
     ///
     /// # Errors
-    /// A bad flag value or config file, with a message saying which and why.
+    /// A bad flag value, config or target file, with a message saying which and why.
     pub fn scenario(&self, default_duration: f64) -> Result<Scenario> {
         let file = self.config_file()?;
         let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
-        Ok(b.build()?)
+        let s = b.build()?;
+        companion_runtime::plant_setup::build(&s)?;
+        Ok(s)
+    }
+
+    /// What a run is held to (`--max-rejected`; `max_miss_fraction` for real-time runs).
+    ///
+    /// # Errors
+    /// A fraction outside [0, 1].
+    pub fn acceptance(&self, max_miss_fraction: f64) -> Result<Acceptance> {
+        for (flag, x) in [("--max-rejected", self.max_rejected), ("--max-miss-fraction", max_miss_fraction)] {
+            if !(0.0..=1.0).contains(&x) {
+                anyhow::bail!(
+                    "{flag} must be a fraction in [0, 1], got {}",
+                    companion_runtime::scenario::short(x)
+                );
+            }
+        }
+        Ok(Acceptance { max_rejected: self.max_rejected, max_miss_fraction })
     }
 }

@@ -10,19 +10,28 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
+use companion_runtime::hil::chaos::{self, Plan};
 use companion_runtime::hil::config::adapt_scenario;
-use companion_runtime::hil::control::{run_as_parent, session, ParentOutcome, Session};
+use companion_runtime::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
 use companion_runtime::hil::fault::Corruption;
+use companion_runtime::hil::plant::PlantLock;
 use companion_runtime::hil::report::LatencyReport;
 use companion_runtime::hil::stats::LiveFigures;
-use companion_runtime::hil::{ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode};
+use companion_runtime::hil::{ChaosConfig, ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode};
 use companion_runtime::histogram::fmt_ns;
 use companion_runtime::ipc::{self, NameInUse, Role};
+use companion_runtime::lock::NameLock;
 use companion_runtime::process::ChildGuard;
-use companion_runtime::scenario::Scenario;
+use companion_runtime::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRACTION};
+use companion_runtime::record::Failure;
+use companion_runtime::scenario::{short, Scenario};
+use companion_runtime::signals::termination_requested;
 
 use super::args::ScenarioArgs;
-use super::exit::{EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG, EXIT_PEER_LOST};
+use super::exit::{
+    EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
+    EXIT_PEER_LOST, EXIT_REJECTED,
+};
 use super::sim::print_table;
 use super::terminal::Terminal;
 
@@ -32,6 +41,9 @@ pub const DEFAULT_DURATION: f64 = 30.0;
 /// `--wait`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WaitArg {
+    /// Busy-poll while the process keeps its CPU; wait on the iceoryx2 event for a while after
+    /// it is preempted (the default).
+    Adaptive,
     /// Busy-poll.
     Spin,
     /// iceoryx2 event service with bounded `timed_wait`.
@@ -43,12 +55,29 @@ pub enum WaitArg {
 impl From<WaitArg> for WaitMode {
     fn from(w: WaitArg) -> Self {
         match w {
+            WaitArg::Adaptive => WaitMode::Adaptive,
             WaitArg::Spin => WaitMode::Spin,
             WaitArg::Event => WaitMode::Event,
             WaitArg::Hybrid => WaitMode::Hybrid,
         }
     }
 }
+
+impl From<WaitMode> for WaitArg {
+    fn from(w: WaitMode) -> Self {
+        match w {
+            WaitMode::Adaptive => Self::Adaptive,
+            WaitMode::Spin => Self::Spin,
+            WaitMode::Event => Self::Event,
+            WaitMode::Hybrid => Self::Hybrid,
+        }
+    }
+}
+
+/// The longest `--peer-timeout` (s).
+const MAX_PEER_TIMEOUT_S: f64 = 3600.0;
+/// The longest `--startup-timeout` (s).
+const MAX_STARTUP_TIMEOUT_S: f64 = 86_400.0;
 
 /// Flags of `companion hil`, `companion plant` and `companion control` (one set, so that the
 /// demo can hand its own flags to the plant it starts; each role uses the flags it needs).
@@ -58,20 +87,22 @@ pub struct HilArgs {
     /// The scenario (give both roles the same one). `--duration` defaults to 30 s here.
     pub scenario: ScenarioArgs,
     /// Control rate in Hz (default: 1/--dt, so that simulated time runs at wall-clock speed).
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true)]
     pub rate: Option<f64>,
-    /// Deadline of each command after its period's release, in microseconds.
-    #[arg(long, default_value_t = 500, value_name = "US")]
+    /// Deadline of each command after its period's release, in microseconds (at most the
+    /// period).
+    #[arg(long, default_value_t = 500, value_name = "US", value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
     pub deadline_us: u64,
     /// Lockstep: the plant waits for every command (deterministic, no deadlines; the same
     /// timeseries.csv as `companion sim`).
     #[arg(long)]
     pub lockstep: bool,
-    /// How each process waits for the other's message [default: spin on a machine with two
-    /// or more CPUs, hybrid with --rt (a SCHED_FIFO spinner is parked by the kernel's
-    /// real-time throttling) or on one CPU].
-    #[arg(long, value_enum)]
-    pub wait: Option<WaitArg>,
+    /// How each process waits for the other's message: `adaptive` busy-polls while it keeps
+    /// its CPU and waits on the iceoryx2 event for a while after it is preempted (on a shared
+    /// machine busy-polling alone missed 70-84 % of the deadlines; `companion latency`
+    /// measures every mode idle and under load).
+    #[arg(long, value_enum, default_value = "adaptive")]
+    pub wait: WaitArg,
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
     /// privilege is a warning).
     #[arg(long)]
@@ -86,26 +117,33 @@ pub struct HilArgs {
     #[arg(long, value_name = "CPU")]
     pub control_cpu: Option<usize>,
     /// The demo's name: its iceoryx2 services are companion/NAME/…, so demos with different
-    /// names never meet.
+    /// names never meet; one process per role and name (a lock in /tmp/companion).
     #[arg(long, default_value = "demo")]
     pub name: String,
     /// Output folder (the plant writes it).
     #[arg(long, default_value = "out/hil", value_name = "DIR")]
     pub out: PathBuf,
-    /// Periods the plant holds the last command after a miss before it stops the robot.
-    #[arg(long, default_value_t = 20, value_name = "K")]
+    /// Periods the plant holds the last command after a miss before it stops the robot
+    /// (0–100000).
+    #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000))]
     pub hold_periods: u32,
-    /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs).
-    #[arg(long, default_value_t = 100, value_name = "US")]
+    /// A real-time run that misses more than this fraction of its deadlines fails (exit code
+    /// 7, with a warning); so does one in which the robot was stopped.
+    #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_negative_numbers = true)]
+    pub max_miss_fraction: f64,
+    /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs,
+    /// at most 1 s).
+    #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000))]
     pub spin_margin_us: u64,
-    /// Silence (no message) after which a process checks whether its peer is alive (ms).
-    #[arg(long, default_value_t = 20, value_name = "MS")]
+    /// Silence (no message) after which a process checks whether its peer is alive (ms,
+    /// 1–60000).
+    #[arg(long, default_value_t = 20, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000))]
     pub silence_ms: u64,
-    /// Give up when the peer is alive but silent for this long (s).
-    #[arg(long, default_value_t = 2.0, value_name = "SECONDS")]
+    /// Give up when the peer is alive but silent for this long (s, at most 3600).
+    #[arg(long, default_value_t = 2.0, value_name = "SECONDS", allow_negative_numbers = true)]
     pub peer_timeout: f64,
-    /// How long to wait for the peer to join at start (s).
-    #[arg(long, default_value_t = 20.0, value_name = "SECONDS")]
+    /// How long to wait for the peer to join at start (s, at most 86400).
+    #[arg(long, default_value_t = 20.0, value_name = "SECONDS", allow_negative_numbers = true)]
     pub startup_timeout: f64,
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
@@ -113,6 +151,16 @@ pub struct HilArgs {
     /// No live progress line.
     #[arg(long)]
     pub quiet: bool,
+    /// A soak: inject faults from this seed — SIGSTOPs of either process (20–400 ms, every
+    /// 1–3 s), corrupted commands (2 per second) and commands held back for 2 to
+    /// --hold-periods/2 periods (one every 2 s) — and check that the counts in latency.json
+    /// match what was injected (chaos.json; exit code 8 if not). `companion hil` only; at
+    /// least 5 s.
+    #[arg(long, value_name = "SEED")]
+    pub chaos: Option<u64>,
+    /// Set by `companion hil --chaos` on the plant it starts: the time the faults count from.
+    #[arg(long, hide = true)]
+    pub chaos_epoch_ns: Option<u64>,
     /// Testing: the controller also sends corrupted commands, e.g. `version@100,nan@200,seq@300,
     /// session@400` (each is sent once, before the good answer to the first measurement with
     /// at least that sequence number).
@@ -128,6 +176,17 @@ fn secs_to_ns(s: f64) -> u64 {
     (s * 1e9).round() as u64
 }
 
+/// Checks that `x` seconds is in `(0, max]` (`zero_ok`: `[0, max]`).
+fn seconds(flag: &str, x: f64, max: f64, zero_ok: bool) -> Result<f64> {
+    let low_ok = if zero_ok { x >= 0.0 } else { x > 0.0 };
+    if x.is_finite() && low_ok && x <= max {
+        Ok(x)
+    } else {
+        let low = if zero_ok { "[0" } else { "(0" };
+        bail!("{flag} must be a number of seconds in {low}, {max}], got {}", short(x))
+    }
+}
+
 impl HilArgs {
     /// The timing options.
     ///
@@ -136,51 +195,57 @@ impl HilArgs {
     pub fn timing(&self, s: &Scenario) -> Result<Timing> {
         let rate = self.rate.unwrap_or(1.0 / s.dt);
         if !(rate.is_finite() && (1.0..=100_000.0).contains(&rate)) {
-            bail!("--rate must be between 1 and 100000 Hz, got {rate}");
+            bail!("--rate must be between 1 and 100000 Hz, got {}", short(rate));
         }
         let period_ns = secs_to_ns(1.0 / rate);
         let deadline_ns = self.deadline_us * 1000;
-        if !self.lockstep && (deadline_ns == 0 || deadline_ns > period_ns) {
+        if !self.lockstep && deadline_ns > period_ns {
             bail!(
                 "--deadline-us must be in (0, period] = (0, {}] µs at {rate} Hz, got {}",
                 period_ns / 1000,
                 self.deadline_us
             );
         }
-        if !(self.peer_timeout.is_finite() && self.peer_timeout > 0.0) {
-            bail!("--peer-timeout must be a positive number of seconds");
-        }
-        if self.silence_ms == 0 {
-            bail!("--silence-ms must be at least 1");
-        }
+        let peer_timeout = seconds("--peer-timeout", self.peer_timeout, MAX_PEER_TIMEOUT_S, false)?;
         Ok(Timing {
             period_ns: if self.lockstep { 0 } else { period_ns },
             deadline_ns,
             hold_periods: self.hold_periods,
-            wait: self.wait.map_or_else(|| WaitMode::default_for(self.rt), WaitMode::from),
+            wait: self.wait.into(),
             spin_margin_ns: self.spin_margin_us * 1000,
             silence_ns: self.silence_ms * 1_000_000,
-            peer_timeout_ns: secs_to_ns(self.peer_timeout),
+            peer_timeout_ns: secs_to_ns(peer_timeout),
             lockstep: self.lockstep,
         })
     }
 
     /// The typed configuration and the scenario (adapted to the HIL: see `adapt_scenario`).
+    /// Every flag, the config and target files and the plant's parameters are checked here,
+    /// before any process starts or any file is written.
     ///
     /// # Errors
-    /// A bad flag value or config file.
+    /// A bad flag value or file, naming the flag or parameter and the rule.
     pub fn resolve(&self) -> Result<(HilConfig, Scenario)> {
+        ipc::validate_name(&self.name)?;
         let s = self.scenario.scenario(DEFAULT_DURATION)?;
         let timing = self.timing(&s)?;
-        let startup_timeout = Duration::try_from_secs_f64(self.startup_timeout).map_err(|_| {
-            anyhow!("--startup-timeout must be a number of seconds, got {}", self.startup_timeout)
-        })?;
+        let startup = seconds("--startup-timeout", self.startup_timeout, MAX_STARTUP_TIMEOUT_S, true)?;
+        let startup_timeout = Duration::from_secs_f64(startup);
+        let acceptance = self.scenario.acceptance(self.max_miss_fraction)?;
         let (plant_cpu, control_cpu) = RtPlan::default_cpus();
         let rt = self.rt.then(|| RtPlan {
             priority: self.rt_priority,
             plant_cpu: self.plant_cpu.unwrap_or(plant_cpu),
             control_cpu: self.control_cpu.unwrap_or(control_cpu),
         });
+        let chaos = match (self.chaos, self.chaos_epoch_ns) {
+            (None, _) => None,
+            (Some(seed), epoch) => {
+                // The plan is made now to check the flags (the run's length, real time).
+                Plan::new(seed, s.steps(), &timing)?;
+                Some(ChaosConfig { seed, epoch_ns: epoch.unwrap_or(0) })
+            }
+        };
         let cfg = HilConfig {
             name: self.name.clone(),
             out: self.out.clone(),
@@ -188,6 +253,8 @@ impl HilArgs {
             startup_timeout,
             rt,
             no_plots: self.no_plots,
+            acceptance,
+            chaos,
         };
         Ok((cfg, adapt_scenario(s, &timing)))
     }
@@ -223,10 +290,22 @@ pub fn parse_injections(s: &str) -> Result<Vec<(u64, Corruption)>> {
         .collect()
 }
 
+/// The exit code of a run that ended (no peer lost) with `failures`: 6 for the law's
+/// rejections, else 7 for deadlines, else 0.
+fn failures_code(failures: &[Failure]) -> u8 {
+    if failures.iter().any(|f| matches!(f, Failure::Rejected { .. })) {
+        EXIT_REJECTED
+    } else if failures.is_empty() {
+        0
+    } else {
+        EXIT_DEADLINES
+    }
+}
+
 /// The exit code of a plant's run.
-fn plant_exit_code(end: &PlantEnd) -> u8 {
+fn plant_exit_code(end: &PlantEnd, failures: &[Failure]) -> u8 {
     match end {
-        PlantEnd::Completed => 0,
+        PlantEnd::Completed => failures_code(failures),
         PlantEnd::Interrupted { .. } => EXIT_INTERRUPTED,
         PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. } => EXIT_PEER_LOST,
         PlantEnd::ControllerHung { .. } => EXIT_PEER_HUNG,
@@ -243,11 +322,16 @@ fn control_exit_code(end: &ControlEnd) -> u8 {
     }
 }
 
-/// Prints a [`NameInUse`] error and returns its exit code; other errors go up.
+/// The exit code of an error: [`NameInUse`] (printed) is 5; an error after SIGINT/SIGTERM
+/// (e.g. while waiting for the peer) is 130; other errors go up.
 fn name_in_use_or(e: anyhow::Error) -> Result<ExitCode> {
     if let Some(n) = e.downcast_ref::<NameInUse>() {
         eprintln!("error: {n}");
         return Ok(ExitCode::from(EXIT_NAME_IN_USE));
+    }
+    if termination_requested() {
+        eprintln!("interrupted: {e:#}");
+        return Ok(ExitCode::from(EXIT_INTERRUPTED));
     }
     Err(e)
 }
@@ -287,18 +371,31 @@ fn code_of(st: Option<ExitStatus>) -> u8 {
     st.and_then(|s| s.code()).and_then(|c| u8::try_from(c).ok()).unwrap_or(EXIT_ERROR)
 }
 
-/// `companion hil`: starts the plant, runs the controller against it, waits for it.
+/// `companion hil`: takes the demo's name, starts the plant, runs the controller against it,
+/// waits for it.
 ///
 /// # Errors
 /// A bad flag, or the plant could not be started.
 pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
-    let (cfg, s) = a.resolve()?;
+    let (mut cfg, s) = a.resolve()?;
     let inject = a.injections()?;
-    ipc::validate_name(&cfg.name)?;
+    if a.child {
+        bail!("--child is for the plant that `companion hil` starts");
+    }
     if let Some(w) = cfg.cpu_warning() {
         eprintln!("warning: {w}");
     }
+    // Both roles of the name, before anything of this demo exists: of two demos started at
+    // once with one name, exactly one gets them.
+    // (One after the other: of two demos, the one without the controller's lock must not
+    // take the plant's.)
+    let locks = match NameLock::acquire(&cfg.name, Role::Control)
+        .and_then(|c| Ok([c, NameLock::acquire(&cfg.name, Role::Plant)?]))
+    {
+        Ok(l) => l,
+        Err(e) => return name_in_use_or(e),
+    };
     let iox = ipc::config()?;
     for role in [Role::Control, Role::Plant] {
         if let Err(e) = ipc::ensure_name_free(&iox, &cfg.name, role) {
@@ -306,28 +403,66 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         }
     }
     let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
-    let child = Process::new(&exe)
-        .arg("plant")
-        .args(forwarded_args())
-        .arg("--child")
-        .stdin(Stdio::null())
-        .spawn()
-        .map_err(|e| anyhow!("starting the plant ({} plant): {e}", exe.display()))?;
+    let mut plant = Process::new(&exe);
+    plant.arg("plant").args(forwarded_args()).arg("--child").stdin(Stdio::null());
+    if let Some(c) = &mut cfg.chaos {
+        // The faults count from a second from now in both processes.
+        c.epoch_ns = companion_runtime::rt::monotonic_ns() + 1_000_000_000;
+        plant.arg("--chaos-epoch-ns").arg(c.epoch_ns.to_string());
+    }
+    let child = plant.spawn().map_err(|e| anyhow!("starting the plant ({} plant): {e}", exe.display()))?;
     eprintln!("started the plant (pid {}); controller is pid {}", child.id(), std::process::id());
     let term = Terminal::lines();
-    Ok(ExitCode::from(match run_as_parent(&cfg, &s, &inject, ChildGuard::new(child), &term)? {
+    let faults = Faults { corruptions: inject, delays: Vec::new() };
+    let outcome = run_as_parent(&cfg, &s, &faults, ChildGuard::new(child), &term, &locks)?;
+    Ok(ExitCode::from(match outcome {
         ParentOutcome::PlantExitedEarly(st) => code_of(Some(st)),
-        ParentOutcome::Failed(_) => EXIT_ERROR,
-        ParentOutcome::Finished { end, plant } => {
+        ParentOutcome::Failed(..) if termination_requested() => EXIT_INTERRUPTED,
+        ParentOutcome::Failed(..) => EXIT_ERROR,
+        ParentOutcome::Finished { end, plant, chaos } => {
             let code = code_of(plant);
-            if end == ControlEnd::Interrupted && code == 0 {
-                EXIT_INTERRUPTED
-            } else {
-                code
+            let interrupted = end == ControlEnd::Interrupted || code == EXIT_INTERRUPTED;
+            match chaos {
+                _ if interrupted => EXIT_INTERRUPTED,
+                Some(r) => {
+                    print_chaos(&r, &cfg);
+                    if r.mismatches.is_empty() {
+                        code
+                    } else {
+                        EXIT_CHAOS_MISMATCH
+                    }
+                }
+                None => code,
             }
         }
         ParentOutcome::PlantLost(end) => control_exit_code(&end),
     }))
+}
+
+/// Prints the chaos check.
+fn print_chaos(r: &chaos::Report, cfg: &HilConfig) {
+    let i = &r.injected;
+    let (plant, ctl) = r.stops.iter().fold((0, 0), |(p, c), s| if s.plant { (p + 1, c) } else { (p, c + 1) });
+    eprintln!(
+        "chaos {}: injected {} corrupted commands (version {}, session {}, future seq {}, NaN {}), {} held back, \
+         {plant} plant and {ctl} controller stops; {} of {} rows on disk",
+        r.seed,
+        i.version + i.session + i.future_seq + i.non_finite,
+        i.version,
+        i.session,
+        i.future_seq,
+        i.non_finite,
+        i.delayed,
+        r.rows.0,
+        r.rows.1
+    );
+    if r.mismatches.is_empty() {
+        eprintln!("chaos: every count matches what was injected ({})", cfg.out.join("chaos.json").display());
+    } else {
+        for m in &r.mismatches {
+            eprintln!("error: chaos: {m}");
+        }
+    }
 }
 
 /// The progress line of a real-time plant run, drawn by a thread of its own from the loop's
@@ -354,13 +489,35 @@ fn spawn_progress(live: Arc<LiveFigures>, steps: u64, dt: f64) -> Option<std::th
         .ok()
 }
 
+/// Prints why a run failed, loudly (the run's exit code says it too).
+fn print_failures(who: &str, failures: &[Failure]) {
+    for f in failures {
+        eprintln!("warning: {who}: RUN FAILED: {}", f.describe());
+    }
+    if failures.iter().any(|f| matches!(f, Failure::RobotStopped { .. } | Failure::DeadlinesMissed { .. })) {
+        eprintln!(
+            "warning: {who}: real time was not kept on this machine; `--wait event` or `--rt` may help, \
+             `companion latency` compares the wait modes"
+        );
+    }
+}
+
 /// `companion plant`.
 ///
 /// # Errors
 /// A bad flag, a transport failure, or files that cannot be written.
 pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
-    let (cfg, s) = a.resolve()?;
+    let (mut cfg, s) = a.resolve()?;
+    match (cfg.chaos, a.chaos_epoch_ns) {
+        (Some(_), None) => bail!("--chaos is for `companion hil` (it starts the plant with it)"),
+        (Some(c), Some(e)) => cfg.chaos = Some(ChaosConfig { epoch_ns: e, ..c }),
+        _ => {}
+    }
+    let lock = match PlantLock::acquire(&cfg.name, a.child) {
+        Ok(l) => l,
+        Err(e) => return name_in_use_or(e),
+    };
     let show_progress = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
     let live = Arc::new(LiveFigures::default());
     // Lockstep: a bar; real time: a line drawn from the live figures. Helper threads start
@@ -374,7 +531,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     let progress = (!cfg.timing.lockstep && show_progress)
         .then(|| spawn_progress(Arc::clone(&live), s.steps(), s.dt))
         .flatten();
-    let result = companion_runtime::hil::plant::run(&cfg, &s, &live, &term);
+    let result = companion_runtime::hil::plant::run(&cfg, &s, &live, &term, &lock);
     live.finish();
     if let Some(p) = progress {
         let _ = p.join();
@@ -389,8 +546,9 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     if outcome.end != PlantEnd::Completed {
         eprintln!("plant: {}", outcome.end.describe());
     }
+    print_failures("plant", &outcome.run.summary.failures);
     println!("wrote {}", cfg.out.display());
-    Ok(ExitCode::from(plant_exit_code(&outcome.end)))
+    Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.run.summary.failures)))
 }
 
 /// `companion control`.
@@ -400,9 +558,17 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
 pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
     let (cfg, s) = a.resolve()?;
+    if cfg.chaos.is_some() {
+        bail!("--chaos is for `companion hil`");
+    }
     let inject = a.injections()?;
+    let lock = match NameLock::acquire(&cfg.name, Role::Control) {
+        Ok(l) => l,
+        Err(e) => return name_in_use_or(e),
+    };
     eprintln!("controller: demo '{}' waiting for its plant (companion plant --name {})", cfg.name, cfg.name);
-    let Session { end, stats } = match session(&cfg, &s, &inject, &Terminal::lines(), || None) {
+    let faults = Faults { corruptions: inject, delays: Vec::new() };
+    let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {
         Ok(x) => x,
         Err(e) => return name_in_use_or(e),
     };
@@ -410,7 +576,15 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     if end != ControlEnd::EndOfRun {
         eprintln!("controller: {}", end.describe());
     }
-    Ok(ExitCode::from(control_exit_code(&end)))
+    let rejected = rejection_failure(&stats.rejections, stats.answered, None, cfg.acceptance.max_rejected);
+    let code = control_exit_code(&end);
+    if code == 0 {
+        if let Some(f) = rejected {
+            print_failures("controller", std::slice::from_ref(&f));
+            return Ok(ExitCode::from(EXIT_REJECTED));
+        }
+    }
+    Ok(ExitCode::from(code))
 }
 
 /// Prints the latency table of a HIL run.
@@ -469,6 +643,25 @@ fn print_latency(r: &LatencyReport) {
             r.stop_events,
             r.invalid_total
         );
+        if r.plant_stalls > 0 {
+            println!(
+                "the plant fell behind its schedule {} times (longest {}) and skipped {} releases",
+                r.plant_stalls,
+                fmt_ns(r.longest_stall_ns),
+                r.skipped_releases
+            );
+        }
+        let w = r.wait_counts;
+        if w.preemptions + w.pressure_holds > 0 {
+            println!(
+                "adaptive waiting: {} preemptions noticed while spinning, {} fallbacks to event waiting, {} back-offs \
+                 for CPU pressure ({:.1} s on the event)",
+                w.preemptions,
+                w.fallbacks,
+                w.pressure_holds,
+                w.event_phase_ns as f64 / 1e9
+            );
+        }
     }
 }
 
@@ -493,16 +686,43 @@ mod tests {
         assert_eq!(tm.period_ns, 1_000_000);
         assert_eq!(tm.deadline_ns, 500_000);
         assert_eq!(tm.hold_periods, 20);
-        let expected =
-            if companion_runtime::rt::online_cpus() >= 2 { WaitMode::Spin } else { WaitMode::Hybrid };
-        assert_eq!(tm.wait, expected);
+        assert_eq!(tm.wait, WaitMode::Adaptive);
         assert!(!tm.lockstep);
+        assert_eq!(cfg.acceptance, companion_runtime::record::Acceptance::default());
         // The joint guard leaves room for the held periods.
         assert_eq!(s.controller.overrides.joint_step_fraction, Some(1.0 / 22.0));
         let t = T::parse_from(["x", "--rt"]);
-        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Hybrid);
+        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Adaptive);
         let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
         assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Spin);
+    }
+
+    #[test]
+    fn negative_numbers_are_values_and_out_of_range_ones_are_refused_by_name() {
+        let t = T::parse_from(["x", "--wheel-scale-error", "-0.05", "--dt", "-1"]);
+        assert_eq!(t.a.scenario.wheel_scale_error, Some(-0.05));
+        let e = t.a.resolve().unwrap_err().to_string();
+        assert!(e.contains("dt must be a positive number of seconds, got -1"), "{e}");
+        for (flag, value, rule) in [
+            (
+                "--peer-timeout",
+                "1e300",
+                "--peer-timeout must be a number of seconds in (0, 3600], got 1.000e300",
+            ),
+            ("--peer-timeout", "-2", "--peer-timeout must be a number of seconds in (0, 3600], got -2"),
+            (
+                "--startup-timeout",
+                "nan",
+                "--startup-timeout must be a number of seconds in [0, 86400], got NaN",
+            ),
+            ("--max-miss-fraction", "-0.5", "--max-miss-fraction must be a fraction in [0, 1], got -0.5"),
+            ("--max-rejected", "2", "--max-rejected must be a fraction in [0, 1], got 2"),
+            ("--rate", "-5", "--rate must be between 1 and 100000 Hz, got -5"),
+        ] {
+            let t = T::parse_from(["x", flag, value]);
+            let e = t.a.resolve().unwrap_err().to_string();
+            assert_eq!(e, rule);
+        }
     }
 
     #[test]

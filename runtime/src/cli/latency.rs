@@ -6,7 +6,7 @@ use anyhow::{anyhow, Result};
 use clap::Args;
 use companion_runtime::histogram::fmt_ns;
 use companion_runtime::latency::pingpong::{run_peer as peer, PeerOptions, Transport};
-use companion_runtime::latency::{Benchmark, LatencyOptions};
+use companion_runtime::latency::{Benchmark, LatencyOptions, Load};
 
 use super::hil::WaitArg;
 use super::terminal::Terminal;
@@ -27,11 +27,34 @@ pub struct LatencyArgs {
     #[arg(long)]
     pub rt: bool,
     /// The HIL wait modes to measure.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "spin,hybrid,event")]
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "adaptive,spin,hybrid,event")]
     pub hil_modes: Vec<WaitArg>,
+    /// The loads to measure each HIL wait mode under: `idle` (the machine as it is) and
+    /// `busy` (this program runs one busy-looping thread per online CPU, at normal priority,
+    /// for the whole HIL run).
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "idle,busy")]
+    pub loads: Vec<LoadArg>,
     /// Skip part (4), the full HIL cycle.
     #[arg(long)]
     pub skip_hil: bool,
+}
+
+/// `--loads`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LoadArg {
+    /// The machine as it is.
+    Idle,
+    /// One busy-looping thread per online CPU.
+    Busy,
+}
+
+impl From<LoadArg> for Load {
+    fn from(l: LoadArg) -> Self {
+        match l {
+            LoadArg::Idle => Load::Idle,
+            LoadArg::Busy => Load::Busy,
+        }
+    }
 }
 
 /// `companion latency`.
@@ -46,6 +69,7 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         out: a.out.clone(),
         rt: a.rt,
         hil_modes: if a.skip_hil { Vec::new() } else { a.hil_modes.iter().map(|m| (*m).into()).collect() },
+        loads: a.loads.iter().map(|l| (*l).into()).collect(),
     };
     let bench = companion_runtime::latency::run(&opts, &Terminal::lines())?;
     print_table(&bench);
@@ -130,17 +154,30 @@ fn print_table(b: &Benchmark) {
             fmt_ns(p.max)
         );
     }
-    for (mode, f) in &b.hil {
+    if !b.hil.is_empty() {
         println!(
-            "HIL {:<6}: {} cycles, {} deadline misses (500 µs), compute p50 {} max {}, release jitter p99.99 {} \
-             max {}{}",
+            "HIL runs (500 µs deadline; busy = {} busy-looping threads of this program):",
+            b.load_threads
+        );
+        println!(
+            "  {:<9} {:<5} {:>8} {:>8} {:>7} {:>6} {:>10} {:>10} {:>10}",
+            "wait", "load", "cycles", "misses", "miss %", "stops", "rt p50", "rt p99.9", "rt max"
+        );
+    }
+    for (mode, load, f) in &b.hil {
+        #[allow(clippy::cast_precision_loss)]
+        let pct = if f.cycles > 0 { 100.0 * f.deadline_misses as f64 / f.cycles as f64 } else { 0.0 };
+        println!(
+            "  {:<9} {:<5} {:>8} {:>8} {:>6.2}% {:>6} {:>10} {:>10} {:>10}{}",
             mode.as_str(),
+            load.as_str(),
             f.cycles,
             f.deadline_misses,
-            fmt_ns(f.controller_compute_ns.p50),
-            fmt_ns(f.controller_compute_ns.max),
-            fmt_ns(f.release_jitter_ns.p99_99),
-            fmt_ns(f.release_jitter_ns.max),
+            pct,
+            f.stop_events,
+            fmt_ns(f.round_trip_ns.p50),
+            fmt_ns(f.round_trip_ns.p99_9),
+            fmt_ns(f.round_trip_ns.max),
             if b.rt && !f.rt.fifo { " (SCHED_FIFO refused)" } else { "" }
         );
     }

@@ -1,15 +1,17 @@
 //! `companion sim`.
 
 use std::path::PathBuf;
+use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use companion_runtime::record::RunOutcome;
+use companion_runtime::record::{Failure, RunOutcome};
 use companion_runtime::scenario::Target;
-use companion_runtime::sim::{all_scenarios, run_one};
+use companion_runtime::sim::{all_scenarios, run_one_with};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
+use super::exit::{EXIT_INTERRUPTED, EXIT_REJECTED};
 use super::terminal::Terminal;
 
 /// `companion sim` flags.
@@ -43,11 +45,35 @@ pub struct SimArgs {
 /// `sim`'s duration when `--duration` is not given (s).
 const DEFAULT_DURATION: f64 = 120.0;
 
-/// `companion sim`.
+/// `companion sim`: 0, 6 when a run's law rejected more than `--max-rejected` of its steps,
+/// 130 when SIGINT or SIGTERM ended it early (its files are written up to that step).
 ///
 /// # Errors
 /// A bad flag, config file or I/O failure.
-pub fn run(args: &SimArgs) -> Result<()> {
+pub fn run(args: &SimArgs) -> Result<ExitCode> {
+    companion_runtime::signals::install_termination_handler()?;
+    let acceptance = args.scenario.acceptance(0.0)?;
+    let outcomes = run_scenarios(args, &acceptance)?;
+    let mut code = 0;
+    for o in &outcomes {
+        for f in &o.summary.failures {
+            eprintln!("warning: {}: RUN FAILED: {}", o.summary.scenario, f.describe());
+            if matches!(f, Failure::Rejected { .. }) {
+                code = EXIT_REJECTED;
+            }
+        }
+    }
+    if outcomes.iter().any(|o| o.summary.ended_early) {
+        eprintln!("interrupted: the runs' files are written up to the step at which the signal came");
+        code = EXIT_INTERRUPTED;
+    }
+    Ok(ExitCode::from(code))
+}
+
+fn run_scenarios(
+    args: &SimArgs,
+    acceptance: &companion_runtime::record::Acceptance,
+) -> Result<Vec<RunOutcome>> {
     if args.all {
         // Each run's builder has every flag applied; `all_scenarios` sets target, variant,
         // platform, duration and the Ψ̇ term.
@@ -62,7 +88,7 @@ pub fn run(args: &SimArgs) -> Result<()> {
         let term = Terminal::bar(total, false);
         let outcomes: Vec<RunOutcome> = list
             .par_iter()
-            .map(|s| run_one(s, &args.out.join(&s.name), &term))
+            .map(|s| run_one_with(s, &args.out.join(&s.name), &term, acceptance))
             .collect::<Result<Vec<_>>>()?;
         term.finish();
         if !args.no_plots {
@@ -73,20 +99,32 @@ pub fn run(args: &SimArgs) -> Result<()> {
         if !args.no_plots {
             println!("open {}", args.out.join("index.html").display());
         }
+        Ok(outcomes)
     } else {
         let a = &args.scenario;
         let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
         let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
         let term = Terminal::bar(s.steps() + 1, false);
-        let outcome = run_one(&s, &args.out, &term)?;
+        let outcome = run_one_with(&s, &args.out, &term, acceptance)?;
         term.finish();
         if !args.no_plots {
             companion_runtime::plots::render_run(&args.out, &outcome)?;
         }
         print_table(std::slice::from_ref(&outcome));
         println!("wrote {}", args.out.display());
+        Ok(vec![outcome])
     }
-    Ok(())
+}
+
+/// `x` in a column of `width` with `precision` decimals, or in scientific notation when it
+/// would not fit (a value of 1e300 must not break the table).
+fn num(x: f64, width: usize, precision: usize) -> String {
+    let fixed = format!("{x:>width$.precision$}");
+    if fixed.len() <= width {
+        fixed
+    } else {
+        format!("{x:>width$.2e}")
+    }
 }
 
 /// Prints one line per run with the main figures.
@@ -97,17 +135,27 @@ pub fn print_table(outcomes: &[RunOutcome]) {
     );
     for o in outcomes {
         let s = &o.summary;
+        // Figures "after 20 s" of a shorter run say nothing.
+        let (after, tracked) = if s.steps_after_20s > 0 {
+            (
+                format!("{:>10.2e}", s.max_ep_norm_after_20s),
+                format!("{:>7.1}%", 100.0 * s.fraction_ep_below_1e_3_after_20s),
+            )
+        } else {
+            (format!("{:>10}", "n/a"), format!("{:>8}", "n/a"))
+        };
         println!(
-            "{:<26} {:>10.2e} {:>10.2e} {:>7.1}% {:>9.2} {:>7} {:>8.3} {:>8.3} {:>9.3}",
+            "{:<26} {:>10.2e} {after} {tracked} {} {:>7} {} {} {}",
             s.scenario,
             s.final_ep_norm,
-            s.max_ep_norm_after_20s,
-            100.0 * s.fraction_ep_below_1e_3_after_20s,
-            s.path_length,
+            num(s.path_length, 9, 2),
             s.v_sign_changes,
-            s.max_abs_v,
-            s.max_abs_omega,
-            s.wall_time_s
+            num(s.max_abs_v, 8, 3),
+            num(s.max_abs_omega, 8, 3),
+            num(s.wall_time_s, 9, 3)
         );
+        if s.rejected_steps > 0 {
+            println!("  {} steps rejected by the law: {}", s.rejected_steps, s.rejections.describe());
+        }
     }
 }

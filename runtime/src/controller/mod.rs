@@ -36,6 +36,9 @@ pub struct StepReport {
     pub saturation: f64,
     /// `α̇` (NaN when rejected).
     pub alpha_rate: [f64; 2],
+    /// The joint guard's factor (≥ 1; 1: the arm law (30) applied as is; NaN when rejected
+    /// or unknown).
+    pub joint_scale: f64,
     /// Why the step was rejected, if it was.
     pub error: Option<StepError>,
 }
@@ -50,6 +53,7 @@ impl StepReport {
             psi: f64::NAN,
             saturation: f64::NAN,
             alpha_rate: [f64::NAN; 2],
+            joint_scale: f64::NAN,
             error,
         }
     }
@@ -179,6 +183,7 @@ fn report<T: Real>(
                 psi: d.psi.as_f64(),
                 saturation: d.saturation.as_f64(),
                 alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
+                joint_scale: d.joint_scale.as_f64(),
                 error: None,
             }
         }

@@ -7,6 +7,7 @@ use std::time::Duration;
 use serde::{Deserialize, Serialize};
 
 use crate::ipc::Role;
+use crate::record::Acceptance;
 use crate::rt::RtConfig;
 use crate::scenario::Scenario;
 
@@ -20,6 +21,9 @@ pub enum WaitMode {
     Event,
     /// Sleep until shortly before the expected message, then spin.
     Hybrid,
+    /// Busy-poll while the process keeps its CPU; after a preemption, wait on the iceoryx2
+    /// event for a while (see [`super::wait`]). The default.
+    Adaptive,
 }
 
 impl WaitMode {
@@ -29,24 +33,29 @@ impl WaitMode {
             Self::Spin => "spin",
             Self::Event => "event",
             Self::Hybrid => "hybrid",
+            Self::Adaptive => "adaptive",
         }
     }
 
-    /// The default: `spin` where each process can have a CPU of its own and `rt` is off;
-    /// `hybrid` otherwise.
+    /// Whether the mode needs the iceoryx2 event services (the sender then notifies every
+    /// message).
+    pub fn uses_events(self) -> bool {
+        matches!(self, Self::Event | Self::Adaptive)
+    }
+
+    /// The default: `adaptive`, with or without `--rt`, on any number of CPUs.
     ///
-    /// On this project's 2-vCPU VMs a timed sleep at 1 kHz wakes ~30 µs late at the median but
-    /// milliseconds late at p99 (a bare `clock_nanosleep` loop), so the modes that sleep miss
-    /// far more 500 µs deadlines than spinning does (10 s runs: spin 19 and 23 misses, hybrid
-    /// 26 and 793, event 69 and 1 102). With `SCHED_FIFO` a spinner is parked for ~50 ms of
+    /// No fixed mode is right on a shared machine. On this project's 2-vCPU VMs, otherwise
+    /// idle, a timed sleep at 1 kHz wakes ~30 µs late at the median but milliseconds late at
+    /// p99, so the modes that sleep miss more 500 µs deadlines than spinning does (10 s runs:
+    /// spin 19 and 23 misses, hybrid 26 and 793, event 69 and 1 102); with other work running
+    /// it is the other way round (3 s runs: spin 2 162 and 2 784 misses and the robot stopped,
+    /// hybrid 204 and 42, event 1 and 2). With `SCHED_FIFO` a spinner is parked for ~50 ms of
     /// every second by the kernel's real-time throttling, and on one CPU two spinners take
-    /// turns by time slices: hybrid there.
-    pub fn default_for(rt: bool) -> Self {
-        if rt || crate::rt::online_cpus() < 2 {
-            Self::Hybrid
-        } else {
-            Self::Spin
-        }
+    /// turns by time slices. `adaptive` spins while that works and waits on the event when it
+    /// does not (`companion latency` measures every mode idle and under load).
+    pub fn default_for(_rt: bool) -> Self {
+        Self::Adaptive
     }
 }
 
@@ -111,6 +120,19 @@ pub struct HilConfig {
     pub rt: Option<RtPlan>,
     /// Skip the plots.
     pub no_plots: bool,
+    /// What the run is held to (law rejections, deadline misses).
+    pub acceptance: Acceptance,
+    /// `--chaos SEED`: faults injected on purpose (see [`super::chaos`]).
+    pub chaos: Option<ChaosConfig>,
+}
+
+/// A chaos run's seed and the time its faults count from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChaosConfig {
+    /// The seed of the plan.
+    pub seed: u64,
+    /// `CLOCK_MONOTONIC` (ns) the plan's times count from (the same in both processes).
+    pub epoch_ns: u64,
 }
 
 impl HilConfig {

@@ -1,18 +1,20 @@
 //! The controller process: answers each measurement with one command; as `companion hil` it
 //! also watches the plant process it started and, when the plant dies under it, keeps what
 //! the plant wrote (`timeseries.csv` trimmed to its last complete line) and writes
-//! `fault.json`.
+//! `fault.json`. With `--chaos` it injects the plan's command faults and plant stops, and
+//! checks the plant's counts against them (`chaos.json`).
 
 use std::path::Path;
 use std::process::ExitStatus;
 use std::time::Duration;
 
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 
-use super::config::{HilConfig, WaitMode};
+use super::chaos::{self, Agent, Observed, Plan};
+use super::config::HilConfig;
 use super::end::ControlEnd;
-use super::fault::{Corruption, Injecting};
+use super::fault::{Corruption, Injected, Injecting};
 use super::messages::scenario_hash;
 use super::serve::{serve, ServeOptions};
 use super::stats::ControlStats;
@@ -20,9 +22,11 @@ use crate::clock::MonotonicClock;
 use crate::controller::AnyController;
 use crate::histogram::fmt_ns;
 use crate::ipc::{ControlEndpoint, Role};
+use crate::lock::NameLock;
 use crate::observe::Observer;
-use crate::process::{exit_text, ChildGuard};
+use crate::process::{exit_text, send_signal, ChildGuard, Signal};
 use crate::scenario::{Scenario, ScenarioError};
+use crate::signals::termination_requested;
 
 /// The options of [`serve`] for a configuration and scenario.
 pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
@@ -36,7 +40,17 @@ pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
         peer_timeout_ns: t.peer_timeout_ns,
         startup_timeout_ns: startup.max(t.peer_timeout_ns),
         scenario_hash: scenario_hash(s),
+        forward_interrupt: true,
     }
+}
+
+/// Faults the controller's link injects (tests' `--inject`, `--chaos`); empty: none.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Faults {
+    /// Corrupted commands: `(sequence number, kind)`.
+    pub corruptions: Vec<(u64, Corruption)>,
+    /// Commands held back: `(sequence number, ns)`.
+    pub delays: Vec<(u64, u64)>,
 }
 
 /// What the controller's session ended with.
@@ -46,36 +60,44 @@ pub struct Session {
     pub end: ControlEnd,
     /// What it counted.
     pub stats: ControlStats,
+    /// The faults it injected.
+    pub injected: Injected,
 }
 
 /// One controller session: opens the transport, waits for the plant (`abort` is asked while
-/// waiting whether to give up), serves it. `inject`: corrupted commands to add (tests).
+/// waiting whether to give up), serves it, injecting `faults`. `lock`: this process holds
+/// the controller's role of the demo's name.
 ///
 /// # Errors
 /// A bad parameter, a transport failure, or a plant running another scenario.
 pub fn session(
     cfg: &HilConfig,
     s: &Scenario,
-    inject: &[(u64, Corruption)],
+    faults: &Faults,
     observer: &dyn Observer,
     abort: impl FnMut() -> Option<String>,
+    lock: &NameLock,
 ) -> Result<Session> {
+    debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
     let opt = serve_options(cfg, s);
     let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
-    let ep = ControlEndpoint::control(&cfg.name, cfg.timing.wait == WaitMode::Event)?;
+    let ep = ControlEndpoint::control(&cfg.name, cfg.timing.wait.uses_events())?;
     ep.wait_for_peer(cfg.startup_timeout, abort)?;
     let rt = cfg.rt_config(Role::Control).map(|c| crate::rt::apply(&c));
     if let Some(w) = rt.as_ref().and_then(|r| r.warning("controller")) {
         observer.warn(&w);
     }
     let mut stats = ControlStats::default();
-    let (r, ep) = if inject.is_empty() {
+    let mut injected = Injected::default();
+    let (r, ep) = if *faults == Faults::default() {
         let mut ep = ep;
         (serve(&MonotonicClock, &mut ep, &mut ctrl, &opt, &mut stats), ep)
     } else {
-        // Testing: corrupted commands go out before the real ones.
-        let mut link = Injecting::new(ep, inject.to_vec());
-        (serve(&MonotonicClock, &mut link, &mut ctrl, &opt, &mut stats), link.into_inner())
+        // Testing: corrupted commands go out before the real ones, some answers late.
+        let mut link = Injecting::new(ep, faults.corruptions.clone()).with_delays(faults.delays.clone());
+        let r = serve(&MonotonicClock, &mut link, &mut ctrl, &opt, &mut stats);
+        injected = link.injected();
+        (r, link.into_inner())
     };
     if rt.is_some() {
         crate::rt::reset_thread();
@@ -84,16 +106,29 @@ pub fn session(
     if matches!(end, ControlEnd::PlantDied { .. }) {
         ep.cleanup_dead_nodes();
     }
-    Ok(Session { end, stats })
+    Ok(Session { end, stats, injected })
 }
 
 impl ControlStats {
-    /// One line: answers, skips, drops, rejections and compute times.
+    /// One line: answers, skips, drops, rejections (with their reasons) and compute times.
     pub fn line(&self) -> String {
         let p = self.compute.percentiles();
+        let why = if self.rejected > 0 { format!(": {}", self.rejections.describe()) } else { String::new() };
+        let w = self.wait;
+        let adaptive = if w.fallbacks + w.pressure_holds > 0 {
+            format!(
+                "; adaptive waiting: {} preemptions, {} fallbacks, {} back-offs for CPU pressure ({:.1} s on the event)",
+                w.preemptions,
+                w.fallbacks,
+                w.pressure_holds,
+                w.event_phase_ns as f64 / 1e9
+            )
+        } else {
+            String::new()
+        };
         format!(
             "controller: answered {} measurements ({} skipped as superseded, {} dropped as malformed, {} rejected \
-             by the law); compute p50 {} p99 {} max {}",
+             by the law{why}); compute p50 {} p99 {} max {}{adaptive}",
             self.answered,
             self.skipped,
             self.invalid,
@@ -111,14 +146,16 @@ pub enum ParentOutcome {
     /// The plant exited before the run started (it said why); its status.
     PlantExitedEarly(ExitStatus),
     /// The session failed (printed as the error); the plant was left to stop the robot and
-    /// write its files.
-    Failed(anyhow::Error),
+    /// write its files, and exited with this status.
+    Failed(anyhow::Error, Option<ExitStatus>),
     /// The run ended (or was interrupted) and the plant exited with `plant`.
     Finished {
         /// How the controller's side ended.
         end: ControlEnd,
         /// The plant's status.
         plant: Option<ExitStatus>,
+        /// `--chaos`: the check of the plant's counts against what was injected.
+        chaos: Option<Box<chaos::Report>>,
     },
     /// The plant died, left or hung during the run.
     PlantLost(ControlEnd),
@@ -141,21 +178,39 @@ fn ms(ns: u64) -> f64 {
     ns as f64 / 1e6
 }
 
-/// The controller side of `companion hil`, with the plant `child` it started.
+/// The controller side of `companion hil`, with the plant `child` it started. `locks`: this
+/// process holds both roles of the demo's name (the plant runs under them).
 ///
 /// # Errors
-/// Waiting for the plant failed, or `fault.json` cannot be encoded.
+/// Waiting for the plant failed, `fault.json` cannot be encoded, or the chaos plan cannot be
+/// made.
 pub fn run_as_parent(
     cfg: &HilConfig,
     s: &Scenario,
-    inject: &[(u64, Corruption)],
+    faults: &Faults,
     mut child: ChildGuard,
     observer: &dyn Observer,
+    locks: &[NameLock; 2],
 ) -> Result<ParentOutcome> {
     let pid = child.id();
+    let pid_i32 = i32::try_from(pid).unwrap_or(0);
+    let mut faults = faults.clone();
+    let mut agent = None;
+    if let Some(c) = cfg.chaos {
+        let plan = Plan::new(c.seed, s.steps(), &cfg.timing)?;
+        faults.corruptions.extend(plan.corruptions.iter().copied());
+        faults.delays.extend(plan.delays.iter().copied());
+        agent = Some(Agent::spawn(plan.stops_by(Role::Control), pid_i32, c.epoch_ns)?);
+    }
     let mut exited = None;
+    let mut forwarded = false;
     let abort = || -> Option<String> {
         let c = child.0.as_mut()?;
+        if termination_requested() && !forwarded {
+            // Interrupted while starting: the plant ends too, and writes nothing.
+            forwarded = true;
+            let _ = send_signal(pid_i32, Signal::Terminate);
+        }
         match c.try_wait() {
             Ok(Some(st)) => {
                 exited = Some(st);
@@ -164,11 +219,13 @@ pub fn run_as_parent(
             _ => None,
         }
     };
-    let result = session(cfg, s, inject, observer, abort);
+    let control_lock = locks.iter().find(|l| l.role == Role::Control).ok_or_else(|| anyhow!("no lock"))?;
+    let result = session(cfg, s, &faults, observer, abort, control_lock);
+    let stops = agent.map(Agent::finish).unwrap_or_default();
     if exited.is_some() {
         child.0 = None;
     }
-    let Session { end, stats } = match result {
+    let Session { end, stats, injected } = match result {
         Ok(x) => x,
         Err(e) => {
             // The plant may already have explained (e.g. a name in use); its status says more.
@@ -179,8 +236,8 @@ pub fn run_as_parent(
             // files (it does so within --silence-ms); kill it only if it does not.
             observer.note(&format!("error: {e:#}"));
             let grace = Duration::from_nanos(cfg.timing.peer_timeout_ns) + Duration::from_secs(5);
-            let _ = child.finish(grace);
-            return Ok(ParentOutcome::Failed(e));
+            let st = child.finish(grace).ok().flatten();
+            return Ok(ParentOutcome::Failed(e, st));
         }
     };
     match end {
@@ -188,49 +245,124 @@ pub fn run_as_parent(
             // The plant writes its files and plots, then exits with the run's status.
             let plant = child.finish(Duration::from_secs(600))?;
             observer.note(&stats.line());
-            Ok(ParentOutcome::Finished { end, plant })
+            let chaos = match cfg.chaos {
+                Some(c) => Some(Box::new(chaos_report(cfg, s, c.seed, injected, &stops)?)),
+                None => None,
+            };
+            Ok(ParentOutcome::Finished { end, plant, chaos })
         }
-        ControlEnd::PlantDied { .. } | ControlEnd::PlantGone { .. } | ControlEnd::PlantHung { .. } => {
-            let status = if matches!(end, ControlEnd::PlantHung { .. }) {
-                // Alive but silent: stop it (it cannot be trusted to end on its own).
-                child.finish(Duration::ZERO)?
-            } else {
-                child.finish(Duration::from_secs(5))?
-            };
-            let how = status.map_or("unknown".to_string(), exit_text);
-            observer.note(&format!("controller: {} ({how})", end.describe()));
-            let rows = trim_partial_csv(&cfg.out).ok();
-            if let Some(r) = rows {
-                observer.note(&format!(
-                    "controller: {} rows recorded up to the fault are in {}",
-                    r,
-                    cfg.out.join("timeseries.csv").display()
-                ));
+        ControlEnd::PlantGone { .. } => {
+            // The plant's node went away without the end of the run reaching this process
+            // (preempted at the end, the last measurement was gone with the plant's ports):
+            // the plant's own exit status says how its run ended.
+            let plant = child.finish(Duration::from_secs(5))?;
+            if plant.is_some_and(|st| st.code().is_some()) {
+                observer.note(&stats.line());
+                return Ok(ParentOutcome::Finished { end: ControlEnd::EndOfRun, plant, chaos: None });
             }
-            let (last, silent) = match end {
-                ControlEnd::PlantDied { last_seq, silent_ns, .. } => (last_seq, silent_ns),
-                ControlEnd::PlantGone { last_seq } => (last_seq, 0),
-                ControlEnd::PlantHung { silent_ns } => (None, silent_ns),
-                ControlEnd::EndOfRun | ControlEnd::Interrupted => (None, 0),
-            };
-            let fault = Fault {
-                fault: end.describe(),
-                plant_pid: i32::try_from(pid).unwrap_or(0),
-                plant_exit: how,
-                last_cycle_answered: last.or((stats.answered > 0).then_some(stats.answered - 1)),
-                noticed_after_last_measurement_ms: ms(silent),
-                rows_on_disk: rows,
-                controller_answered: stats.answered,
-            };
-            let _ = std::fs::create_dir_all(&cfg.out);
-            let path = cfg.out.join("fault.json");
-            if let Err(e) = std::fs::write(&path, serde_json::to_string_pretty(&fault)? + "\n") {
-                observer.warn(&format!("writing {}: {e}", path.display()));
-            }
-            observer.note(&stats.line());
-            Ok(ParentOutcome::PlantLost(end))
+            lost(cfg, end, plant, pid, &stats, observer)
+        }
+        ControlEnd::PlantDied { .. } => {
+            let status = child.finish(Duration::from_secs(5))?;
+            lost(cfg, end, status, pid, &stats, observer)
+        }
+        ControlEnd::PlantHung { .. } => {
+            // Alive but silent: stop it (it cannot be trusted to end on its own).
+            let status = child.finish(Duration::ZERO)?;
+            lost(cfg, end, status, pid, &stats, observer)
         }
     }
+}
+
+/// The plant was lost: keeps its rows, writes `fault.json`.
+fn lost(
+    cfg: &HilConfig,
+    end: ControlEnd,
+    status: Option<ExitStatus>,
+    pid: u32,
+    stats: &ControlStats,
+    observer: &dyn Observer,
+) -> Result<ParentOutcome> {
+    let how = status.map_or("unknown".to_string(), exit_text);
+    observer.note(&format!("controller: {} ({how})", end.describe()));
+    let rows = trim_partial_csv(&cfg.out).ok();
+    if let Some(r) = rows {
+        observer.note(&format!(
+            "controller: {} rows recorded up to the fault are in {}",
+            r,
+            cfg.out.join("timeseries.csv").display()
+        ));
+    }
+    let (last, silent) = match end {
+        ControlEnd::PlantDied { last_seq, silent_ns, .. } => (last_seq, silent_ns),
+        ControlEnd::PlantGone { last_seq } => (last_seq, 0),
+        ControlEnd::PlantHung { silent_ns } => (None, silent_ns),
+        ControlEnd::EndOfRun | ControlEnd::Interrupted => (None, 0),
+    };
+    let fault = Fault {
+        fault: end.describe(),
+        plant_pid: i32::try_from(pid).unwrap_or(0),
+        plant_exit: how,
+        last_cycle_answered: last.or((stats.answered > 0).then_some(stats.answered - 1)),
+        noticed_after_last_measurement_ms: ms(silent),
+        rows_on_disk: rows,
+        controller_answered: stats.answered,
+    };
+    let _ = std::fs::create_dir_all(&cfg.out);
+    let path = cfg.out.join("fault.json");
+    if let Err(e) = std::fs::write(&path, serde_json::to_string_pretty(&fault)? + "\n") {
+        observer.warn(&format!("writing {}: {e}", path.display()));
+    }
+    observer.note(&stats.line());
+    Ok(ParentOutcome::PlantLost(end))
+}
+
+/// The rows a complete run of `s` logs: steps `0..=steps` that are multiples of
+/// `log_every`, and the last.
+pub fn expected_rows(s: &Scenario) -> u64 {
+    let steps = s.steps();
+    steps / s.log_every + 1 + u64::from(steps % s.log_every != 0)
+}
+
+/// `--chaos`: reads what the plant counted, compares it with what was injected, writes
+/// `chaos.json`.
+fn chaos_report(
+    cfg: &HilConfig,
+    s: &Scenario,
+    seed: u64,
+    injected: Injected,
+    stops: &[chaos::DoneStop],
+) -> Result<chaos::Report> {
+    let path = cfg.out.join("latency.json");
+    let observed: Observed = std::fs::read_to_string(&path)
+        .map_err(anyhow::Error::from)
+        .and_then(|t| Ok(serde_json::from_str(&t)?))
+        .unwrap_or_else(|e| Observed {
+            end: format!("no readable {}: {e:#}", path.display()),
+            ..Observed::default()
+        });
+    let rows = complete_rows(&cfg.out).unwrap_or(0);
+    let mut all = stops.to_vec();
+    all.extend(observed.chaos_stops.iter().copied());
+    let report = chaos::check(seed, &cfg.timing, injected, &all, observed, (rows, expected_rows(s)));
+    let path = cfg.out.join("chaos.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(report)
+}
+
+/// The complete data rows of `dir/timeseries.csv`: lines ending in a newline with the
+/// header's number of fields.
+///
+/// # Errors
+/// The file cannot be read.
+pub fn complete_rows(dir: &Path) -> Result<u64> {
+    let text = std::fs::read_to_string(dir.join("timeseries.csv"))?;
+    let mut lines = text.split_inclusive('\n');
+    let fields = |l: &str| l.split(',').count();
+    let Some(header) = lines.next() else { return Ok(0) };
+    let n = fields(header);
+    Ok(lines.filter(|l| l.ends_with('\n') && fields(l) == n).count() as u64)
 }
 
 /// Trims `dir/timeseries.csv` after its last complete line (after the plant was killed
@@ -259,8 +391,29 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("companion-trim-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("timeseries.csv"), "t,x\n0,1\n0.1,2\n0.2,").unwrap();
+        assert_eq!(complete_rows(&dir).unwrap(), 2);
         assert_eq!(trim_partial_csv(&dir).unwrap(), 2);
         assert_eq!(std::fs::read_to_string(dir.join("timeseries.csv")).unwrap(), "t,x\n0,1\n0.1,2\n");
+        std::fs::write(dir.join("timeseries.csv"), "t,x\n0,1\n0.1\n0.2,3\n").unwrap();
+        assert_eq!(complete_rows(&dir).unwrap(), 2, "a line with a field missing is not complete");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_run_logs_every_nth_step_and_the_last() {
+        let s = |d: f64, k: u64| {
+            Scenario::builder(
+                companion_plant::PaperTrajectory::One,
+                companion_core::PaperRun::A,
+                companion_core::PlatformKind::Unicycle,
+            )
+            .duration(d)
+            .log_every(k)
+            .build()
+            .unwrap()
+        };
+        assert_eq!(expected_rows(&s(1.0, 10)), 101);
+        assert_eq!(expected_rows(&s(1.0, 1)), 1001);
+        assert_eq!(expected_rows(&s(1.0, 7)), 144, "0, 7, …, 994 and 1000");
     }
 }

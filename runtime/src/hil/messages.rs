@@ -62,6 +62,8 @@ pub fn report_of(c: &CommandMsg) -> StepReport {
         psi: c.psi,
         saturation: c.saturation,
         alpha_rate: c.alpha_rate,
+        // Not on the wire.
+        joint_scale: f64::NAN,
         error,
     }
 }

@@ -75,6 +75,7 @@
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
 //! and [`control`] (the two processes).
 
+pub mod chaos;
 pub mod config;
 pub mod control;
 pub mod end;
@@ -89,5 +90,5 @@ pub mod stats;
 pub mod wait;
 pub mod watch;
 
-pub use self::config::{HilConfig, RtPlan, Timing, WaitMode};
+pub use self::config::{ChaosConfig, HilConfig, RtPlan, Timing, WaitMode};
 pub use self::end::{ControlEnd, PlantEnd};

@@ -14,7 +14,7 @@ use super::end::PlantEnd;
 use super::hold::HoldPolicy;
 use super::messages::{report_of, Stamp};
 use super::stats::{LiveFigures, PlantStats};
-use super::wait::{self, Idler};
+use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::clock::Clock;
 use crate::controller::{StepReport, JOINTS};
@@ -65,6 +65,10 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                     self.stats.controller_skipped += u64::from(c.skipped);
                     fresh = Some(c);
                 }
+                // A command for an earlier period that is also malformed counts as malformed.
+                Err(WireError::Stale(_)) if !finite_command(&c) => {
+                    self.stats.invalid.count(WireError::NonFinite)
+                }
                 Err(WireError::Stale(_)) => {
                     self.stats.late_commands += 1;
                     if late_timed {
@@ -77,6 +81,17 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         Ok(fresh)
     }
 }
+
+/// Whether every velocity of `c` is finite.
+fn finite_command(c: &CommandMsg) -> bool {
+    let cmd = c.command::<JOINTS>();
+    let p = &cmd.platform;
+    [p.v, p.v_lat, p.omega, p.v_xi].iter().chain(cmd.joints.iter()).all(|x| x.is_finite())
+}
+
+/// How long the plant waits, after its last measurement, for the answer to it (so that the
+/// controller sees the end of the run before the plant's ports go away) (ns).
+const GOODBYE_NS: u64 = 1_000_000_000;
 
 fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
     match loss {
@@ -92,6 +107,12 @@ fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
 /// Step 0 is a handshake: published at once, its command awaited up to the peer timeout (a
 /// cold controller's first step, page faults and all, is not a deadline miss). Real time
 /// starts when it is answered: release `n` = start + n·period.
+///
+/// A plant that finds itself more than a period behind its schedule (it was not scheduled,
+/// or was stopped) does not replay the periods it missed in a burst: it counts a stall, skips
+/// the missed releases and goes on from now (simulated time then lags the wall clock by the
+/// skipped periods). After the last step it waits up to a second for the controller's answer
+/// to the last measurement, so that the controller sees the end of the run.
 ///
 /// # Errors
 /// A transport failure.
@@ -109,9 +130,10 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
     let mut watch = PeerWatch::new(timing.silence_ns, start);
     let mut last_step = steps;
     let mut end = PlantEnd::Completed;
+    let mut answered_last;
     let mut n: u64 = 0;
     loop {
-        let release = start + n * period;
+        let mut release = start + n * period;
         let meas = plant.measure();
         let mut fl = 0;
         if n == last_step {
@@ -120,7 +142,19 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         if policy.stopped() {
             fl |= flags::STOPPED;
         }
-        wait::until(side.clock, timing.wait, release, timing.spin_margin_ns);
+        idler.until(side.clock, release);
+        let now = side.clock.now_ns();
+        if n > 0 && now > release + period {
+            // A stall: skip the releases missed and go on from now.
+            let behind = now - release;
+            let skipped = behind / period;
+            start += skipped * period;
+            release += skipped * period;
+            let st = &mut *side.stats;
+            st.plant_stalls += 1;
+            st.skipped_releases += skipped;
+            st.longest_stall_ns = st.longest_stall_ns.max(behind);
+        }
         let t_pub = side.publish(n, fl, &meas)?;
         let deadline = if n == 0 {
             t_pub + timing.peer_timeout_ns
@@ -147,12 +181,22 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         }
         if n == 0 {
             start = side.clock.now_ns();
+            side.stats.run_window_ns.0 = start;
         }
+        answered_last = fresh.is_some();
         let stats = &mut *side.stats;
         let (report, source) = match fresh {
             Some(c) => {
                 stats.fresh += 1;
-                watch.heard(side.clock.now_ns());
+                let now = side.clock.now_ns();
+                if n > 0 {
+                    let gap = now - watch.last_heard_ns();
+                    stats.longest_command_gap_ns = stats.longest_command_gap_ns.max(gap);
+                    if gap > (u64::from(timing.hold_periods) + 1) * period {
+                        stats.command_gaps_over_hold += 1;
+                    }
+                }
+                watch.heard(now);
                 policy.fresh(report_of(&c))
             }
             None => {
@@ -207,8 +251,34 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         }
         n += 1;
     }
-    side.live.p99_ns.store(side.stats.round_trip.quantile(0.99), Ordering::Relaxed);
+    if !answered_last && matches!(end, PlantEnd::Completed | PlantEnd::Interrupted { .. }) {
+        side.goodbye(last_step, &mut watch)?;
+    }
+    let stats = &mut *side.stats;
+    stats.run_window_ns.1 = side.clock.now_ns();
+    stats.wait = idler.counts();
+    side.live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
     Ok(end)
+}
+
+impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
+    /// Waits up to [`GOODBYE_NS`] for the answer to the last measurement `last` (not applied:
+    /// the run is over), while the controller is alive.
+    fn goodbye(&mut self, last: u64, watch: &mut PeerWatch) -> Result<()> {
+        let t0 = self.clock.now_ns();
+        loop {
+            while let Some(c) = self.link.try_receive()? {
+                if c.seq == last && c.session == self.stamp.session {
+                    return Ok(());
+                }
+            }
+            let now = self.clock.now_ns();
+            if now >= t0 + GOODBYE_NS || watch.check(now, GOODBYE_NS, self.link)?.is_some() {
+                return Ok(());
+            }
+            self.clock.sleep_until_ns(now + 200_000);
+        }
+    }
 }
 
 /// The controller was lost during a lockstep exchange.

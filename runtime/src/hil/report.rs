@@ -5,11 +5,14 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use serde::Serialize;
 
+use super::chaos::DoneStop;
 use super::config::{HilConfig, RtPlan, WaitMode};
 use super::end::PlantEnd;
 use super::stats::{InvalidCounts, PlantStats};
+use super::wait::WaitCounts;
 use crate::histogram::Percentiles;
 use crate::machine::Machine;
+use crate::record::Failure;
 use crate::rt::RtReport;
 use crate::scenario::Scenario;
 
@@ -70,8 +73,22 @@ pub struct LatencyReport {
     pub first_stop_at_s: Option<f64>,
     /// The longest run of consecutive misses.
     pub max_consecutive_misses: u64,
+    /// The longest time between two fresh commands (ns, wall clock).
+    pub longest_command_gap_ns: u64,
+    /// Gaps between two fresh commands longer than the hold (wall clock).
+    pub command_gaps_over_hold: u64,
     /// Periods the plant itself published after the deadline.
     pub plant_overruns: u64,
+    /// Times the plant fell more than a period behind its schedule and skipped ahead.
+    pub plant_stalls: u64,
+    /// Releases skipped after those stalls.
+    pub skipped_releases: u64,
+    /// The longest stall (ns).
+    pub longest_stall_ns: u64,
+    /// The plant's loop, first release to end (`CLOCK_MONOTONIC`, ns).
+    pub run_window_ns: (u64, u64),
+    /// What the plant's adaptive wait did (zero in the other modes).
+    pub wait_counts: WaitCounts,
     /// Malformed commands dropped, by reason.
     pub invalid_messages: InvalidCounts,
     /// Their total.
@@ -88,6 +105,10 @@ pub struct LatencyReport {
     pub release_jitter_ns: Percentiles,
     /// How the run ended.
     pub end: String,
+    /// Why the run failed (empty: it did what a run must), as in `summary.json`.
+    pub failures: Vec<Failure>,
+    /// `--chaos`: the controller's stops that this plant made.
+    pub chaos_stops: Vec<DoneStop>,
     /// Wall-clock time (s).
     pub wall_time_s: f64,
     /// The machine.
@@ -133,7 +154,14 @@ impl LatencyReport {
             stop_events: st.stop_events,
             first_stop_at_s: st.first_stop_t,
             max_consecutive_misses: st.max_consecutive_misses,
+            longest_command_gap_ns: st.longest_command_gap_ns,
+            command_gaps_over_hold: st.command_gaps_over_hold,
             plant_overruns: st.plant_overruns,
+            plant_stalls: st.plant_stalls,
+            skipped_releases: st.skipped_releases,
+            longest_stall_ns: st.longest_stall_ns,
+            run_window_ns: st.run_window_ns,
+            wait_counts: st.wait,
             invalid_messages: st.invalid,
             invalid_total: st.invalid.total(),
             controller_skipped: st.controller_skipped,
@@ -142,6 +170,8 @@ impl LatencyReport {
             round_trip_ns: st.round_trip.percentiles(),
             release_jitter_ns: st.jitter.percentiles(),
             end: end.describe(),
+            failures: Vec::new(),
+            chaos_stops: Vec::new(),
             wall_time_s,
             machine: Machine::now(),
         }

@@ -11,7 +11,7 @@ use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::clock::Clock;
 use crate::controller::{AnyController, JOINTS};
-use crate::link::ControlLink;
+use crate::link::{ControlLink, PeerState};
 use crate::signals::termination_requested;
 use crate::wire::{check_measurement, flags, MeasurementMsg, WireError};
 
@@ -30,12 +30,20 @@ pub struct ServeOptions {
     pub startup_timeout_ns: u64,
     /// The scenario hash (0: not checked).
     pub scenario_hash: u64,
+    /// On SIGINT/SIGTERM, hand the interruption on to the plant process (`SIGTERM` to the
+    /// peer's pid), so that it ends the run and writes its files.
+    pub forward_interrupt: bool,
 }
 
 /// How long the controller waits for the plant's end of run after SIGINT/SIGTERM (ns).
 const INTERRUPT_GRACE_NS: u64 = 1_000_000_000;
 
 /// Answers measurements until the end of the run or until the plant is lost.
+///
+/// On SIGINT/SIGTERM it goes on answering while the plant ends the run (with
+/// `forward_interrupt`, it sends the plant `SIGTERM` first: a supervisor may have signalled
+/// this process alone), and reports [`ControlEnd::Interrupted`] at the end of the run, or
+/// after a second without one.
 ///
 /// # Errors
 /// A transport failure, or a plant running another scenario.
@@ -53,6 +61,8 @@ pub fn serve<C: Clock, L: ControlLink>(
     let mut expected = None;
     let mut skipped_since = 0u32;
     let mut interrupted_at = None;
+    let end_of_run =
+        |interrupted: bool| if interrupted { ControlEnd::Interrupted } else { ControlEnd::EndOfRun };
     loop {
         let mut newest: Option<MeasurementMsg> = None;
         while let Some(m) = link.try_receive()? {
@@ -84,8 +94,9 @@ pub fn serve<C: Clock, L: ControlLink>(
             // The command is held for one period. (Delay compensation: the HIL passes 0 for
             // now; see the wire's delay field.)
             let report = ctrl.step(&meas, m.dt, 0.0);
-            if report.error.is_some() {
+            if let Some(e) = report.error {
                 stats.rejected += 1;
+                stats.rejections.count(e);
             }
             let mut cmd = answer(&m, &report, t_rx, skipped_since);
             cmd.compute_ns = clock.now_ns() - t_rx;
@@ -97,7 +108,8 @@ pub fn serve<C: Clock, L: ControlLink>(
             last_seq = Some(m.seq);
             expected = (m.period_ns > 0).then(|| m.plant_time_ns + m.period_ns);
             if m.has(flags::END_OF_RUN) {
-                return Ok(ControlEnd::EndOfRun);
+                stats.wait = idler.counts();
+                return Ok(end_of_run(interrupted_at.is_some()));
             }
             continue;
         }
@@ -112,10 +124,18 @@ pub fn serve<C: Clock, L: ControlLink>(
             None => {}
         }
         if termination_requested() {
-            // The plant (same terminal) got the signal too and ends the run at its next period;
-            // give it a second, then leave.
-            let t = *interrupted_at.get_or_insert(now);
+            // The plant ends the run at its next period (it got the signal too, from the same
+            // terminal, or from here); give it a second, then leave.
+            let t = *interrupted_at.get_or_insert_with(|| {
+                if opt.forward_interrupt {
+                    if let Ok(PeerState::Alive(pid)) = link.peer_state() {
+                        let _ = crate::process::send_signal(pid, crate::process::Signal::Terminate);
+                    }
+                }
+                now
+            });
             if now - t > INTERRUPT_GRACE_NS {
+                stats.wait = idler.counts();
                 return Ok(ControlEnd::Interrupted);
             }
         }
@@ -137,7 +157,7 @@ mod tests {
     use crate::clock::FakeClock;
     use crate::hil::fault::{Corruption, Injecting};
     use crate::hil::messages::{scenario_hash, Stamp};
-    use crate::link::{Link, PeerState};
+    use crate::link::Link;
     use crate::scenario::Scenario;
     use crate::wire::CommandMsg;
 
@@ -186,6 +206,7 @@ mod tests {
             peer_timeout_ns: 2_000_000_000,
             startup_timeout_ns: 20_000_000_000,
             scenario_hash: scenario_hash(&s),
+            forward_interrupt: false,
         };
         (s, ctrl, opt)
     }

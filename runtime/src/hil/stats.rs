@@ -2,13 +2,15 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
+use super::wait::WaitCounts;
 use crate::histogram::LatencyHistogram;
+use crate::record::Rejections;
 use crate::wire::{CommandMsg, WireError};
 
 /// Dropped commands, by reason.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct InvalidCounts {
     /// Wrong protocol version.
     pub version: u64,
@@ -71,8 +73,23 @@ pub struct PlantStats {
     pub first_stop_t: Option<f64>,
     /// The longest run of consecutive misses.
     pub max_consecutive_misses: u64,
+    /// The longest time between two fresh commands (ns, wall clock).
+    pub longest_command_gap_ns: u64,
+    /// Gaps between two fresh commands longer than the hold (`hold + 1` periods, wall clock).
+    pub command_gaps_over_hold: u64,
     /// Periods whose measurement the plant itself published after the deadline.
     pub plant_overruns: u64,
+    /// Times the plant fell more than a period behind its schedule (it was not scheduled, or
+    /// stopped) and skipped the releases it missed.
+    pub plant_stalls: u64,
+    /// Releases skipped after stalls.
+    pub skipped_releases: u64,
+    /// The longest stall (ns).
+    pub longest_stall_ns: u64,
+    /// The loop's first release and its end (`CLOCK_MONOTONIC`, ns).
+    pub run_window_ns: (u64, u64),
+    /// What the adaptive wait did.
+    pub wait: WaitCounts,
     /// Malformed commands dropped.
     pub invalid: InvalidCounts,
     /// Measurements the controller skipped as superseded (sum of `skipped`).
@@ -103,6 +120,10 @@ pub struct ControlStats {
     pub invalid: u64,
     /// Steps the law rejected (safe command sent).
     pub rejected: u64,
+    /// The rejections by reason.
+    pub rejections: Rejections,
+    /// What the adaptive wait did.
+    pub wait: WaitCounts,
 }
 
 /// Live figures of the plant's loop for a progress line (written with relaxed stores, read by

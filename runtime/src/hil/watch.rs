@@ -47,6 +47,12 @@ impl PeerWatch {
         self.last_check_ns = now_ns;
     }
 
+    /// When the peer was last heard from (ns).
+    #[inline]
+    pub fn last_heard_ns(&self) -> u64 {
+        self.last_heard_ns
+    }
+
     /// Silence so far (ns).
     #[inline]
     pub fn silent_ns(&self, now_ns: u64) -> u64 {

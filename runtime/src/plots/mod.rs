@@ -365,3 +365,81 @@ fn joints_plot(
     root.present()?;
     Ok(())
 }
+
+/// One curve of [`floor_plot`]: its label, whether it is the default discretisation (solid)
+/// or the sampled one (dashed), and its `(period, floor)` points.
+#[derive(Clone, Debug)]
+pub struct FloorCurve {
+    /// The legend's text.
+    pub label: String,
+    /// Drawn solid (the default) or dashed (the sampled law).
+    pub solid: bool,
+    /// `(period s, floor m)`.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// The tracking floor against the control period, log-log, with the slopes 1 and 2 for
+/// reference: the figure of the README's "Sampled-data controller".
+///
+/// # Errors
+/// The file cannot be written.
+pub fn floor_plot(file: &Path, curves: &[FloorCurve]) -> Result<()> {
+    let err = |e: Box<dyn std::error::Error + Send + Sync>| anyhow::anyhow!("{e}");
+    floor_plot_inner(file, curves).map_err(err).with_context(|| format!("writing {}", file.display()))
+}
+
+fn floor_plot_inner(
+    file: &Path,
+    curves: &[FloorCurve],
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    let root: Area<'_> = SVGBackend::new(file, (W, H + 80)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let all = curves.iter().flat_map(|c| c.points.iter());
+    let (mut x0, mut x1, mut y0, mut y1) = (f64::INFINITY, 0.0f64, f64::INFINITY, 0.0f64);
+    for (x, y) in all {
+        x0 = x0.min(*x);
+        x1 = x1.max(*x);
+        y0 = y0.min(*y);
+        y1 = y1.max(*y);
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption("tracking floor against the control period", ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(64)
+        .build_cartesian_2d((x0 / 1.3..x1 * 1.3).log_scale(), (y0 / 3.0..y1 * 3.0).log_scale())?;
+    chart
+        .configure_mesh()
+        .x_desc("control period (ms)")
+        .y_desc("max ‖e_p‖ after 20 s (m)")
+        .x_labels(6)
+        .x_label_formatter(&|v| format!("{}", v * 1e3))
+        .y_label_formatter(&|v| format!("{v:.0e}"))
+        .draw()?;
+    let palette = [EFFECTOR, TARGET, ARM, SECOND, BASE];
+    for (i, c) in curves.iter().enumerate() {
+        let color = palette[(i / 2) % palette.len()];
+        let style = color.stroke_width(if c.solid { 2 } else { 1 });
+        let pts = c.points.clone();
+        if c.solid {
+            chart
+                .draw_series(LineSeries::new(pts.clone(), style))?
+                .label(c.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2)));
+        } else {
+            chart
+                .draw_series(DashedLineSeries::new(pts.clone(), 6, 4, style))?
+                .label(c.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color.stroke_width(1)));
+        }
+        chart.draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}

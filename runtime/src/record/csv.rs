@@ -35,6 +35,7 @@ pub fn columns(kind: PlatformKind) -> Vec<&'static str> {
         "omega",
         "alpha_dot",
         "sat",
+        "joint_scale",
     ];
     match kind {
         PlatformKind::Car => h.extend(["alpha_dot2", "xi", "v_xi"]),
@@ -93,6 +94,7 @@ impl<W: Write> CsvFile<W> {
             c.omega,
             r.alpha_rate[0],
             r.saturation,
+            r.joint_scale,
         ];
         let extra: &[f64] = match self.kind {
             PlatformKind::Car => &[r.alpha_rate[1], p.steering, c.v_xi],

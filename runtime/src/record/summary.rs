@@ -2,7 +2,9 @@
 
 use serde::Serialize;
 
+use super::digest::TrajectoryDigest;
 use super::row::Row;
+use super::verdict::{Failure, Rejections};
 use crate::controller::JOINTS;
 
 /// The run's figures (`summary.json`). "After 20 s" means `t ≥ 20 s`.
@@ -45,6 +47,11 @@ pub struct Summary {
     pub max_abs_alpha_rate: f64,
     /// The largest saturation factor.
     pub max_saturation: f64,
+    /// The largest factor the joint guard divided the arm's velocities by (1: the arm law
+    /// (30) was always applied as is).
+    pub max_joint_scale: f64,
+    /// Steps where the joint guard acted (factor > 1).
+    pub joint_guard_steps: u64,
     /// `h_s` at the first step.
     pub initial_h_s: f64,
     /// `h_s` at the last step.
@@ -53,8 +60,21 @@ pub struct Summary {
     pub steps: u64,
     /// Steps the controller rejected (safe command sent).
     pub rejected_steps: u64,
+    /// The rejected steps by reason.
+    pub rejections: Rejections,
+    /// The time of the first rejected step (s).
+    pub first_rejection_at_s: Option<f64>,
+    /// Steps with `t ≥ 20 s` and a finite `‖e_p‖` (0: the figures "after 20 s" say nothing).
+    pub steps_after_20s: u64,
     /// Wall-clock time of the run (s).
     pub wall_time_s: f64,
+    /// The [`TrajectoryDigest`] of every step (16 hex digits): equal for two runs only if
+    /// they are bit-identical.
+    pub trajectory_digest: String,
+    /// Whether the run ended before its last step (SIGINT/SIGTERM, or a lost peer).
+    pub ended_early: bool,
+    /// Why the run failed (empty: it did what a run must; see `record::verdict`).
+    pub failures: Vec<Failure>,
 }
 
 /// The speed below which `v` has no sign for counting sign changes (m/s).
@@ -82,6 +102,7 @@ pub struct SummaryAccumulator {
     extremum: f64,
     lower: [f64; JOINTS],
     upper: [f64; JOINTS],
+    digest: TrajectoryDigest,
 }
 
 impl SummaryAccumulator {
@@ -91,6 +112,8 @@ impl SummaryAccumulator {
             scenario: name.to_string(),
             min_joint_margin: [f64::INFINITY; JOINTS],
             max_saturation: 1.0,
+            max_joint_scale: 1.0,
+            joint_guard_steps: 0,
             ..Summary::default()
         };
         Self {
@@ -107,6 +130,7 @@ impl SummaryAccumulator {
             extremum: 0.0,
             lower,
             upper,
+            digest: TrajectoryDigest::default(),
         }
     }
 
@@ -119,9 +143,12 @@ impl SummaryAccumulator {
         let s = &mut self.s;
         let p = &row.plant;
         let r = &row.report;
+        self.digest.add(row);
         s.steps += 1;
-        if r.error.is_some() {
+        if let Some(e) = r.error {
             s.rejected_steps += 1;
+            s.rejections.count(e);
+            s.first_rejection_at_s.get_or_insert(p.t);
         }
         let mut moved = 0.0;
         if let Some((x, y)) = self.last_pos {
@@ -200,6 +227,12 @@ impl SummaryAccumulator {
         if r.saturation.is_finite() {
             s.max_saturation = s.max_saturation.max(r.saturation);
         }
+        if r.joint_scale.is_finite() {
+            s.max_joint_scale = s.max_joint_scale.max(r.joint_scale);
+            if r.joint_scale > 1.0 {
+                s.joint_guard_steps += 1;
+            }
+        }
     }
 
     /// The summary so far, with the wall time.
@@ -209,7 +242,9 @@ impl SummaryAccumulator {
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
+        s.steps_after_20s = self.after20;
         s.wall_time_s = wall_time_s;
+        s.trajectory_digest = self.digest.hex();
         #[allow(clippy::cast_precision_loss)]
         if s.steps > 0 {
             s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();

@@ -158,6 +158,7 @@ mod tests {
             psi: 1.0,
             saturation: 1.0,
             alpha_rate: [x * 0.1, -x / 7.0],
+            joint_scale: 1.0 + x * 1e-3,
             error: None,
         };
         report.command.platform.v = (x * 0.37).sin();

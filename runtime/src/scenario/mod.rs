@@ -83,7 +83,7 @@ pub enum LimitsChoice {
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
     /// `dt` is not a positive number of seconds.
-    #[error("dt must be a positive number of seconds, got {0}")]
+    #[error("dt must be a positive number of seconds, got {}", short(*.0))]
     TimeStep(f64),
     /// `dt` is longer than the law admits (`max_time_step`, at most its period bound).
     #[error(
@@ -109,17 +109,72 @@ pub enum ScenarioError {
         max: f64,
     },
     /// `duration` is not a positive number of seconds.
-    #[error("duration must be a positive number of seconds, got {0}")]
+    #[error("duration must be a positive number of seconds, got {}", short(*.0))]
     Duration(f64),
     /// `duration / dt` is more than 1e9 steps.
-    #[error("duration / dt is more than 1e9 steps")]
-    TooManySteps,
+    #[error("duration / dt = {steps:.3e} steps, more than 1e9")]
+    TooManySteps {
+        /// The steps asked for.
+        steps: f64,
+    },
+    /// The run would write more than the admitted size of `timeseries.csv`.
+    #[error(
+        "the run would write about {} of timeseries.csv ({rows} rows of about {BYTES_PER_ROW} bytes), more than \
+         the limit of {} (--max-output-mb): log fewer rows with --log-every {min_log_every} or more, \
+         shorten the run, or raise the limit",
+        human_bytes(*bytes),
+        human_bytes(*limit)
+    )]
+    OutputTooLarge {
+        /// Rows the run would log.
+        rows: u64,
+        /// Their estimated size (bytes).
+        bytes: u64,
+        /// The limit (bytes).
+        limit: u64,
+        /// The smallest `log_every` within the limit.
+        min_log_every: u64,
+    },
     /// `log_every` is 0.
     #[error("log_every must be at least 1")]
     LogEvery,
     /// The controller's parameters break a rule.
     #[error("invalid parameter: {0}")]
     Param(ParamError),
+}
+
+/// The size of a row of `timeseries.csv` the output limit assumes (bytes; measured 130–330,
+/// the more the numbers change from row to row).
+pub const BYTES_PER_ROW: u64 = 330;
+
+/// The default limit on `timeseries.csv` (bytes): 1 GB (about three million rows, which the
+/// plots also hold in memory).
+pub const DEFAULT_MAX_OUTPUT_BYTES: u64 = 1_000_000_000;
+
+/// `x` for a message: as written if short, else in scientific notation (`1e300`, not 301
+/// digits).
+pub fn short(x: f64) -> String {
+    let s = format!("{x}");
+    if s.len() > 12 {
+        format!("{x:.3e}")
+    } else {
+        s
+    }
+}
+
+/// `1.5 GB`, `20 MB`, `512 kB`, `300 bytes`.
+pub fn human_bytes(b: u64) -> String {
+    #[allow(clippy::cast_precision_loss)]
+    let x = b as f64;
+    if b >= 1_000_000_000 {
+        format!("{:.1} GB", x / 1e9)
+    } else if b >= 1_000_000 {
+        format!("{:.1} MB", x / 1e6)
+    } else if b >= 1_000 {
+        format!("{:.0} kB", x / 1e3)
+    } else {
+        format!("{b} bytes")
+    }
 }
 
 /// A fully resolved, validated scenario.
@@ -162,9 +217,18 @@ pub struct ScenarioBuilder {
     limits: Option<LimitsChoice>,
     delay: f64,
     delay_compensation: bool,
+    max_output_bytes: u64,
 }
 
 impl ScenarioBuilder {
+    /// The largest `timeseries.csv` the run may write (bytes, estimated at [`BYTES_PER_ROW`]
+    /// per row); default [`DEFAULT_MAX_OUTPUT_BYTES`]. Checked by [`build`](Self::build), not
+    /// part of the scenario.
+    pub fn max_output_bytes(mut self, bytes: u64) -> Self {
+        self.max_output_bytes = bytes;
+        self
+    }
+
     /// A pure delay (s) from a measurement to the moment its command takes effect; default 0.
     pub fn delay(mut self, delay: f64) -> Self {
         self.delay = delay;
@@ -287,10 +351,23 @@ impl ScenarioBuilder {
             return Err(ScenarioError::Duration(duration));
         }
         if duration / dt > 1e9 {
-            return Err(ScenarioError::TooManySteps);
+            return Err(ScenarioError::TooManySteps { steps: duration / dt });
         }
         if self.log_every == 0 {
             return Err(ScenarioError::LogEvery);
+        }
+        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+        let steps = (duration / dt).round() as u64;
+        let rows = steps / self.log_every + 2;
+        let bytes = rows.saturating_mul(BYTES_PER_ROW);
+        if bytes > self.max_output_bytes {
+            let fit = (self.max_output_bytes / BYTES_PER_ROW).saturating_sub(2).max(1);
+            return Err(ScenarioError::OutputTooLarge {
+                rows,
+                bytes,
+                limit: self.max_output_bytes,
+                min_log_every: steps.div_ceil(fit).max(1),
+            });
         }
         let file = self.config;
         let limits = match self.limits {
@@ -356,6 +433,7 @@ impl Scenario {
             limits: None,
             delay: 0.0,
             delay_compensation: true,
+            max_output_bytes: DEFAULT_MAX_OUTPUT_BYTES,
         }
     }
 
@@ -447,7 +525,26 @@ mod tests {
         assert!(b().delay(2e-3).build().is_ok());
         assert!(matches!(b().dt(f64::NAN).build(), Err(ScenarioError::TimeStep(_))));
         assert!(matches!(b().duration(-1.0).build(), Err(ScenarioError::Duration(_))));
-        assert!(matches!(b().dt(1e-9).duration(10.0).build(), Err(ScenarioError::TooManySteps)));
+        assert!(matches!(b().dt(1e-9).duration(10.0).build(), Err(ScenarioError::TooManySteps { .. })));
+        // 5e8 steps, every 10th logged: 5e7 rows, about 16.5 GB.
+        match b().dt(1e-8).duration(5.0).build() {
+            Err(e @ ScenarioError::OutputTooLarge { .. }) => {
+                let m = e.to_string();
+                assert!(
+                    m.contains("about 16.5 GB") && m.contains("limit of 1.0 GB") && m.contains("--log-every"),
+                    "{m}"
+                );
+                let ScenarioError::OutputTooLarge { min_log_every, .. } = e else { unreachable!() };
+                assert!(b().dt(1e-8).duration(5.0).log_every(min_log_every).build().is_ok());
+                assert!(b().dt(1e-8).duration(5.0).log_every(min_log_every - 1).build().is_err());
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(b().max_output_bytes(1_000).build().is_err(), "the default run is 1.3 MB");
+        assert_eq!(
+            ScenarioError::Duration(-1e300).to_string(),
+            "duration must be a positive number of seconds, got -1.000e300"
+        );
         assert!(matches!(b().log_every(0).build(), Err(ScenarioError::LogEvery)));
         let c = ControllerConfig { mu: Some(-1.0), ..ControllerConfig::default() };
         match b().controller(c).build() {

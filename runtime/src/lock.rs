@@ -1,0 +1,127 @@
+//! One process per role and demo name, decided atomically: an exclusive `flock` on
+//! `/tmp/companion/NAME.ROLE.lock`, taken before anything of the demo exists and held for
+//! the process's life (the kernel drops it when the process ends, however it ends).
+//!
+//! Looking for a live iceoryx2 node of the same name first and creating one's own afterwards
+//! leaves a window in which two demos started at the same moment both find the name free;
+//! then one demo's controller could drive the other's plant. A lock has no such window: of
+//! two processes asking for it at once, exactly one gets it.
+//!
+//! `companion hil` takes both roles' locks before it starts its plant (which runs under its
+//! parent's locks), so a second `hil`, `plant` or `control` with that name stops at once with
+//! [`NameInUse`]; `companion plant` and `companion control` each take their own.
+#![allow(unsafe_code)]
+
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Seek, Write};
+use std::os::fd::AsRawFd;
+use std::path::PathBuf;
+
+use anyhow::{anyhow, Context, Result};
+
+use crate::ipc::{NameInUse, Role};
+
+/// The folder of the lock files.
+pub const LOCK_DIR: &str = "/tmp/companion";
+
+/// A held lock on one role of a demo name (released when dropped).
+#[derive(Debug)]
+pub struct NameLock {
+    _file: File,
+    /// The demo's name.
+    pub name: String,
+    /// The role.
+    pub role: Role,
+}
+
+fn path(name: &str, role: Role) -> PathBuf {
+    PathBuf::from(LOCK_DIR).join(format!("{name}.{}.lock", role.as_str()))
+}
+
+/// Tries `flock(LOCK_EX | LOCK_NB)`: `Ok(true)` if taken, `Ok(false)` if another process
+/// holds it.
+fn try_flock(f: &File) -> std::io::Result<bool> {
+    // SAFETY: flock takes a file descriptor (valid: `f` is open) and flags; no memory.
+    let r = unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    if r == 0 {
+        return Ok(true);
+    }
+    let e = std::io::Error::last_os_error();
+    if e.raw_os_error() == Some(libc::EWOULDBLOCK) {
+        Ok(false)
+    } else {
+        Err(e)
+    }
+}
+
+impl NameLock {
+    /// Takes the lock of `role` in demo `name` (a name checked by `ipc::validate_name`).
+    ///
+    /// # Errors
+    /// [`NameInUse`] if another process holds it (with its pid when known), or the lock file
+    /// cannot be made.
+    pub fn acquire(name: &str, role: Role) -> Result<Self> {
+        crate::ipc::validate_name(name)?;
+        std::fs::create_dir_all(LOCK_DIR).with_context(|| format!("creating {LOCK_DIR}"))?;
+        let p = path(name, role);
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&p)
+            .with_context(|| format!("opening the lock file {}", p.display()))?;
+        if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
+            let pid = holder_of(&mut file).unwrap_or(0);
+            return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
+        }
+        // The holder's pid, for the message of whoever finds the lock taken.
+        file.set_len(0)
+            .and_then(|()| file.rewind())
+            .and_then(|()| write!(file, "{}", std::process::id()))
+            .with_context(|| format!("writing {}", p.display()))?;
+        Ok(Self { _file: file, name: name.to_string(), role })
+    }
+
+    /// The pid written in the lock file of `role` in demo `name` (its holder's, or the last
+    /// holder's: a lock file outlives its lock).
+    ///
+    /// # Errors
+    /// No such file, or no pid in it.
+    pub fn holder(name: &str, role: Role) -> Result<i32> {
+        let mut f = File::open(path(name, role))?;
+        holder_of(&mut f).ok_or_else(|| anyhow!("no pid in the lock file"))
+    }
+}
+
+fn holder_of(f: &mut File) -> Option<i32> {
+    let mut s = String::new();
+    f.rewind().ok()?;
+    f.read_to_string(&mut s).ok()?;
+    s.trim().parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_lock_is_held_once_and_released_when_dropped() {
+        let name = format!("locktest-{}", std::process::id());
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        // Another open file description of the same file is refused, even in this process.
+        let e = NameLock::acquire(&name, Role::Plant).unwrap_err();
+        let n = e.downcast_ref::<NameInUse>().expect("NameInUse");
+        assert_eq!((n.role, n.pid), ("plant", i32::try_from(std::process::id()).unwrap()));
+        assert_eq!(NameLock::holder(&name, Role::Plant).unwrap(), n.pid);
+        // The other role is another lock.
+        let b = NameLock::acquire(&name, Role::Control).unwrap();
+        drop(a);
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        drop((a, b));
+        for role in [Role::Plant, Role::Control] {
+            let _ = std::fs::remove_file(path(&name, role));
+        }
+        assert!(NameLock::acquire("bad/name", Role::Plant).is_err());
+    }
+}
