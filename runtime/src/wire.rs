@@ -303,6 +303,7 @@ pub fn encode_status(e: Option<StepError>) -> u32 {
         Some(StepError::SingularTaskJacobian) => 0x500,
         Some(StepError::NumericalFailure) => 0x600,
         Some(StepError::BadDelay) => 0x700,
+        Some(StepError::TargetYawUndefined) => 0x800,
     }
 }
 
@@ -332,6 +333,7 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
         0x500 => Some(StepError::SingularTaskJacobian),
         0x600 => Some(StepError::NumericalFailure),
         0x700 => Some(StepError::BadDelay),
+        0x800 => Some(StepError::TargetYawUndefined),
         _ => return Err(WireError::Status(code)),
     })
 }
@@ -683,6 +685,8 @@ mod tests {
             Some(StepError::SingularArm),
             Some(StepError::SingularTaskJacobian),
             Some(StepError::NumericalFailure),
+            Some(StepError::BadDelay),
+            Some(StepError::TargetYawUndefined),
         ];
         for f in [
             Field::Time,
