@@ -189,7 +189,7 @@ impl<T: Real, const N: usize> PlanarArm<T, N> {
         if N < 3 {
             return Err(ParamError::new("joints", Rule::TooFewJoints));
         }
-        let planar = |p: &crate::Pose3<T>| {
+        let planar = |p: &crate::se3::Pose3<T>| {
             let r = &p.rotation;
             let (z, o) = (T::zero(), T::one());
             (r[(0, 2)] == z && r[(1, 2)] == z && r[(2, 0)] == z && r[(2, 1)] == z && r[(2, 2)] == o)

@@ -30,7 +30,7 @@
 //! the arm's feed-forward misses `u̇_d h/2`, which leaves a floor `≈ |u̇_d| h / (2g)` with
 //! the gain `g` (3·10⁻⁵ m at 1 ms on the paper's trajectory 1).
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
 
 use crate::measurement::Measurement;
 use crate::params::JointLimits;
@@ -102,16 +102,6 @@ pub(crate) fn in_flight<T: Real, P: Platform<T>, S: Space<T>, const N: usize>(
     }
     start.q = advance_inside(&meas.joints, &dq, limits, T::of(0.9));
     start
-}
-
-/// The target's displacement over `s` seconds at mean body velocity `ū_d`: `exp(s ū_d)`
-/// (the first Magnus term; exact for a constant twist).
-#[inline]
-pub(crate) fn target_motion<T: Real>(mean_velocity: &Vector3<T>, s: T) -> PoseSc<T> {
-    if s <= T::zero() {
-        return PoseSc::identity();
-    }
-    PoseSc::exp(mean_velocity, s)
 }
 
 /// `q + c·dq` with the largest `c ∈ [0, 1]` such that no joint moves by more than

@@ -26,7 +26,6 @@ use core::ops::{Add, Div, Mul, Sub};
 use nalgebra::{SVector, Vector3, Vector6};
 
 use crate::error::{Bound, ParamError, Rule};
-use crate::hold;
 use crate::scalar::Real;
 use crate::se2::{Pose, PoseSc};
 use crate::se3::Pose3;
@@ -153,7 +152,7 @@ impl<T: Real> Space<T> for Planar {
 
     #[inline]
     fn advance(r_bd: &PoseSc<T>, mean_velocity: &Vector3<T>, s: T) -> PoseSc<T> {
-        r_bd.compose(&hold::target_motion(mean_velocity, s))
+        r_bd.compose(&target_motion(mean_velocity, s))
     }
 
     #[inline]
@@ -257,4 +256,14 @@ fn at_most<T: Real>(name: &'static str, v: T) -> Result<(), ParamError> {
     } else {
         Ok(())
     }
+}
+
+/// The target's displacement over `s` seconds at mean body velocity `ū_d`: `exp(s ū_d)`
+/// (the first Magnus term; exact for a constant twist).
+#[inline]
+fn target_motion<T: Real>(mean_velocity: &Vector3<T>, s: T) -> PoseSc<T> {
+    if s <= T::zero() {
+        return PoseSc::identity();
+    }
+    PoseSc::exp(mean_velocity, s)
 }
