@@ -30,7 +30,7 @@ pub(crate) fn inverse<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> Option<S
                 piv = r;
             }
         }
-        if !(best > T::zero()) || !best.finite() {
+        if best <= T::zero() || !best.finite() {
             return None;
         }
         if piv != col {
