@@ -60,7 +60,7 @@ fn run_qemu(elf: &Path) -> String {
         "qemu-system-arm is not installed: run scripts/setup (CI installs it); this check must not be skipped"
     );
     let out = Command::new("timeout")
-        .arg("120")
+        .arg("300")
         .args(["qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
         // -icount as in tests/firmware/measure: the firmware checks its SysTick calibration,
         // which holds only under a deterministic instruction clock (exit 3 otherwise).

@@ -339,11 +339,14 @@ fn finish<W: Write>(c: &Case, rejected: u32, digest: u64, e_p: f64, out: &mut W)
     Outcome { steps: STEPS, rejected, digest, e_p }
 }
 
+/// The spatial law's controller with the UR5.
+pub type Ur5Controller<T, P> = Controller<T, P, SpatialArm<T, 6>, 6>;
+
 /// One step of the spatial law, never inlined (as [`controller_step`]; `gdbcount.py` finds
 /// `spatial_step::<T, Platform>` for the `ur5-…` cases).
 #[inline(never)]
 pub fn spatial_step<T: Real, P: Platform<T>>(
-    ctrl: &mut Controller<T, P, SpatialArm<T, 6>, 6>,
+    ctrl: &mut Ur5Controller<T, P>,
     meas: &Measurement<T, 6, Spatial>,
     dt: T,
 ) -> Result<Output<T, 6, Spatial>, Rejected<T, 6>>
@@ -355,7 +358,7 @@ where
 
 /// The UR5's law (`r*_ed`: the target level, `0.2 m` along the flange's axis at home) and
 /// the lifted trajectory's start (`(2.6, 1)` in the plane, at the target's height at home).
-fn ur5<T: Real, P: Platform<T>>(platform: P) -> Option<(Controller<T, P, SpatialArm<T, 6>, 6>, Vector3<T>)>
+fn ur5<T: Real, P: Platform<T>>(platform: P) -> Option<(Ur5Controller<T, P>, Vector3<T>)>
 where
     SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
 {
