@@ -1,4 +1,5 @@
-//! The arm law (30) as one phase of a step, and the joint guard.
+//! The arm law (30) as one phase of a step: its discretisation over the hold, shared by
+//! every arm ([`crate::task`]), and the joint guard.
 //!
 //! ```text
 //! u_q = (∂e_m/∂q)⁻¹ (G e_m − ∂e_m/∂r_b u_b − ∂e_m/∂t)                                (30)
@@ -21,7 +22,29 @@
 //! so `e_m` follows `e_{k+1} = (1 − gh/2)/(1 + gh/2) e_k`: the second-order, A-stable
 //! discretisation of `ė_m = G e_m`, for any period. (`A` contains the penalty's curvature
 //! `∂²h_ℓ/∂q²`, stiff near a limit, so the correction also keeps the penalty from
-//! overshooting.)
+//! overshooting.) The same step serves any task function `e` with `ė = A u_q + …`: `e_m`
+//! (as many task rows as joints: [`solve_square`]) or, for an arm with more joints than the
+//! task has dimensions, `e_p` itself ([`solve_redundant`]), where `A u_q = v` holds for the
+//! pseudo-inverse solution with any null-space motion added.
+//!
+//! **Redundant arms** (`N` joints, `M < N` task rows): with `W = diag(wᵢ) > 0`,
+//!
+//! ```text
+//! u_q = A_W⁺ v + (I − A_W⁺ A) z,   A_W⁺ = W⁻¹ Aᵀ (A W⁻¹ Aᵀ)⁻¹,   z = −k_n W⁻¹ ∇h_ℓ
+//! ```
+//!
+//! `A u_q = v` exactly (the task is met as if the arm had `M` joints), and the null-space
+//! motion changes `h_ℓ` at the rate `∇h_ℓᵀ (I − A_W⁺ A) z = −k_n ∇h_ℓᵀ P_W ∇h_ℓ ≤ 0`, with
+//! `P_W = W⁻¹ − W⁻¹Aᵀ(AW⁻¹Aᵀ)⁻¹AW⁻¹` symmetric positive semi-definite: it never raises
+//! the penalty. The weights `wᵢ = 1 + ∂²h_ℓ/∂qᵢ²` (the penalty's curvature, zero outside
+//! its band) do two things: joints deep in their band take a smaller share of the task's
+//! motion (the weighted least norm of Chan and Dubey, IEEE T-RA 1995, with a weight that
+//! is smooth in `q` rather than switched by the direction of motion), and `W⁻¹∇h_ℓ` is a
+//! damped Newton step on the barrier — near a limit `≈ (b/3)` with `b` the distance to it —
+//! so the null-space motion has rate at most `k_n` however steep the penalty, and a held
+//! command cannot overshoot a limit through it. Near singular configurations the caller may
+//! add `λ² I` to the matrix it inverts (`∂e_m/∂q`, or `S = A W⁻¹ Aᵀ`): the damped,
+//! singularity-robust solution ([`crate::spatial`] says when); the planar arm never does.
 //!
 //! **The joint guard.** In continuous time the penalty (20)–(21) keeps the joints inside
 //! their limits; a held command can still step over one when `u_q` is very large. The guard
@@ -29,103 +52,137 @@
 //! than `κ` of its distance to the limit it moves towards within one period (a
 //! fraction-to-the-boundary rule) and none exceeds its velocity limit.
 
-use nalgebra::{SMatrix, SVector, Vector3};
+use nalgebra::{SMatrix, SVector};
 
-use crate::arm::Arm;
 use crate::error::StepError;
+use crate::linalg;
 use crate::params::Params;
-use crate::primary::{base_to_relative, primary_terms, PrimaryPoint, PrimaryTerms};
 use crate::scalar::Real;
-use crate::se2::{rbar_sc, PoseSc};
+use crate::space::Space;
+use crate::task::{Manipulator, TaskPoint, TaskStep};
 
-/// Where the arm law is evaluated.
+/// A task function `e` linearised at the evaluation point: `ė = A u_q + …`.
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct ArmPoint<'a, T, const N: usize> {
-    /// The primary task's arguments there.
-    pub primary: PrimaryPoint<'a, T, N>,
-    /// The target seen from the base there, with the sine and cosine of its angle.
-    pub r_bd: &'a PoseSc<T>,
-    /// The target's body velocity there.
-    pub u_d: &'a Vector3<T>,
-    /// The platform's body velocity commanded.
-    pub u_b: &'a Vector3<T>,
-    /// The joints when the command starts to act (the guard's reference).
-    pub q_start: &'a SVector<T, N>,
-    /// The previous joint command (the guess the point was predicted with).
-    pub guess: &'a SVector<T, N>,
+pub(crate) struct Linearised<'a, T, const M: usize, const N: usize> {
+    /// The task function driven by `ė = G e`: `e_m` (23), or `e_p` for redundant arms.
+    pub e: &'a SVector<T, M>,
+    /// `A = ∂e/∂q`.
+    pub a: &'a SMatrix<T, M, N>,
+    /// `∂e/∂r_bd ṙ_bd`: the rate of `e` through the target's motion seen from the base.
+    pub transport: &'a SVector<T, M>,
+    /// `∂e/∂t`, explicit (through `Γ(t)` and `q̂(t)`).
+    pub explicit: &'a SVector<T, M>,
+    /// `∂rhs/∂u_b = −∂(transport)/∂u_b`.
+    pub drhs: SMatrix<T, M, 3>,
 }
 
-/// The arm law of a [`ControlLaw`](crate::ControlLaw): its parameters, its arm and the
-/// constant `(sin θ*, cos θ*)` of `r*_ed` (borrowed for one step).
+/// The right-hand side `v` of (30) over the hold and `∂v/∂u_b` (module docs): `A u_q = v`.
+#[inline(always)]
+pub(crate) fn implicit_rhs<T: Real, const M: usize, const N: usize>(
+    lin: &Linearised<'_, T, M, N>,
+    gain: &SVector<T, M>,
+    guess: &SVector<T, N>,
+    half: T,
+) -> (SVector<T, M>, SMatrix<T, M, 3>) {
+    let mut rhs = -lin.e.component_mul(gain) - lin.transport - lin.explicit;
+    let mut drhs = lin.drhs;
+    if half > T::zero() {
+        rhs += (lin.a * guess).component_mul(gain) * half;
+        for i in 0..M {
+            let d = T::one() / (T::one() + gain[i] * half);
+            rhs[i] *= d;
+            for j in 0..3 {
+                drhs[(i, j)] *= d;
+            }
+        }
+    }
+    (rhs, drhs)
+}
+
+/// `u_q = A⁻¹ v`, its sensitivity `A⁻¹ ∂v/∂u_b` (with the hold-aware discretisation only) and
+/// the 1-norm condition number of `A`.
+#[inline(always)]
+pub(crate) fn solve_square<T: Real, const N: usize>(
+    a: &SMatrix<T, N, N>,
+    rhs: &SVector<T, N>,
+    drhs: &SMatrix<T, N, 3>,
+    damping: T,
+    half: T,
+) -> Result<(SVector<T, N>, SMatrix<T, N, 3>, T), StepError> {
+    let damped;
+    let a = if damping > T::zero() {
+        damped = a + SMatrix::<T, N, N>::identity() * damping;
+        &damped
+    } else {
+        a
+    };
+    let inv = linalg::inverse(a).ok_or(StepError::SingularTaskJacobian)?;
+    let u_q = inv * rhs;
+    // Only the hold-aware discretisation guesses with it.
+    let sensitivity = if half > T::zero() { inv * drhs } else { SMatrix::zeros() };
+    let condition = one_norm(a) * one_norm(&inv);
+    Ok((u_q, sensitivity, condition))
+}
+
+/// The redundant solution of the module docs: `u_q = A_W⁺ v + (I − A_W⁺ A) z` with
+/// `W = diag(w)`, its sensitivity `A_W⁺ ∂v/∂u_b`, and the condition number of `A W⁻¹ Aᵀ`.
+#[inline(always)]
+pub(crate) fn solve_redundant<T: Real, const M: usize, const N: usize>(
+    a: &SMatrix<T, M, N>,
+    w: &SVector<T, N>,
+    z: &SVector<T, N>,
+    rhs: &SVector<T, M>,
+    drhs: &SMatrix<T, M, 3>,
+    damping: impl FnOnce(&SMatrix<T, M, M>) -> T,
+    half: T,
+) -> Result<(SVector<T, N>, SMatrix<T, N, 3>, T), StepError> {
+    let w_inv = w.map(|x| T::one() / x);
+    // B = W⁻¹ Aᵀ (N×M), S = A B (+ λ² I).
+    let b = SMatrix::<T, N, M>::from_fn(|i, j| a[(j, i)] * w_inv[i]);
+    let mut s = a * b;
+    let lambda2 = damping(&s);
+    if lambda2 > T::zero() {
+        for i in 0..M {
+            s[(i, i)] += lambda2;
+        }
+    }
+    let s_inv = linalg::inverse(&s).ok_or(StepError::SingularTaskJacobian)?;
+    let pinv = b * s_inv;
+    // (I − A⁺A) z = z − A⁺ (A z).
+    let u_q = pinv * (rhs - a * z) + z;
+    let sensitivity = if half > T::zero() { pinv * drhs } else { SMatrix::zeros() };
+    let condition = one_norm(&s) * one_norm(&s_inv);
+    Ok((u_q, sensitivity, condition))
+}
+
+/// The arm law of a [`ControlLaw`](crate::ControlLaw): its parameters, its arm and what the
+/// arm's task precomputes from `r*_ed` (borrowed for one step).
 #[derive(Clone, Copy, Debug)]
-pub(crate) struct ArmLaw<'a, T, A, const N: usize> {
-    pub params: &'a Params<T, N>,
+pub(crate) struct ArmLaw<'a, T: Real, A: Manipulator<T, N>, const N: usize> {
+    pub params: &'a Params<T, N, A::Space>,
     pub arm: &'a A,
-    pub rot_star: (T, T),
+    pub star: &'a <A::Space as Space<T>>::Star,
 }
 
-/// The arm part of a step.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct ArmStep<T, const N: usize> {
-    /// `u_q` after the joint guard.
-    pub u_q: SVector<T, N>,
-    /// The guard's factor (≥ 1).
-    pub joint_scale: T,
-    /// The 1-norm condition number of `∂e_m/∂q`.
-    pub condition: T,
-    /// The primary task at the point.
-    pub primary: PrimaryTerms<T, N>,
-    /// `∂u_q/∂u_b` at the point: how the joint command answers a change of the platform's
-    /// body velocity (the next step's guess uses it).
-    pub sensitivity: SMatrix<T, N, 3>,
-}
-
-impl<T: Real, A: Arm<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
-    /// (30) at `pt` for a hold of `period` seconds, `half` into it.
+impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
+    /// (30) at `pt` for a hold of `period` seconds, `half` into it, with the joint guard
+    /// from the joints `q_start` at which the command starts to act.
     #[inline(always)]
     pub(crate) fn arm_step(
         &self,
-        pt: &ArmPoint<'_, T, N>,
+        pt: &TaskPoint<'_, T, N, A::Space>,
+        q_start: &SVector<T, N>,
         period: T,
         half: T,
-    ) -> Result<ArmStep<T, N>, StepError> {
-        let p = &self.params.primary;
-        let prim = primary_terms(p, &self.params.joint_limits, self.arm, &pt.primary, self.rot_star);
-        let (s, c) = pt.r_bd.sc;
-        let r_bd_rate = rbar_sc(s, c) * pt.u_d - base_to_relative(&pt.r_bd.pose) * pt.u_b;
-        let mut rhs = -prim.e_m.component_mul(&p.gain) - prim.de_m_dr_bd * r_bd_rate - prim.de_m_dt_explicit;
-        let inv;
-        let mut sensitivity = SMatrix::<T, N, 3>::zeros();
-        if half > T::zero() {
-            // ∂rhs/∂u_b = ∂e_m/∂r_bd [I₂ S p_bd; 0 1], for the next step's guess.
-            let (x, y) = (pt.r_bd.pose.x, pt.r_bd.pose.y);
-            let b = &prim.de_m_dr_bd;
-            let mut drhs = SMatrix::<T, N, 3>::from_fn(|i, j| match j {
-                0 => b[(i, 0)],
-                1 => b[(i, 1)],
-                _ => b[(i, 2)] - y * b[(i, 0)] + x * b[(i, 1)],
-            });
-            rhs += (prim.de_m_dq * pt.guess).component_mul(&p.gain) * half;
-            for i in 0..N {
-                let d = T::one() / (T::one() + p.gain[i] * half);
-                rhs[i] *= d;
-                for j in 0..3 {
-                    drhs[(i, j)] *= d;
-                }
-            }
-            inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
-            sensitivity = inv * drhs;
-        } else {
-            inv = prim.de_m_dq.try_inverse().ok_or(StepError::SingularTaskJacobian)?;
-        }
-        let mut u_q = inv * rhs;
-        let condition = one_norm(&prim.de_m_dq) * one_norm(&inv);
-        let joint_scale = self.joint_guard(pt.q_start, &u_q, period);
+    ) -> Result<ArmStep<T, N, A::Space>, StepError> {
+        let mut task =
+            self.arm.arm_law(&self.params.primary, &self.params.joint_limits, self.star, pt, half)?;
+        let joint_scale = self.joint_guard(q_start, &task.u_q, period);
         if joint_scale > T::one() {
-            u_q /= joint_scale;
-            sensitivity /= joint_scale;
+            task.u_q /= joint_scale;
+            task.sensitivity /= joint_scale;
         }
-        Ok(ArmStep { u_q, joint_scale, condition, primary: prim, sensitivity })
+        Ok(ArmStep { task, joint_scale })
     }
 
     /// The joint guard's factor `s ≥ 1` for `u_q` held `period` seconds from `q`.
@@ -151,11 +208,20 @@ impl<T: Real, A: Arm<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
     }
 }
 
-fn one_norm<T: Real, const N: usize>(m: &nalgebra::SMatrix<T, N, N>) -> T {
+/// The arm part of a step: the arm's law after the joint guard.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ArmStep<T: Real, const N: usize, S: crate::space::Space<T>> {
+    /// The law at the point, `u_q` and its sensitivity divided by `joint_scale`.
+    pub task: TaskStep<T, N, S>,
+    /// The guard's factor (≥ 1).
+    pub joint_scale: T,
+}
+
+fn one_norm<T: Real, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> T {
     let mut best = T::zero();
-    for j in 0..N {
+    for j in 0..C {
         let mut s = T::zero();
-        for i in 0..N {
+        for i in 0..R {
             s += m[(i, j)].abs();
         }
         if s > best || s.nan() {

@@ -6,6 +6,7 @@ use crate::error::StepError;
 use crate::platform::PlatformCommand;
 use crate::scalar::Real;
 use crate::se2::Pose;
+use crate::space::{Planar, Space};
 
 /// The command for one cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,9 +41,10 @@ impl<T: Real, const N: usize> Command<T, N> {
 /// (`e_p`, `e_m`, `h_s`, ...) are those of the state predicted for the middle of the hold,
 /// where the law was evaluated; with `Sampled`, those of the measurement.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Diagnostics<T, const N: usize> {
-    /// `e_p`, eq. (42): the tracking error (m, m, rad).
-    pub e_p: Vector3<T>,
+pub struct Diagnostics<T: Real, const N: usize, S: Space<T> = Planar> {
+    /// `e_p`, eq. (42): the tracking error — `(m, m, rad)` in the plane, `(p̃, φ̃)` (m,
+    /// rad) in space (see [`SpatialArm`](crate::SpatialArm)).
+    pub e_p: S::Vector,
     /// `e_m`, eq. (23).
     pub e_m: SVector<T, N>,
     /// `h_s`, eq. (29).
@@ -85,11 +87,11 @@ pub struct Diagnostics<T, const N: usize> {
 
 /// The result of a successful step.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Output<T, const N: usize> {
+pub struct Output<T: Real, const N: usize, S: Space<T> = Planar> {
     /// The command to apply until the next step.
     pub command: Command<T, N>,
     /// Values for logging and monitoring.
-    pub diagnostics: Diagnostics<T, N>,
+    pub diagnostics: Diagnostics<T, N, S>,
 }
 
 /// A rejected step: why, and the safe command to send instead (every velocity zero).

@@ -32,6 +32,18 @@ pub enum Rule {
     Geometry,
     /// The value is above the bound that keeps every step computable (in `f32` too).
     TooLarge(Bound),
+    /// A rotation matrix is not orthonormal with determinant 1 (`|RᵀR − I| ≤ 10⁻⁹` in
+    /// `f64`, `10⁻⁵` in `f32`).
+    NotOrthonormal,
+    /// A joint axis is not a unit vector (to within `10⁻⁹` in `f64`, `10⁻⁵` in `f32`).
+    NotUnitVector,
+    /// The arm has fewer joints than the task has dimensions (3 in the plane, 6 in space).
+    TooFewJoints,
+    /// A joint's home position is not strictly inside its limits.
+    HomeOutsideLimits,
+    /// A planar arm's joints must turn about the vertical and slide in the plane, and its
+    /// fixed frames must be rotations about the vertical at height 0.
+    NotPlanar,
     /// `max_time_step` is longer than the period bound derived from the law's rates:
     /// `max_time_step · r_max ≤ 0.1`, with `r_max` the largest of the arm gains `gᵢ`, the
     /// filter rates `σ/ξ` of (26) and `σᵢ/ξ` of (28), and `λ/ξ` of (53)–(54)
@@ -105,6 +117,13 @@ impl fmt::Display for Rule {
                 "decomposition (51) is exact only for h_s = h_s1: use the constant weight psi = 1"
             }
             Rule::Geometry => "arm geometry is not usable",
+            Rule::NotOrthonormal => "must be a rotation matrix (orthonormal, determinant 1)",
+            Rule::NotUnitVector => "must be a unit vector",
+            Rule::TooFewJoints => "the arm has fewer joints than the task has dimensions (3 planar, 6 spatial)",
+            Rule::HomeOutsideLimits => "home position must lie strictly inside the joint limits",
+            Rule::NotPlanar => {
+                "a planar arm's joints must turn about the vertical (axis (0, 0, +-1)) or slide in the plane (axis z = 0), its frames be rotations about z"
+            }
             Rule::TooLarge(b) => return write!(f, "must be <= {:e}", b.value()),
             Rule::PeriodTooLong => {
                 "max_time_step times the law's largest rate (the gains, sigma/xi of the filters, lambda/xi) must be <= 0.1"
@@ -152,10 +171,14 @@ pub enum StepError {
     BadTimeStep,
     /// Joint `0` (index from 0) is at or beyond one of its limits.
     JointAtLimit(u8),
-    /// The arm is at a singular configuration (for the RPR arm: `q₂ ≤ 0`).
+    /// The arm is at or near a singular configuration (for the RPR arm: `q₂ ≤ 0`; for a
+    /// spatial arm, see [`SpatialArm`](crate::SpatialArm)).
     SingularArm,
     /// `∂e_m/∂q` (eq. 24) cannot be inverted.
     SingularTaskJacobian,
+    /// The target's yaw, which the platform law uses (§5's projection), is undefined: its
+    /// `x` axis is vertical.
+    TargetYawUndefined,
     /// The delay is not finite, negative, above `max_delay`, or longer than the command
     /// history covers ([`HISTORY`](crate::HISTORY) periods).
     BadDelay,
@@ -172,6 +195,7 @@ impl fmt::Display for StepError {
             StepError::JointAtLimit(j) => write!(f, "joint {} is at or beyond its limit", j + 1),
             StepError::SingularArm => f.write_str("arm configuration is singular"),
             StepError::SingularTaskJacobian => f.write_str("task Jacobian de_m/dq is singular"),
+            StepError::TargetYawUndefined => f.write_str("target's x axis is vertical: its yaw is undefined"),
             StepError::BadDelay => {
                 f.write_str("delay is not finite, < 0, above max_delay or beyond the command history")
             }

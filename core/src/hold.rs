@@ -14,7 +14,8 @@
 //! relative r_bd(t_e)    = E⁻¹ · r_bd · exp(…),  E = r_b⁻¹ r_b(t_e)
 //! ```
 //!
-//! `exp` is the SE(2) exponential of a body twist held constant ([`PoseSc::exp`]); the
+//! `exp` is the exponential of a body twist held constant — SE(2) ([`PoseSc::exp`]) for the
+//! base, SE(2) or SE(3) ([`crate::Space::advance`]) for the target; the
 //! car's heading rate `v ξ(t)` changes with the steering, and its mean over the segment is
 //! used. Every prediction of the joints is kept strictly inside the limits: a displacement
 //! that would cover more than a given fraction of a joint's distance to its limit is
@@ -29,13 +30,14 @@
 //! the arm's feed-forward misses `u̇_d h/2`, which leaves a floor `≈ |u̇_d| h / (2g)` with
 //! the gain `g` (3·10⁻⁵ m at 1 ms on the paper's trajectory 1).
 
-use nalgebra::{SVector, Vector3};
+use nalgebra::SVector;
 
 use crate::measurement::Measurement;
 use crate::params::JointLimits;
 use crate::platform::{Platform, PlatformKind};
 use crate::scalar::Real;
 use crate::se2::PoseSc;
+use crate::space::Space;
 use crate::state::{State, HISTORY};
 
 /// The robot when a new command starts to act (`t_k + τ`), relative to the measurement.
@@ -51,7 +53,7 @@ pub(crate) struct Start<T, const N: usize> {
 
 impl<T: Real, const N: usize> Start<T, N> {
     /// No delay: the measured robot.
-    pub fn measured(meas: &Measurement<T, N>) -> Self {
+    pub fn measured<S: Space<T>>(meas: &Measurement<T, N, S>) -> Self {
         Self { base: PoseSc::identity(), q: meas.joints, xi: meas.steering }
     }
 }
@@ -62,9 +64,9 @@ impl<T: Real, const N: usize> Start<T, N> {
 /// `[t_k + τ − Σ_{i<j} hᵢ − h_j, t_k + τ − Σ_{i<j} hᵢ]`, so the interval `[t_k, t_k + τ]`
 /// is covered by the most recent commands, the oldest one partly. Before the first command
 /// the robot was at rest.
-pub(crate) fn in_flight<T: Real, P: Platform<T>, const N: usize>(
-    state: &State<T, N>,
-    meas: &Measurement<T, N>,
+pub(crate) fn in_flight<T: Real, P: Platform<T>, S: Space<T>, const N: usize>(
+    state: &State<T, N, S>,
+    meas: &Measurement<T, N, S>,
     delay: T,
     limits: &JointLimits<T, N>,
 ) -> Start<T, N> {
@@ -100,16 +102,6 @@ pub(crate) fn in_flight<T: Real, P: Platform<T>, const N: usize>(
     }
     start.q = advance_inside(&meas.joints, &dq, limits, T::of(0.9));
     start
-}
-
-/// The target's displacement over `s` seconds at mean body velocity `ū_d`: `exp(s ū_d)`
-/// (the first Magnus term; exact for a constant twist).
-#[inline]
-pub(crate) fn target_motion<T: Real>(mean_velocity: &Vector3<T>, s: T) -> PoseSc<T> {
-    if s <= T::zero() {
-        return PoseSc::identity();
-    }
-    PoseSc::exp(mean_velocity, s)
 }
 
 /// `q + c·dq` with the largest `c ∈ [0, 1]` such that no joint moves by more than

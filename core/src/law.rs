@@ -29,8 +29,7 @@
 
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
-use crate::arm::Arm;
-use crate::arm_law::{ArmLaw, ArmPoint};
+use crate::arm_law::ArmLaw;
 use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
 use crate::hold::{self, advance_inside, Start};
@@ -38,20 +37,24 @@ use crate::measurement::Measurement;
 use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
 use crate::platform::{Platform, PlatformKind};
 use crate::platform_law::{Hold, PlatformLaw, PlatformPoint};
-use crate::primary::{filter_rate, PrimaryPoint};
+use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
 use crate::secondary::{bounded_filter_rate, psi_tilde, psi_tilde_value, rest_cost, sigma_tilde_joint};
+use crate::space::{Space, Vector};
 use crate::state::{wrap_alpha, Sent, State, HISTORY};
+use crate::task::{Manipulator, TaskPoint};
 
-/// The validated law for platform `P` and arm `A` with `N` joints.
+/// The validated law for platform `P` and arm `A` with `N` joints: a planar [`Arm`](crate::Arm)
+/// tracking a target in the plane (§4), or a [`SpatialArm`](crate::SpatialArm) tracking one
+/// in space (§5).
 #[derive(Clone, Copy, Debug)]
-pub struct ControlLaw<T: Real, P, A, const N: usize> {
-    params: Params<T, N>,
+pub struct ControlLaw<T: Real, P, A: Manipulator<T, N>, const N: usize> {
+    params: Params<T, N, A::Space>,
     platform: P,
     arm: A,
-    /// `(sin θ*, cos θ*)` of `r*_ed`.
-    rot_star: (T, T),
+    /// What the arm law precomputes from `r*_ed`.
+    star: <A::Space as Space<T>>::Star,
     /// `r_*⁻¹` with its sine and cosine.
     r_star_inv: PoseSc<T>,
     /// Whether `Ψ ≢ 1`, so that `h_s2` and the rest filter are needed.
@@ -72,21 +75,35 @@ fn clamp<T: Real>(x: T, lo: T, hi: T) -> T {
 }
 
 /// The target's velocity trend at the measurement: `u̇_d` and `ü_d`.
-#[derive(Clone, Copy, Debug, Default)]
-pub(crate) struct TargetTrend<T: Real> {
-    pub rate: Vector3<T>,
-    pub curvature: Vector3<T>,
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TargetTrend<V> {
+    pub rate: V,
+    pub curvature: V,
 }
 
-impl<T: Real> TargetTrend<T> {
+impl<V> TargetTrend<V> {
+    /// No trend: the velocity held.
+    fn held<T>() -> Self
+    where
+        V: Vector<T>,
+    {
+        Self { rate: V::zeros(), curvature: V::zeros() }
+    }
+
     /// `u_d(t_k + s)`.
-    fn velocity_after(&self, u_d: &Vector3<T>, s: T) -> Vector3<T> {
-        u_d + self.rate * s + self.curvature * (s * s * T::of(0.5))
+    fn velocity_after<T: Real>(&self, u_d: &V, s: T) -> V
+    where
+        V: Vector<T>,
+    {
+        *u_d + self.rate * s + self.curvature * (s * s * T::of(0.5))
     }
 
     /// The mean velocity over `[t_k, t_k + s]`: `u_d + s/2 u̇_d + s²/6 ü_d`.
-    fn mean_velocity(&self, u_d: &Vector3<T>, s: T) -> Vector3<T> {
-        u_d + self.rate * (s * T::of(0.5)) + self.curvature * (s * s * T::of(1.0 / 6.0))
+    fn mean_velocity<T: Real>(&self, u_d: &V, s: T) -> V
+    where
+        V: Vector<T>,
+    {
+        *u_d + self.rate * (s * T::of(0.5)) + self.curvature * (s * s * T::of(1.0 / 6.0))
     }
 }
 
@@ -98,24 +115,29 @@ struct WeightAt<T, const N: usize> {
     sigma_rate: SVector<T, N>,
 }
 
-impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, N> {
+/// The measurement, state and output of a law with arm `A`.
+type Meas<T, A, const N: usize> = Measurement<T, N, <A as Manipulator<T, N>>::Space>;
+type St<T, A, const N: usize> = State<T, N, <A as Manipulator<T, N>>::Space>;
+type Out<T, A, const N: usize> = Output<T, N, <A as Manipulator<T, N>>::Space>;
+
+impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
     /// Validates the parameters, the platform's transverse function and the arm.
     ///
     /// # Errors
     /// The first parameter that breaks a rule (see [`Params::validate`]).
-    pub fn new(params: Params<T, N>, platform: P, arm: A) -> Result<Self, ParamError> {
+    pub fn new(params: Params<T, N, A::Space>, platform: P, arm: A) -> Result<Self, ParamError> {
         params.validate()?;
         platform.validate()?;
-        arm.validate()?;
-        let rot_star = params.primary.target_in_effector.theta.sincos();
+        arm.validate_arm()?;
+        let star = A::Space::star(&params.primary.target_in_effector);
         let r_star_inv = PoseSc::new(params.secondary.preferred_pose).inverse();
         let rest_needed = params.secondary.weight != Weight::Constant(T::one());
         let midpoint = params.discretisation == Discretisation::Midpoint;
-        Ok(Self { params, platform, arm, rot_star, r_star_inv, rest_needed, midpoint })
+        Ok(Self { params, platform, arm, star, r_star_inv, rest_needed, midpoint })
     }
 
     /// The parameters.
-    pub fn params(&self) -> &Params<T, N> {
+    pub fn params(&self) -> &Params<T, N, A::Space> {
         &self.params
     }
 
@@ -145,10 +167,10 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     #[inline]
     pub fn step(
         &self,
-        state: &mut State<T, N>,
-        meas: &Measurement<T, N>,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
         period: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         self.step_delayed(state, meas, period, T::zero())
     }
 
@@ -164,11 +186,11 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     #[inline(always)]
     pub fn step_delayed(
         &self,
-        state: &mut State<T, N>,
-        meas: &Measurement<T, N>,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         if let Err(error) = self.check(meas, period, delay) {
             return Err(Rejected::from(error));
         }
@@ -188,11 +210,11 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     #[inline(never)]
     fn first_step(
         &self,
-        state: &mut State<T, N>,
-        meas: &Measurement<T, N>,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         let mut fresh = self.initial(state, meas);
         let out = self.compute(&mut fresh, meas, period, delay)?;
         *state = fresh;
@@ -204,11 +226,11 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     #[inline(never)]
     fn recover(
         &self,
-        state: &mut State<T, N>,
-        meas: &Measurement<T, N>,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         let mut fresh = self.initial(state, meas);
         fresh.t0 = state.t0;
         fresh.recoveries = state.recoveries.saturating_add(1);
@@ -218,7 +240,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         Ok(out)
     }
 
-    fn check(&self, meas: &Measurement<T, N>, period: T, delay: T) -> Result<(), StepError> {
+    fn check(&self, meas: &Meas<T, A, N>, period: T, delay: T) -> Result<(), StepError> {
         if !period.finite() || period <= T::zero() || period > self.params.max_time_step {
             return Err(StepError::BadTimeStep);
         }
@@ -231,10 +253,13 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         }
         // 0·x is ±0 for finite x and NaN otherwise: one test on the common path, the field
         // by field search only when something is not finite.
-        let (b, d, u) = (&meas.base, &meas.target, &meas.target_velocity);
+        let b = &meas.base;
         let mut nan = meas.t * T::zero();
-        for x in [b.x, b.y, b.theta, d.x, d.y, d.theta, u[0], u[1], u[2]] {
+        for x in [b.x, b.y, b.theta] {
             nan += x * T::zero();
+        }
+        for x in meas.target_velocity.as_slice() {
+            nan += *x * T::zero();
         }
         if P::KIND == PlatformKind::Car {
             nan += meas.steering * T::zero();
@@ -242,7 +267,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         for i in 0..N {
             nan += meas.joints[i] * T::zero();
         }
-        if nan != T::zero() {
+        if nan != T::zero() || !A::Space::pose_is_finite(&meas.target) {
             return Err(Self::which_non_finite(meas));
         }
         let lim = &self.params.joint_limits;
@@ -253,24 +278,21 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
                 return Err(StepError::JointAtLimit(i as u8));
             }
         }
-        if self.arm.is_singular(&meas.joints) {
-            return Err(StepError::SingularArm);
-        }
-        Ok(())
+        self.arm.check_joints(&meas.joints)
     }
 
     /// The first non-finite field of a measurement that has one.
     #[cold]
-    fn which_non_finite(meas: &Measurement<T, N>) -> StepError {
+    fn which_non_finite(meas: &Meas<T, A, N>) -> StepError {
         let field = if !meas.t.finite() {
             Field::Time
         } else if !meas.base.is_finite() {
             Field::BasePose
         } else if !meas.joints.iter().all(|x| x.finite()) {
             Field::Joints
-        } else if !meas.target.is_finite() {
+        } else if !A::Space::pose_is_finite(&meas.target) {
             Field::TargetPose
-        } else if !meas.target_velocity.iter().all(|x| x.finite()) {
+        } else if !meas.target_velocity.as_slice().iter().all(|x| x.finite()) {
             Field::TargetVelocity
         } else {
             Field::Steering
@@ -279,7 +301,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     }
 
     /// The state of a first step (SPEC §3), keeping `α` (wrapped) and the recovery count.
-    fn initial(&self, state: &State<T, N>, meas: &Measurement<T, N>) -> State<T, N> {
+    fn initial(&self, state: &St<T, A, N>, meas: &Meas<T, A, N>) -> St<T, A, N> {
         let q = &meas.joints;
         let lim = &self.params.joint_limits;
         let mut s = State::new();
@@ -317,17 +339,22 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     /// estimate is used only when the two quotients agree to within half their size: a jump
     /// of `u_d` (the paper's trajectory 2) or noise that dominates the rate is not
     /// extrapolated.
-    fn target_rate(&self, st: &State<T, N>, meas: &Measurement<T, N>) -> (TargetTrend<T>, Vector3<T>) {
-        let zero = Vector3::zeros();
+    #[allow(clippy::type_complexity)]
+    fn target_rate(
+        &self,
+        st: &St<T, A, N>,
+        meas: &Meas<T, A, N>,
+    ) -> (TargetTrend<<A::Space as Space<T>>::Vector>, <A::Space as Space<T>>::Vector) {
+        let zero = Vector::zeros();
         let gap = meas.t - st.last_t;
         if self.params.target_motion == TargetMotion::Held || gap <= T::zero() {
-            return (TargetTrend::default(), zero);
+            return (TargetTrend::held(), zero);
         }
         let quotient = (meas.target_velocity - st.last_target_velocity) / gap;
-        let prev = &st.last_target_rate;
+        let prev = st.last_target_rate;
         let scale = quotient.amax().max(prev.amax());
         if (quotient - prev).amax() > T::of(0.5) * scale {
-            return (TargetTrend::default(), quotient);
+            return (TargetTrend::held(), quotient);
         }
         let curvature = (quotient - prev) / gap;
         (TargetTrend { rate: quotient + curvature * (gap * T::of(0.5)), curvature }, quotient)
@@ -375,12 +402,12 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
     #[inline(always)]
     fn compute(
         &self,
-        state: &mut State<T, N>,
-        meas: &Measurement<T, N>,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
         h: T,
         delay: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
-        let st: &State<T, N> = state;
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
+        let st: &St<T, A, N> = state;
         let prm = &self.params;
         let lim = &prm.joint_limits;
         let p = &prm.primary;
@@ -391,13 +418,10 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         let is_car = P::KIND == PlatformKind::Car;
 
         // 2. Prediction: the robot when the command starts (t_k + τ), the target at t_e.
-        let (trend, quotient) = if self.midpoint {
-            self.target_rate(st, meas)
-        } else {
-            (TargetTrend::default(), Vector3::zeros())
-        };
+        let (trend, quotient) =
+            if self.midpoint { self.target_rate(st, meas) } else { (TargetTrend::held(), Vector::zeros()) };
         let start = if self.midpoint {
-            hold::in_flight::<T, P, N>(st, meas, delay, lim)
+            hold::in_flight::<T, P, A::Space, N>(st, meas, delay, lim)
         } else {
             Start::measured(meas)
         };
@@ -405,21 +429,25 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         // sampled law, which otherwise ignores the delay (with a delay the command in flight
         // keeps moving them towards a limit).
         let q_guard = if !self.midpoint && measured_delay > T::zero() {
-            hold::in_flight::<T, P, N>(st, meas, measured_delay, lim).q
+            hold::in_flight::<T, P, A::Space, N>(st, meas, measured_delay, lim).q
         } else {
             start.q
         };
         let guess = st.last_sent();
         let sc_b = meas.base.theta.sincos();
-        let r_bd = PoseSc::new(meas.base.between_sc(&meas.target, sc_b.0, sc_b.1));
+        let r_bd = A::Space::relative(&meas.base, sc_b, &meas.target);
         let s_target = delay + half;
         let u_d0 = &meas.target_velocity;
         let r_bd_target = if self.midpoint {
-            r_bd.compose(&hold::target_motion(&trend.mean_velocity(u_d0, s_target), s_target))
+            A::Space::advance(&r_bd, &trend.mean_velocity(u_d0, s_target), s_target)
         } else {
             r_bd
         };
         let u_d = trend.velocity_after(u_d0, s_target);
+        // The platform works on the target's projection on the plane (§5).
+        let Some((plane_bd, plane_u_d)) = A::Space::project(&r_bd_target, &u_d) else {
+            return Err(StepError::TargetYawUndefined.into());
+        };
         let t_e = (meas.t - st.t0 + delay + half).max(T::zero());
 
         // 3. The filters at t_e: half an explicit step from t_k + τ.
@@ -452,9 +480,9 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         let r_bd_guess = if half > T::zero() {
             let xi_mean = start.xi + guess.platform.v_xi * half * half_t;
             let base = start.base.compose(&PoseSc::exp(&P::body_velocity_of(&guess.platform, xi_mean), half));
-            base.inverse().compose(&r_bd_target)
+            base.inverse().compose(&plane_bd)
         } else {
-            r_bd_target
+            plane_bd
         };
         let rest = if self.rest_needed {
             let r0 = rest_cost(&st.r_tilde, &sec.rest_sigma, sec.rest_xi, sec.gamma_2);
@@ -478,7 +506,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         let point = PlatformPoint {
             r_bd: &r_bd_guess,
             frame: &frame,
-            u_d: &u_d,
+            u_d: &plane_u_d,
             psi: psi_e,
             psi_rate: psi_rate_e,
             rest: rest.as_ref(),
@@ -499,7 +527,8 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
         } else {
             start.base
         };
-        let r_bd_e = if self.midpoint { base_e.inverse().compose(&r_bd_target) } else { r_bd_target };
+        let r_bd_e =
+            if self.midpoint { A::Space::seen_from_moved_base(&base_e, &r_bd_target) } else { r_bd_target };
         // The joint command's guess: the last one, plus its answer to the change of the
         // platform's velocity (`∂u_q/∂u_b` of the last step). The feed-forward
         // `∂e_m/∂r_bd ṙ_bd` depends on q, so the joints' midpoint must be accurate when the
@@ -521,27 +550,24 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             T::zero()
         };
         let q_hat_rate_e = filter_rate(&q_hat_e, &q_e, p.filter_sigma, p.filter_xi);
-        let arm_law = ArmLaw { params: prm, arm: &self.arm, rot_star: self.rot_star };
+        let arm_law = ArmLaw { params: prm, arm: &self.arm, star: &self.star };
         let arm = arm_law.arm_step(
-            &ArmPoint {
-                primary: PrimaryPoint {
-                    q: &q_e,
-                    r_bd: &r_bd_e.pose,
-                    gamma,
-                    gamma_rate: -p.regularisation_decay * gamma,
-                    q_hat: &q_hat_e,
-                    q_hat_rate: &q_hat_rate_e,
-                },
+            &TaskPoint {
+                q: &q_e,
                 r_bd: &r_bd_e,
                 u_d: &u_d,
                 u_b: &u_b,
-                q_start: &q_guard,
+                gamma,
+                gamma_rate: -p.regularisation_decay * gamma,
+                q_hat: &q_hat_e,
+                q_hat_rate: &q_hat_rate_e,
                 guess: &guess_joints,
             },
+            &q_guard,
             h,
             half,
         )?;
-        let u_q = arm.u_q;
+        let u_q = arm.task.u_q;
         let command = Command { platform: P::command(&plat.w, plat.v_xi, xi_mid), joints: u_q };
 
         // 6. The state after the period: α exactly (its rate is held), the filters by the
@@ -580,14 +606,14 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             r_tilde,
             w: plat.w,
             u_bar: plat.u_bar,
-            sensitivity: arm.sensitivity,
+            sensitivity: arm.task.sensitivity,
             t: meas.t,
             target_velocity: meas.target_velocity,
             target_rate: quotient,
             sent: Sent { platform: command.platform, joints: u_q, period: h },
         };
 
-        let prim = &arm.primary;
+        let prim = &arm.task;
         let diagnostics = Diagnostics {
             e_p: prim.e_p,
             e_m: prim.e_m,
@@ -599,7 +625,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
             saturation: plat.saturation,
             joint_scale: arm.joint_scale,
             det_h: frame.det_h,
-            condition: arm.condition,
+            condition: prim.condition,
             alpha: st.alpha,
             alpha_rate,
             u_bar: plat.u_bar,
@@ -622,7 +648,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> ControlLaw<T, P, A, 
 /// What an accepted step changes in the state (small, so that the state is written in
 /// place and only once everything is known to be finite).
 #[derive(Clone, Copy, Debug)]
-struct Update<T, const N: usize> {
+struct Update<T: Real, const N: usize, S: Space<T>> {
     alpha: Vector2<T>,
     q_hat: SVector<T, N>,
     psi: T,
@@ -632,14 +658,14 @@ struct Update<T, const N: usize> {
     u_bar: Vector3<T>,
     sensitivity: SMatrix<T, N, 3>,
     t: T,
-    target_velocity: Vector3<T>,
-    target_rate: Vector3<T>,
+    target_velocity: S::Vector,
+    target_rate: S::Vector,
     sent: Sent<T, N>,
 }
 
-impl<T: Real, const N: usize> Update<T, N> {
+impl<T: Real, const N: usize, S: Space<T>> Update<T, N, S> {
     #[inline(always)]
-    fn commit(&self, state: &mut State<T, N>) {
+    fn commit(&self, state: &mut State<T, N, S>) {
         state.alpha = self.alpha;
         state.q_hat = self.q_hat;
         state.psi = self.psi;
@@ -658,7 +684,11 @@ impl<T: Real, const N: usize> Update<T, N> {
 
 /// Whether the command, the state's update and the diagnostics are all finite. `0·x` is ±0
 /// for finite `x` and NaN otherwise: one comparison for everything.
-fn all_finite<T: Real, const N: usize>(c: &Command<T, N>, u: &Update<T, N>, d: &Diagnostics<T, N>) -> bool {
+fn all_finite<T: Real, const N: usize, S: Space<T>>(
+    c: &Command<T, N>,
+    u: &Update<T, N, S>,
+    d: &Diagnostics<T, N, S>,
+) -> bool {
     let z = T::zero();
     let p = &c.platform;
     let mut nan = z;
@@ -688,27 +718,27 @@ fn all_finite<T: Real, const N: usize>(c: &Command<T, N>, u: &Update<T, N>, d: &
             nan += u.sensitivity[(i, j)] * z;
         }
     }
-    for i in 0..3 {
-        nan += (d.e_p[i] + u.target_rate[i]) * z;
+    for (e, r) in d.e_p.as_slice().iter().zip(u.target_rate.as_slice()) {
+        nan += (*e + *r) * z;
     }
     nan == z
 }
 
 /// A [`ControlLaw`] with its [`State`]: the convenient way to run one controller.
 #[derive(Clone, Copy, Debug)]
-pub struct Controller<T: Real, P, A, const N: usize> {
+pub struct Controller<T: Real, P, A: Manipulator<T, N>, const N: usize> {
     /// The validated law.
     pub law: ControlLaw<T, P, A, N>,
     /// Its state.
-    pub state: State<T, N>,
+    pub state: St<T, A, N>,
 }
 
-impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> Controller<T, P, A, N> {
+impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> Controller<T, P, A, N> {
     /// A controller with a fresh state.
     ///
     /// # Errors
     /// An invalid parameter (see [`ControlLaw::new`]).
-    pub fn new(params: Params<T, N>, platform: P, arm: A) -> Result<Self, ParamError> {
+    pub fn new(params: Params<T, N, A::Space>, platform: P, arm: A) -> Result<Self, ParamError> {
         Ok(Self { law: ControlLaw::new(params, platform, arm)?, state: State::new() })
     }
 
@@ -717,7 +747,7 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> Controller<T, P, A, 
     /// # Errors
     /// A rejected measurement or period, with the safe command.
     #[inline]
-    pub fn step(&mut self, meas: &Measurement<T, N>, period: T) -> Result<Output<T, N>, Rejected<T, N>> {
+    pub fn step(&mut self, meas: &Meas<T, A, N>, period: T) -> Result<Out<T, A, N>, Rejected<T, N>> {
         self.law.step(&mut self.state, meas, period)
     }
 
@@ -729,10 +759,10 @@ impl<T: Real, P: Platform<T>, A: Arm<T, N>, const N: usize> Controller<T, P, A, 
     #[inline]
     pub fn step_delayed(
         &mut self,
-        meas: &Measurement<T, N>,
+        meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Output<T, N>, Rejected<T, N>> {
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         self.law.step_delayed(&mut self.state, meas, period, delay)
     }
 

@@ -58,11 +58,14 @@ extern crate std;
 
 pub mod arm;
 mod arm_law;
+pub mod chain;
 pub mod command;
 pub mod error;
 mod fastmath;
 mod hold;
 pub mod law;
+pub mod lie;
+mod linalg;
 pub mod measurement;
 pub mod params;
 pub mod platform;
@@ -70,13 +73,20 @@ mod platform_law;
 pub mod primary;
 pub mod scalar;
 pub mod se2;
+pub mod se3;
 pub mod secondary;
+pub mod so3;
+pub mod space;
+pub mod spatial;
 pub mod state;
+pub mod task;
 
-pub use arm::{Arm, ArmKinematics, Rpr};
+pub use arm::{Arm, ArmKinematics, PlanarArm, Rpr};
+pub use chain::{Chain, DhConvention, DhJoint, FrameData, Joint, JointData, JointKind};
 pub use command::{Command, Diagnostics, Output, Rejected};
 pub use error::{Bound, Field, ParamError, Rule, StepError};
 pub use law::{ControlLaw, Controller};
+pub use lie::LieGroup;
 pub use measurement::Measurement;
 pub use params::{
     Discretisation, JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask,
@@ -88,6 +98,10 @@ pub use platform::{
 };
 pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
+pub use se3::Pose3;
+pub use space::{Planar, Space, Spatial};
+pub use spatial::{SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms};
 pub use state::{Sent, State, HISTORY};
+pub use task::Manipulator;
 
 pub use nalgebra;

@@ -8,6 +8,7 @@ use crate::error::{Bound, ParamError, Rule};
 use crate::platform::VelocityLimits;
 use crate::scalar::Real;
 use crate::se2::Pose;
+use crate::space::{Planar, Space};
 
 /// Joint limits `q⁻ < q⁺` (rad for revolute joints, m for prismatic ones).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -19,12 +20,13 @@ pub struct JointLimits<T, const N: usize> {
 }
 
 /// The primary (manipulation) task: `e_p` (42), the joint-limit penalty `h_ℓ` (20)–(21),
-/// the regularisation `h_r` (22) with the filter (26), and the gain `G` of (30).
+/// the regularisation `h_r` (22) with the filter (26), and the gain `G` of (30), for a
+/// target in the plane ([`Planar`], the default) or in space ([`Spatial`](crate::Spatial)).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PrimaryTask<T, const N: usize> {
-    /// `r*_ed`: the target's desired pose seen from the end effector (m, m, rad). The paper
+pub struct PrimaryTask<T: Real, const N: usize, S: Space<T> = Planar> {
+    /// `r*_ed`: the target's desired pose seen from the end effector (m, rad). The paper
     /// uses `(X*, 0, 0)` with `X* = 0.5 m`.
-    pub target_in_effector: Pose<T>,
+    pub target_in_effector: S::Pose,
     /// `αᵢ > 0`: weights of the joint-limit penalty (20).
     pub penalty_weight: SVector<T, N>,
     /// `δᵢ > 0`: the penalty (21) is active within `δᵢ` of a limit (joint units).
@@ -38,8 +40,14 @@ pub struct PrimaryTask<T, const N: usize> {
     /// `ξ > 0` of the `q̂` filter (26) (joint units). Default 1.
     pub filter_xi: T,
     /// Gains `gᵢ > 0` of `G = −diag(gᵢ)` in (30) (1/s). The paper's "G = 3 I₃" is gain 3,
-    /// i.e. `G = −3 I₃`, so that `ė_m = G e_m` converges.
+    /// i.e. `G = −3 I₃`, so that `ė_m = G e_m` converges. An arm with more joints than the
+    /// task has dimensions (a 7-joint arm in space) drives `e_p` itself: `ė_p = G e_p`, with
+    /// the first 6 gains (see [`SpatialArm`](crate::SpatialArm)).
     pub gain: SVector<T, N>,
+    /// `k_n ≥ 0` (1/s): for arms with more joints than the task has dimensions, the rate at
+    /// which the joint-limit penalty `h_ℓ` is descended in the null space of the task; 0
+    /// switches that motion off. Unused otherwise. Default 1.
+    pub null_space_gain: T,
 }
 
 /// The margins of `σ̃ᵢ` in eq. (52), per joint (joint units). With the SPEC's reading:
@@ -204,13 +212,14 @@ pub struct SecondaryTask<T, const N: usize> {
     pub psi_rate_in_drift: bool,
 }
 
-/// All parameters of the law for an arm with `N` joints.
+/// All parameters of the law for an arm with `N` joints and a target in the plane
+/// ([`Planar`], the default) or in space ([`Spatial`](crate::Spatial)).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Params<T, const N: usize> {
+pub struct Params<T: Real, const N: usize, S: Space<T> = Planar> {
     /// Joint limits.
     pub joint_limits: JointLimits<T, N>,
     /// The primary task and the arm law (30).
-    pub primary: PrimaryTask<T, N>,
+    pub primary: PrimaryTask<T, N, S>,
     /// The secondary task and the platform law (37).
     pub secondary: SecondaryTask<T, N>,
     /// Platform velocity limits, met by one common scale factor.
@@ -278,10 +287,10 @@ impl core::fmt::Display for Warning {
     }
 }
 
-impl<T: Real> WeightMargins<T, 3> {
+impl<T: Real, const N: usize> WeightMargins<T, N> {
     /// The paper's margins: `δ⁻ = 0.2 (q* − q⁻)`, `δ⁺ = 0.2 (q⁺ − q*)`, `δ⁻⁻ = ⅔ δ⁻`,
     /// `δ⁺⁺ = ⅔ δ⁺`.
-    pub fn paper(limits: &JointLimits<T, 3>, q_star: &SVector<T, 3>) -> Self {
+    pub fn paper(limits: &JointLimits<T, N>, q_star: &SVector<T, N>) -> Self {
         let lower = (q_star - limits.lower) * T::of(0.2);
         let upper = (limits.upper - q_star) * T::of(0.2);
         let two_thirds = T::of(2.0) / T::of(3.0);
@@ -331,6 +340,7 @@ impl<T: Real> Params<T, 3> {
                 filter_sigma: T::of(10.0),
                 filter_xi: T::one(),
                 gain: ones * T::of(3.0),
+                null_space_gain: T::one(),
             },
             secondary: SecondaryTask {
                 preferred_pose: Pose::new(-(x_star + l_e + l + T::of(0.45)), T::zero(), T::zero()),
@@ -401,7 +411,7 @@ impl<T: Real, const N: usize> WeightMargins<T, N> {
     }
 }
 
-impl<T: Real, const N: usize> Params<T, N> {
+impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
     /// Checks every parameter against the rules of the paper (and SPEC §3), and against the
     /// bounds that keep every step computable: lengths and poses within 10³, gains and rates
     /// within 10⁶, times within 1 s, and `max_time_step` within [`period_bound`].
@@ -430,7 +440,7 @@ impl<T: Real, const N: usize> Params<T, N> {
             }
         }
         let p = &self.primary;
-        finite_pose("target_in_effector", &p.target_in_effector)?;
+        S::validate_pose("target_in_effector", &p.target_in_effector)?;
         positive_each("penalty_weight", &p.penalty_weight, Bound::Magnitude)?;
         positive_each("penalty_margin", &p.penalty_margin, Bound::Length)?;
         for i in 0..N {
@@ -443,6 +453,7 @@ impl<T: Real, const N: usize> Params<T, N> {
         check_positive("filter_sigma", p.filter_sigma, Bound::Magnitude)?;
         check_positive("filter_xi", p.filter_xi, Bound::Length)?;
         positive_each("gain", &p.gain, Bound::Magnitude)?;
+        check_nonneg("null_space_gain", p.null_space_gain, Bound::Magnitude)?;
 
         let s = &self.secondary;
         finite_pose("preferred_pose", &s.preferred_pose)?;
@@ -508,7 +519,8 @@ impl<T: Real, const N: usize> Params<T, N> {
 
     /// The largest admitted control period (s): `0.1 / r_max`, with `r_max` the largest rate
     /// of the law — the arm gains `gᵢ` of (30), the filters' rates `σ/ξ` of (26) and `σᵢ/ξ`
-    /// of (28), and `λ/ξ` of (53)–(54). The paper's values give `r_max = 10/s`: 10 ms.
+    /// of (28), `λ/ξ` of (53)–(54), and the null-space gain `k_n`. The paper's values give
+    /// `r_max = 10/s`: 10 ms.
     ///
     /// Ten periods per fastest time constant is the usual rule for running a continuous
     /// design sampled, and here it is measured rather than assumed. With
@@ -523,7 +535,7 @@ impl<T: Real, const N: usize> Params<T, N> {
     pub fn period_bound(&self) -> T {
         let p = &self.primary;
         let s = &self.secondary;
-        let mut r = p.filter_sigma / p.filter_xi;
+        let mut r = (p.filter_sigma / p.filter_xi).max(p.null_space_gain);
         for i in 0..N {
             r = r.max(p.gain[i]);
         }

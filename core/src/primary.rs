@@ -20,9 +20,13 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::arm::Arm;
+use crate::arm_law::{implicit_rhs, solve_square, Linearised};
+use crate::error::{ParamError, StepError};
 use crate::params::{JointLimits, PrimaryTask};
 use crate::scalar::{wrap_angle, Real};
-use crate::se2::Pose;
+use crate::se2::{rbar_sc, Pose};
+use crate::space::Planar;
+use crate::task::{Manipulator, TaskPoint, TaskStep};
 
 /// The primary-task quantities at one `(q, r_bd, t)`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,13 +83,14 @@ pub fn filter_rate<T: Real, const N: usize>(
     d * (-sigma / (xi + n))
 }
 
-/// The arguments of the primary task at one point.
+/// The arguments of the primary task at one point (`R`: the pose type of `r_bd`, planar by
+/// default; [`SpatialPoint`](crate::SpatialPoint) in space).
 #[derive(Clone, Copy, Debug)]
-pub struct PrimaryPoint<'a, T, const N: usize> {
+pub struct PrimaryPoint<'a, T, const N: usize, R = Pose<T>> {
     /// Joint positions `q`.
     pub q: &'a SVector<T, N>,
     /// The target's pose seen from the base, `r_bd`.
-    pub r_bd: &'a Pose<T>,
+    pub r_bd: &'a R,
     /// `Γ` of (22) (the scalar of `Γ I`).
     pub gamma: T,
     /// `Γ̇`.
@@ -202,4 +207,64 @@ pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
 pub fn base_to_relative<T: Real>(r_bd: &Pose<T>) -> Matrix3<T> {
     let (z, o) = (T::zero(), T::one());
     Matrix3::new(o, z, -r_bd.y, z, o, r_bd.x, z, z, o)
+}
+
+/// Every planar arm is a [`Manipulator`] of the plane: (30) with `e_m` (23) over the hold,
+/// solved with `(∂e_m/∂q)⁻¹`.
+impl<T: Real, A: Arm<T, N>, const N: usize> Manipulator<T, N> for A {
+    type Space = Planar;
+
+    fn validate_arm(&self) -> Result<(), ParamError> {
+        Arm::validate(self)
+    }
+
+    #[inline]
+    fn check_joints(&self, q: &SVector<T, N>) -> Result<(), StepError> {
+        if self.is_singular(q) {
+            Err(StepError::SingularArm)
+        } else {
+            Ok(())
+        }
+    }
+
+    #[inline(always)]
+    fn arm_law(
+        &self,
+        task: &PrimaryTask<T, N>,
+        limits: &JointLimits<T, N>,
+        star: &(T, T),
+        pt: &TaskPoint<'_, T, N, Planar>,
+        half: T,
+    ) -> Result<TaskStep<T, N, Planar>, StepError> {
+        let point = PrimaryPoint {
+            q: pt.q,
+            r_bd: &pt.r_bd.pose,
+            gamma: pt.gamma,
+            gamma_rate: pt.gamma_rate,
+            q_hat: pt.q_hat,
+            q_hat_rate: pt.q_hat_rate,
+        };
+        let prim = primary_terms(task, limits, self, &point, *star);
+        let (s, c) = pt.r_bd.sc;
+        let r_bd_rate = rbar_sc(s, c) * pt.u_d - base_to_relative(&pt.r_bd.pose) * pt.u_b;
+        let transport = prim.de_m_dr_bd * r_bd_rate;
+        // ∂rhs/∂u_b = ∂e_m/∂r_bd [I₂ S p_bd; 0 1].
+        let (x, y) = (pt.r_bd.pose.x, pt.r_bd.pose.y);
+        let b = &prim.de_m_dr_bd;
+        let drhs = SMatrix::<T, N, 3>::from_fn(|i, j| match j {
+            0 => b[(i, 0)],
+            1 => b[(i, 1)],
+            _ => b[(i, 2)] - y * b[(i, 0)] + x * b[(i, 1)],
+        });
+        let lin = Linearised {
+            e: &prim.e_m,
+            a: &prim.de_m_dq,
+            transport: &transport,
+            explicit: &prim.de_m_dt_explicit,
+            drhs,
+        };
+        let (rhs, drhs) = implicit_rhs(&lin, &task.gain, pt.guess, half);
+        let (u_q, sensitivity, condition) = solve_square(&prim.de_m_dq, &rhs, &drhs, T::zero(), half)?;
+        Ok(TaskStep { u_q, sensitivity, condition, e_p: prim.e_p, e_m: prim.e_m, h_l: prim.h_l })
+    }
 }

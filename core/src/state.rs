@@ -12,6 +12,7 @@ use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 use crate::platform::PlatformCommand;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::Pose;
+use crate::space::{Planar, Space, Vector};
 
 /// How many sent commands the state remembers: a delay may span at most this many periods.
 pub const HISTORY: usize = 8;
@@ -49,7 +50,7 @@ impl<T: Real, const N: usize> Sent<T, N> {
 /// `q̂` within the joint limits, and the position of `r̃_b` within
 /// [`SecondaryTask::rest_reach`](crate::SecondaryTask::rest_reach).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct State<T, const N: usize> {
+pub struct State<T: Real, const N: usize, S: Space<T> = Planar> {
     /// Transverse-function variables `α` (rad); unused components stay zero.
     pub alpha: Vector2<T>,
     /// Filtered joints `q̂`, eq. (26).
@@ -75,9 +76,9 @@ pub struct State<T, const N: usize> {
     /// Time of the last accepted measurement (s).
     pub last_t: T,
     /// Target body velocity of the last accepted measurement.
-    pub last_target_velocity: Vector3<T>,
+    pub last_target_velocity: S::Vector,
     /// The difference quotient of the target velocity at the last accepted measurement.
-    pub last_target_rate: Vector3<T>,
+    pub last_target_rate: S::Vector,
     /// How many steps re-initialised the filters after a numerical failure.
     pub recoveries: u32,
     sent: [Sent<T, N>; HISTORY],
@@ -85,7 +86,7 @@ pub struct State<T, const N: usize> {
     sent_len: usize,
 }
 
-impl<T: Real, const N: usize> State<T, N> {
+impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
     /// An uninitialised state with `α = 0`.
     pub fn new() -> Self {
         let z3 = Vector3::zeros();
@@ -101,8 +102,8 @@ impl<T: Real, const N: usize> State<T, N> {
             last_u_bar: z3,
             last_sensitivity: SMatrix::zeros(),
             last_t: T::zero(),
-            last_target_velocity: z3,
-            last_target_rate: z3,
+            last_target_velocity: S::Vector::zeros(),
+            last_target_rate: S::Vector::zeros(),
             recoveries: 0,
             sent: [Sent::zero(); HISTORY],
             sent_next: 0,
@@ -144,7 +145,10 @@ impl<T: Real, const N: usize> State<T, N> {
 
     /// The same state in another scalar type (rounding to nearest for `f32`), e.g. to run
     /// one law in `f32` and `f64` from the same state.
-    pub fn cast<U: Real>(&self) -> State<U, N> {
+    pub fn cast<U: Real>(&self) -> State<U, N, S>
+    where
+        S: Space<U>,
+    {
         let c = |x: T| U::of(x.as_f64());
         let cp = |p: &PlatformCommand<T>| PlatformCommand {
             v: c(p.v),
@@ -168,8 +172,8 @@ impl<T: Real, const N: usize> State<T, N> {
             last_u_bar: self.last_u_bar.map(c),
             last_sensitivity: self.last_sensitivity.map(c),
             last_t: c(self.last_t),
-            last_target_velocity: self.last_target_velocity.map(c),
-            last_target_rate: self.last_target_rate.map(c),
+            last_target_velocity: <S as Space<T>>::cast_vector::<U>(&self.last_target_velocity),
+            last_target_rate: <S as Space<T>>::cast_vector::<U>(&self.last_target_rate),
             recoveries: self.recoveries,
             sent,
             sent_next: self.sent_next,
@@ -194,7 +198,7 @@ impl<T: Real, const N: usize> State<T, N> {
     }
 }
 
-impl<T: Real, const N: usize> Default for State<T, N> {
+impl<T: Real, const N: usize, S: Space<T>> Default for State<T, N, S> {
     fn default() -> Self {
         Self::new()
     }

@@ -1,6 +1,7 @@
 //! The core never allocates (SPEC §2: no heap): a counting global allocator sees zero
 //! allocations across 10 000 controller steps of each platform, in f64 and f32, in closed
-//! loop, accepted and rejected steps alike.
+//! loop, accepted and rejected steps alike — the planar law and the spatial one (UR5,
+//! Panda).
 //!
 //! This file holds a single test so that nothing else runs in its process; the counter
 //! only counts while the flag of the current thread is set, around `step` itself (the
@@ -14,9 +15,10 @@ use std::cell::Cell;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use common::*;
+use companion_core::nalgebra::{Vector3, Vector6};
 use companion_core::{
-    CarLike, ControlLaw, Measurement, Omnidirectional, PaperRun, Params, Platform, Real, Rpr, State,
-    Unicycle, VelocityLimits,
+    CarLike, Chain, ControlLaw, Manipulator, Measurement, Omnidirectional, PaperRun, Params, Platform, Pose,
+    Real, Rpr, Spatial, SpatialArm, State, Unicycle, VelocityLimits,
 };
 
 struct Counting;
@@ -113,6 +115,79 @@ fn laws<T: Real>(run: PaperRun) -> Vec<(&'static str, usize, usize)> {
     vec![("unicycle", a, b), ("car", c, d), ("omni", e, f)]
 }
 
+/// A spatial arm's law for `STEPS` steps: the target held `0.2 m` below the flange at home
+/// and moving on a small circle, the joints and base advanced by the commands (Euler).
+fn count_spatial<T: Real, const N: usize>(chain: &Chain<T, N>) -> (usize, usize)
+where
+    SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
+{
+    let arm = SpatialArm::new(chain).expect("valid");
+    let params = Params::for_arm(&arm, PaperRun::A, arm.level_target(T::of(0.2))).expect("valid");
+    let law = ControlLaw::new(params, Unicycle::paper(), arm).expect("valid");
+    let home = arm.kinematics(&chain.home()).effector.compose(&params.primary.target_in_effector);
+    let mut q = chain.home();
+    let mut state = State::<T, N, Spatial>::new();
+    let mut base = Pose::<T>::identity();
+    let mut accepted = 0;
+    let before = ALLOCATIONS.load(Ordering::Relaxed);
+    for k in 0..STEPS {
+        let t = T::of(k as f64 * DT);
+        let (s, c) = (t * T::of(0.5)).sincos();
+        let mut target = home;
+        target.translation += Vector3::new(c * T::of(0.05), s * T::of(0.05), T::zero());
+        let v = Vector3::new(-s * T::of(0.025), c * T::of(0.025), T::zero());
+        let rotated = target.rotation.transpose() * v;
+        let mut meas = Measurement::<T, N, Spatial> {
+            t,
+            base,
+            steering: T::zero(),
+            joints: q,
+            target,
+            target_velocity: Vector6::new(
+                rotated[0],
+                rotated[1],
+                rotated[2],
+                T::zero(),
+                T::zero(),
+                T::zero(),
+            ),
+        };
+        if k % 97 == 96 {
+            meas.joints[0] = T::of(f64::NAN);
+        }
+        COUNTING.with(|c| c.set(true));
+        let result = law.step(&mut state, &meas, T::of(DT));
+        COUNTING.with(|c| c.set(false));
+        let command = match result {
+            Ok(out) => {
+                accepted += 1;
+                out.command
+            }
+            Err(rejected) => rejected.command,
+        };
+        q += command.joints * T::of(DT);
+        base = base.compose(&Pose::new(
+            command.platform.v * T::of(DT),
+            T::zero(),
+            command.platform.omega * T::of(DT),
+        ));
+    }
+    (ALLOCATIONS.load(Ordering::Relaxed) - before, accepted)
+}
+
+/// (Called from the one test: a second test in parallel would mix its counts into these.)
+fn spatial_steps_allocate_nothing() {
+    for (name, (allocations, accepted)) in [
+        ("ur5 f64", count_spatial::<f64, 6>(&Chain::ur5())),
+        ("ur5 f32", count_spatial::<f32, 6>(&Chain::ur5())),
+        ("panda f64", count_spatial::<f64, 7>(&Chain::panda())),
+        ("panda f32", count_spatial::<f32, 7>(&Chain::panda())),
+    ] {
+        assert_eq!(allocations, 0, "{name}: {allocations} allocations in {STEPS} steps");
+        assert!(accepted >= STEPS - STEPS / 97 - 10, "{name}: only {accepted} steps accepted");
+    }
+}
+
 #[test]
 fn ten_thousand_steps_allocate_nothing() {
     // The counter works: an allocation inside the window is seen.
@@ -138,4 +213,5 @@ fn ten_thousand_steps_allocate_nothing() {
             );
         }
     }
+    spatial_steps_allocate_nothing();
 }

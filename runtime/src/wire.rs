@@ -99,7 +99,7 @@
 //! a non-finite measured field `f` (0 time, 1 base pose, 2 steering, 3 joints, 4 target pose,
 //! 5 target velocity); `0x200` bad time step; `0x300 + j` joint `j` (from 0) at or beyond its
 //! limit; `0x400` singular arm; `0x500` singular task Jacobian; `0x600` numerical failure;
-//! `0x700` bad delay. The controller refuses the run ([`Refusal`]; velocities zero, the
+//! `0x700` bad delay; `0x800` target yaw undefined (spatial arms). The controller refuses the run ([`Refusal`]; velocities zero, the
 //! controller exits after sending it): `0x8001` protocol version, `0x8002` joint count,
 //! `0x8003` platform, `0x8004` scenario, `0x8005` period (`dt`).
 //!
@@ -398,6 +398,7 @@ pub fn encode_status(e: Option<StepError>) -> u32 {
         Some(StepError::SingularTaskJacobian) => 0x500,
         Some(StepError::NumericalFailure) => 0x600,
         Some(StepError::BadDelay) => 0x700,
+        Some(StepError::TargetYawUndefined) => 0x800,
     }
 }
 
@@ -427,6 +428,7 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
         0x500 => Some(StepError::SingularTaskJacobian),
         0x600 => Some(StepError::NumericalFailure),
         0x700 => Some(StepError::BadDelay),
+        0x800 => Some(StepError::TargetYawUndefined),
         _ => return Err(WireError::Status(code)),
     })
 }

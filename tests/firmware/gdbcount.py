@@ -8,8 +8,8 @@ serial protocol itself (no gdb needed) and counts single steps.
 
 For step k (k >= 1) of a case it
   1. breaks at the entry of `scenario::controller_step::<T, Platform>` (never inlined; one
-     instance per scalar type and platform, whose calls in run (a) come first) and skips to
-     call k - 1;
+     instance per scalar type and platform, whose calls in run (a) come first), or of
+     `scenario::spatial_step` for the spatial cases (`ur5-…`), and skips to call k - 1;
   2. sets a read watchpoint on SysTick's current-value register (0xE000E018) and continues:
      the stub stops *at* each load from it, so the first stop is the reading that ends step
      k - 1 and the second the reading that starts step k;
@@ -62,21 +62,30 @@ def steps_per_case():
     return int(m.group(1).replace("_", ""))
 
 
-def step_function_address(elf, case):
-    """Entry address of controller_step's instance for `case` (e.g. uni-a-f32)."""
+def parse_case(case):
+    """(step function, platform type, run, scalar) of a case name: `uni-a-f32` is the planar
+    law's `controller_step`, `ur5-uni-a-f32` the spatial law's `spatial_step`."""
     parts = case.split("-")
+    function = "controller_step"
+    if len(parts) == 4 and parts[0] == "ur5":
+        function, parts = "spatial_step", parts[1:]
     if len(parts) != 3 or parts[0] not in PLATFORMS or parts[1] not in "ac" or parts[2] not in ("f32", "f64"):
-        raise Failure(f"unknown case {case!r}: expected (uni|car|omni)-(a|c)-(f32|f64)")
-    plat, ty = PLATFORMS[parts[0]], parts[2]
+        raise Failure(f"unknown case {case!r}: expected [ur5-](uni|car|omni)-(a|c)-(f32|f64)")
+    return function, PLATFORMS[parts[0]], parts[1], parts[2]
+
+
+def step_function_address(elf, case):
+    """Entry address of the step function's instance for `case` (e.g. uni-a-f32)."""
+    function, plat, _, ty = parse_case(case)
     nm = shutil.which("nm") or shutil.which("llvm-nm")
     if nm is None:
         raise Failure("neither nm (binutils) nor llvm-nm is on the PATH")
     out = subprocess.run([nm, "-C", elf], capture_output=True, text=True, check=True).stdout
-    pattern = re.compile(rf"^([0-9a-f]+) [tT] .*scenario::controller_step::<{ty}, [\w:]*\b{plat}\b")
+    pattern = re.compile(rf"^([0-9a-f]+) [tT] .*scenario::{function}::<{ty}, [\w:]*\b{plat}\b")
     found = [int(m.group(1), 16) for line in out.splitlines() if (m := pattern.match(line))]
     if len(found) != 1:
         raise Failure(
-            f"{len(found)} symbols match controller_step::<{ty}, …{plat}…> in {elf} "
+            f"{len(found)} symbols match {function}::<{ty}, …{plat}…> in {elf} "
             "(expected one: is it still #[inline(never)] in src/scenario.rs?)"
         )
     return found[0] & ~1  # clear the Thumb bit
@@ -201,7 +210,7 @@ def count(elf, wanted):
     plan = {}  # entry address -> {call index of that instance: (case, step)}
     for case, steps in wanted.items():
         entry = step_function_address(elf, case)
-        offset = 0 if case.split("-")[1] == "a" else per_case
+        offset = 0 if parse_case(case)[2] == "a" else per_case
         for k in steps:
             if not 1 <= k < per_case:
                 raise Failure(f"{case}: step {k} cannot be counted (steps 1 to {per_case - 1} can)")

@@ -3,8 +3,9 @@
 //! `firmware_matches_host` builds `tests/firmware` for `thumbv7em-none-eabihf` (its own
 //! workspace and target directory), runs it under QEMU's `mps2-an386` board, and runs the
 //! same scenario source (`tests/firmware/src/scenario.rs`, included below) on the host. The
-//! firmware prints a digest of the commands every 250 steps of 12 closed-loop cases
-//! (unicycle, car-like, omnidirectional × runs (a), (c) × f32, f64); with the same libm, the
+//! firmware prints a digest of the commands every 250 steps of its closed-loop cases
+//! (unicycle, car-like, omnidirectional × runs (a), (c) × f32, f64, some with the sampled
+//! discretisation, and the UR5 on the unicycle through the spatial law of §5); with the same libm, the
 //! same `f32` functions and the same operations, host and emulated M4F must agree bit for
 //! bit. It needs `qemu-system-arm` and the Rust target: `scripts/setup` installs both.
 //!
@@ -59,7 +60,7 @@ fn run_qemu(elf: &Path) -> String {
         "qemu-system-arm is not installed: run scripts/setup (CI installs it); this check must not be skipped"
     );
     let out = Command::new("timeout")
-        .arg("120")
+        .arg("300")
         .args(["qemu-system-arm", "-cpu", "cortex-m4", "-machine", "mps2-an386", "-nographic"])
         // -icount as in tests/firmware/measure: the firmware checks its SysTick calibration,
         // which holds only under a deterministic instruction clock (exit 3 otherwise).

@@ -6,9 +6,12 @@
 //!
 //! | module | what it checks |
 //! |---|---|
+//! | [`lie`] | one conformance suite for SE(2) and SE(3): group law, `exp`/`log`, `Ad`, every Jacobian by differences, every small-angle branch |
 //! | [`se2`] | group axioms, `d_γ` (2), `Ad` (5), velocities (3), (4), (6)–(9) by differences |
+//! | [`spatial`] | §5: frames, `e_p` and every derivative by differences, the planar special case, the redundant solution, UR5 and Panda closed loops on every platform |
 //! | [`transverse`] | Lemma 1's determinant, Lemma 2's transversality, `H̄(α)` (13)–(15), (57)–(60), `∂ξ_f/∂α`, (59) |
 //! | [`derivatives`] | every analytic derivative of the arm, `e_p`, `e_m`, `h_s1`, `h_s2`, `h_s` by differences |
+//! | [`arms`] | arms as data: `rpr` is the paper's arm bit for bit; planar chains by differences; `ur5`, `panda` against their DH tables and published poses; validation |
 //! | [`arm_law`] | `ė_m = G e_m` through whole steps (30), every platform and run, saturated or not |
 //! | [`hold`] | the hold-aware discretisation: third-order residual over a hold, delays predicted exactly, no lock-out, bounded state, turn bound |
 //! | [`platform_law`] | (36)–(37) with every weight and pre-compensation; the state update; initialisation |
@@ -24,14 +27,17 @@
 mod common;
 
 mod arm_law;
+mod arms;
 mod closed_loop;
 mod derivatives;
 mod hold;
 mod joint_guard;
+mod lie;
 mod params;
 mod platform_law;
 mod precision;
 mod robustness;
 mod saturation;
 mod se2;
+mod spatial;
 mod transverse;

@@ -64,6 +64,8 @@ fn cases() -> Vec<Case> {
         (A, |p| p.primary.filter_xi = -1.0, scalar("filter_xi", NotPositive)),
         (A, |p| p.primary.gain[2] = 0.0, joint("gain", 2, NotPositive)),
         (A, |p| p.primary.gain[0] = -3.0, joint("gain", 0, NotPositive)),
+        (A, |p| p.primary.null_space_gain = -1.0, scalar("null_space_gain", Negative)),
+        (A, |p| p.primary.null_space_gain = f64::NAN, scalar("null_space_gain", NonFinite)),
         // Secondary task.
         (
             A,
@@ -225,6 +227,14 @@ fn every_rule_is_exercised() {
     seen.push(Rule::Transversality); // below and in transverse.rs
     seen.push(Rule::Geometry); // below
     seen.push(Rule::TooLarge(Bound::TransverseSize)); // below
+                                                      // In arms.rs (arm descriptions) and spatial.rs (r*_ed in space).
+    seen.extend([
+        Rule::NotOrthonormal,
+        Rule::NotUnitVector,
+        Rule::TooFewJoints,
+        Rule::HomeOutsideLimits,
+        Rule::NotPlanar,
+    ]);
     for rule in [
         Rule::NonFinite,
         Rule::NotPositive,
@@ -241,6 +251,11 @@ fn every_rule_is_exercised() {
         Rule::TooLarge(Bound::Length),
         Rule::TooLarge(Bound::TransverseSize),
         Rule::PeriodTooLong,
+        Rule::NotOrthonormal,
+        Rule::NotUnitVector,
+        Rule::TooFewJoints,
+        Rule::HomeOutsideLimits,
+        Rule::NotPlanar,
     ] {
         assert!(seen.contains(&rule), "{rule:?} has no case");
         // Exhaustiveness: this match fails to compile when a rule is added.
@@ -256,7 +271,12 @@ fn every_rule_is_exercised() {
             | Rule::Decomposition51NeedsPsiOne
             | Rule::Geometry
             | Rule::TooLarge(_)
-            | Rule::PeriodTooLong => {}
+            | Rule::PeriodTooLong
+            | Rule::NotOrthonormal
+            | Rule::NotUnitVector
+            | Rule::TooFewJoints
+            | Rule::HomeOutsideLimits
+            | Rule::NotPlanar => {}
         }
         assert!(!format!("{rule}").is_empty());
     }

@@ -23,6 +23,8 @@ pub struct Rejections {
     pub singular_task_jacobian: u64,
     /// The delay was not admissible.
     pub bad_delay: u64,
+    /// The target's x axis was vertical: it has no yaw for the platform (spatial arms).
+    pub target_yaw_undefined: u64,
     /// The law produced a non-finite value.
     pub numerical_failure: u64,
 }
@@ -42,6 +44,7 @@ impl Rejections {
             StepError::SingularArm => self.singular_arm += 1,
             StepError::SingularTaskJacobian => self.singular_task_jacobian += 1,
             StepError::BadDelay => self.bad_delay += 1,
+            StepError::TargetYawUndefined => self.target_yaw_undefined += 1,
             StepError::NumericalFailure => self.numerical_failure += 1,
         }
     }
@@ -54,6 +57,7 @@ impl Rejections {
             + self.singular_arm
             + self.singular_task_jacobian
             + self.bad_delay
+            + self.target_yaw_undefined
             + self.numerical_failure
     }
 
@@ -74,6 +78,7 @@ impl Rejections {
         add(self.singular_arm, StepError::SingularArm.to_string());
         add(self.singular_task_jacobian, StepError::SingularTaskJacobian.to_string());
         add(self.bad_delay, StepError::BadDelay.to_string());
+        add(self.target_yaw_undefined, StepError::TargetYawUndefined.to_string());
         add(self.numerical_failure, StepError::NumericalFailure.to_string());
         parts.sort_by_key(|p| std::cmp::Reverse(p.0));
         parts.iter().map(|(n, why)| format!("{why}: {n}")).collect::<Vec<_>>().join("; ")

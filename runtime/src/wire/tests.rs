@@ -245,6 +245,7 @@ fn every_step_error_round_trips_through_status() {
         Some(StepError::SingularTaskJacobian),
         Some(StepError::NumericalFailure),
         Some(StepError::BadDelay),
+        Some(StepError::TargetYawUndefined),
     ];
     for f in [
         Field::Time,

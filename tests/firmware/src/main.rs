@@ -28,7 +28,7 @@
 //! ```
 //!
 //! The count of a step is the instructions executed between the two SysTick readings
-//! around the call of [`scenario::controller_step`] (argument set-up, call, step, return)
+//! around the call of [`scenario::controller_step`] (or [`scenario::spatial_step`]: argument set-up, call, step, return)
 //! less those between the readings of an empty pair (the probe's own). The step's stack is
 //! that of building the controller and two steps; the case's adds the plant, the digest and
 //! the formatting of the output.

@@ -6,13 +6,16 @@
 //! paper's trajectory 1 (SPEC §4): target velocity `u_d(t) = −(π/20)(sin(πt/2),
 //! cos(πt/2), 0)`, platform at the origin, target at `(2.6, 1, 0)`, `q(0) = (0, 0.35, 0)`,
 //! step 1 ms, for runs (a) and (c) on the unicycle, car-like and omnidirectional platforms,
-//! in `f32` and `f64`. It prints a digest of the commands (FNV-1a of their bits) every
-//! [`REPORT_EVERY`] steps and a final line per case.
+//! in `f32` and `f64`; and the spatial law of §5 ([`SpatialArm`]): the UR5 on the unicycle,
+//! run (a), on trajectory 1 lifted (the same circle, the target level and `0.2 m` below the
+//! flange at home, plus `z = 0.05 sin(2πt/10)` m), from its home configuration. It prints
+//! a digest of the commands (FNV-1a of their bits) every [`REPORT_EVERY`] steps and a final
+//! line per case.
 //!
 //! Output lines (space separated, floats as the hex bits of their `f64` value):
 //!
 //! ```text
-//! D <case> <step> <digest> <v> <v_lat> <omega> <v_xi> <u_q1> <u_q2> <u_q3>
+//! D <case> <step> <digest> <v> <v_lat> <omega> <v_xi> <u_q1> … <u_qN>
 //! F <case> <steps> <rejected> <digest> <|e_p|> <|e_p| decimal>
 //! ```
 #![allow(dead_code)] // each includer uses a different part
@@ -20,10 +23,11 @@
 use core::fmt::Write;
 use core::hint::black_box;
 
-use companion_core::nalgebra::{SVector, Vector3};
+use companion_core::nalgebra::{SVector, Vector3, Vector6};
 use companion_core::{
-    CarLike, Command, Controller, Discretisation, Measurement, Omnidirectional, Output, PaperRun, Params,
-    Platform, PlatformKind, Pose, Real, Rejected, Rpr, Unicycle, VelocityLimits,
+    CarLike, Chain, Command, Controller, Discretisation, Manipulator, Measurement, Omnidirectional, Output,
+    PaperRun, Params, Platform, PlatformKind, Pose, Pose3, Real, Rejected, Rpr, Spatial, SpatialArm,
+    Unicycle, VelocityLimits,
 };
 
 /// Control period (s).
@@ -42,6 +46,8 @@ pub enum Plat {
     Car,
     /// Omnidirectional.
     Omni,
+    /// The UR5 ([`Chain::ur5`]) on the paper's unicycle: the spatial law.
+    Ur5Uni,
 }
 
 /// One closed-loop run.
@@ -69,8 +75,9 @@ const fn sampled(name: &'static str, plat: Plat, run: PaperRun, double: bool) ->
 
 /// Every case, in output order. The `Sampled` cases come last, so that in each instance of
 /// `controller_step` the calls of run (a) and then (c) of the default come first (the
-/// single-step count numbers calls per instance).
-pub const CASES: [Case; 17] = [
+/// single-step count numbers calls per instance). The spatial cases (`ur5-…`) step through
+/// their own function, `spatial_step`.
+pub const CASES: [Case; 19] = [
     case("uni-a-f32", Plat::Uni, PaperRun::A, false),
     case("uni-c-f32", Plat::Uni, PaperRun::C, false),
     case("car-a-f32", Plat::Car, PaperRun::A, false),
@@ -88,6 +95,8 @@ pub const CASES: [Case; 17] = [
     sampled("car-a-f32-sampled", Plat::Car, PaperRun::A, false),
     sampled("omni-a-f32-sampled", Plat::Omni, PaperRun::A, false),
     sampled("uni-a-f64-sampled", Plat::Uni, PaperRun::A, true),
+    case("ur5-uni-a-f32", Plat::Ur5Uni, PaperRun::A, false),
+    case("ur5-uni-a-f64", Plat::Ur5Uni, PaperRun::A, true),
 ];
 
 /// Hooks around each controller step (the firmware counts instructions there).
@@ -146,15 +155,17 @@ pub fn run_case<W: Write, Q: Probe>(c: &Case, out: &mut W, probe: &mut Q) -> Out
         (Plat::Car, true) => run::<f64, _, _, _>(c, car(), out, probe),
         (Plat::Omni, false) => run::<f32, _, _, _>(c, Omnidirectional, out, probe),
         (Plat::Omni, true) => run::<f64, _, _, _>(c, Omnidirectional, out, probe),
+        (Plat::Ur5Uni, false) => run_spatial::<f32, _, _, _>(c, Unicycle::paper(), out, probe),
+        (Plat::Ur5Uni, true) => run_spatial::<f64, _, _, _>(c, Unicycle::paper(), out, probe),
     }
 }
 
 /// The plant: platform pose, steering `ξ`, joints; the target is in closed form.
 #[derive(Clone, Copy, Debug)]
-struct Plant<T> {
+struct Plant<T, const N: usize> {
     base: Pose<T>,
     xi: T,
-    q: SVector<T, 3>,
+    q: SVector<T, N>,
 }
 
 /// `(r_d(t), u_d(t))` of trajectory 1 with `r_d(0) = (2.6, 1, 0)`:
@@ -167,8 +178,22 @@ fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
     (pose, Vector3::new(-speed * s, -speed * c, T::zero()))
 }
 
+/// Trajectory 1 lifted, from `start`: the circle of [`target`], level, plus
+/// `z = 0.05 sin(2πt/10)` m; the body twist `(ṗ, 0)` (the frame does not turn).
+fn lifted<T: Real>(t: T, start: &Vector3<T>) -> (Pose3<T>, Vector6<T>) {
+    let (planar, u) = target(t);
+    let w = T::two_pi() / T::of(10.0);
+    let (s, c) = (w * t).sincos();
+    let a = T::of(0.05);
+    let p = Vector3::new(planar.x - T::of(2.6) + start[0], planar.y - T::one() + start[1], start[2] + a * s);
+    (
+        Pose3::translation(p[0], p[1], p[2]),
+        Vector6::new(u[0], u[1], a * w * c, T::zero(), T::zero(), T::zero()),
+    )
+}
+
 /// `d(x, y, θ, ξ)/dt` of the platform under a held command.
-fn platform_rate<T: Real>(kind: PlatformKind, s: [T; 4], cmd: &Command<T, 3>) -> [T; 4] {
+fn platform_rate<T: Real, const N: usize>(kind: PlatformKind, s: [T; 4], cmd: &Command<T, N>) -> [T; 4] {
     let p = &cmd.platform;
     let (sn, cs) = s[2].sincos();
     let (v, v_lat, omega, xi_rate) = match kind {
@@ -180,7 +205,7 @@ fn platform_rate<T: Real>(kind: PlatformKind, s: [T; 4], cmd: &Command<T, 3>) ->
 }
 
 /// One RK4 step of the platform (zero-order hold), exact Euler for the joints.
-fn advance<T: Real>(kind: PlatformKind, plant: &mut Plant<T>, cmd: &Command<T, 3>, dt: T) {
+fn advance<T: Real, const N: usize>(kind: PlatformKind, plant: &mut Plant<T, N>, cmd: &Command<T, N>, dt: T) {
     let s0 = [plant.base.x, plant.base.y, plant.base.theta, plant.xi];
     let add =
         |a: [T; 4], k: [T; 4], h: T| [a[0] + k[0] * h, a[1] + k[1] * h, a[2] + k[2] * h, a[3] + k[3] * h];
@@ -211,10 +236,11 @@ fn fnv(mut h: u64, word: u64) -> u64 {
     h
 }
 
-fn command_words<T: Real>(c: &Command<T, 3>) -> [u64; 7] {
+/// The bits of a command's values: the platform's four, then the joints'.
+fn command_words<T: Real, const N: usize>(c: &Command<T, N>) -> impl Iterator<Item = u64> + '_ {
     let p = &c.platform;
     let b = |x: T| x.as_f64().to_bits();
-    [b(p.v), b(p.v_lat), b(p.omega), b(p.v_xi), b(c.joints[0]), b(c.joints[1]), b(c.joints[2])]
+    [b(p.v), b(p.v_lat), b(p.omega), b(p.v_xi)].into_iter().chain(c.joints.iter().map(move |x| b(*x)))
 }
 
 /// One controller step, never inlined: the firmware's second instruction count
@@ -279,22 +305,118 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
                 r.command
             }
         };
-        let words = command_words(&cmd);
-        for w in words {
-            digest = fnv(digest, w);
-        }
-        if (n + 1) % REPORT_EVERY == 0 || n + 1 == STEPS {
-            let _ = write!(out, "D {} {} {:016x}", c.name, n + 1, digest);
-            for w in words {
-                let _ = write!(out, " {w:016x}");
-            }
-            let _ = writeln!(out);
-        }
+        digest = record(c, n, digest, &cmd, out);
         advance(P::KIND, &mut plant, &cmd, dt);
     }
+    finish(c, rejected, digest, e_p, out)
+}
+
+/// Folds a command into the digest and writes its `D` line when one is due.
+fn record<T: Real, const N: usize, W: Write>(
+    c: &Case,
+    n: u32,
+    mut digest: u64,
+    cmd: &Command<T, N>,
+    out: &mut W,
+) -> u64 {
+    for w in command_words(cmd) {
+        digest = fnv(digest, w);
+    }
+    if (n + 1) % REPORT_EVERY == 0 || n + 1 == STEPS {
+        let _ = write!(out, "D {} {} {:016x}", c.name, n + 1, digest);
+        for w in command_words(cmd) {
+            let _ = write!(out, " {w:016x}");
+        }
+        let _ = writeln!(out);
+    }
+    digest
+}
+
+/// The case's `F` line and outcome.
+fn finish<W: Write>(c: &Case, rejected: u32, digest: u64, e_p: f64, out: &mut W) -> Outcome {
     let _ =
         writeln!(out, "F {} {} {} {:016x} {:016x} {:e}", c.name, STEPS, rejected, digest, e_p.to_bits(), e_p);
     Outcome { steps: STEPS, rejected, digest, e_p }
+}
+
+/// The spatial law's controller with the UR5.
+pub type Ur5Controller<T, P> = Controller<T, P, SpatialArm<T, 6>, 6>;
+
+/// One step of the spatial law, never inlined (as [`controller_step`]; `gdbcount.py` finds
+/// `spatial_step::<T, Platform>` for the `ur5-…` cases).
+#[inline(never)]
+pub fn spatial_step<T: Real, P: Platform<T>>(
+    ctrl: &mut Ur5Controller<T, P>,
+    meas: &Measurement<T, 6, Spatial>,
+    dt: T,
+) -> Result<Output<T, 6, Spatial>, Rejected<T, 6>>
+where
+    SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
+{
+    ctrl.step(meas, dt)
+}
+
+/// The UR5's law (`r*_ed`: the target level, `0.2 m` along the flange's axis at home) and
+/// the lifted trajectory's start (`(2.6, 1)` in the plane, at the target's height at home).
+fn ur5<T: Real, P: Platform<T>>(platform: P) -> Option<(Ur5Controller<T, P>, Vector3<T>)>
+where
+    SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
+{
+    let arm = SpatialArm::new(&Chain::ur5()).ok()?;
+    let star = arm.level_target(T::of(0.2));
+    let params = Params::for_arm(&arm, PaperRun::A, star).ok()?;
+    let z0 = arm.kinematics(&arm.chain().home()).effector.compose(&star).translation[2];
+    let ctrl = Controller::new(params, platform, arm).ok()?;
+    Some((ctrl, Vector3::new(T::of(2.6), T::one(), z0)))
+}
+
+fn run_spatial<T: Real, P: Platform<T>, W: Write, Q: Probe>(
+    c: &Case,
+    platform: P,
+    out: &mut W,
+    probe: &mut Q,
+) -> Outcome
+where
+    SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
+{
+    let Some((mut ctrl, start)) = ur5::<T, P>(platform) else {
+        let _ = writeln!(out, "E {} invalid parameters", c.name);
+        return Outcome { steps: 0, rejected: 0, digest: 0, e_p: f64::NAN };
+    };
+    let dt = T::of(DT);
+    let mut plant = Plant {
+        base: Pose::new(T::zero(), T::zero(), T::zero()),
+        xi: T::zero(),
+        q: Chain::<T, 6>::ur5().home(),
+    };
+    let mut digest = FNV_OFFSET;
+    let mut rejected = 0;
+    let mut e_p = f64::NAN;
+    for n in 0..STEPS {
+        let t = T::of(f64::from(n)) * dt;
+        let (target, target_velocity) = lifted(t, &start);
+        let meas =
+            Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
+        // As in `run`: the inputs complete before the first reading, the result after.
+        let (ct, me, h) = (black_box(&mut ctrl), black_box(&meas), black_box(dt));
+        probe.enter();
+        let result = spatial_step(black_box(ct), black_box(me), black_box(h));
+        black_box(&result);
+        probe.leave();
+        let cmd = match result {
+            Ok(o) => {
+                e_p = o.diagnostics.e_p.norm().as_f64();
+                o.command
+            }
+            Err(r) => {
+                rejected += 1;
+                r.command
+            }
+        };
+        digest = record(c, n, digest, &cmd, out);
+        advance(P::KIND, &mut plant, &cmd, dt);
+    }
+    finish(c, rejected, digest, e_p, out)
 }
 
 /// One controller step from the initial state of case `c` (for the stack measurement).
@@ -306,6 +428,30 @@ pub fn first_step(c: &Case) {
         (Plat::Car, true) => one::<f64, _>(c, car()),
         (Plat::Omni, false) => one::<f32, _>(c, Omnidirectional),
         (Plat::Omni, true) => one::<f64, _>(c, Omnidirectional),
+        (Plat::Ur5Uni, false) => one_spatial::<f32, _>(Unicycle::paper()),
+        (Plat::Ur5Uni, true) => one_spatial::<f64, _>(Unicycle::paper()),
+    }
+}
+
+/// [`one`] for the spatial law.
+fn one_spatial<T: Real, P: Platform<T>>(platform: P)
+where
+    SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
+{
+    if let Some((mut ctrl, start)) = ur5::<T, P>(platform) {
+        let (target, target_velocity) = lifted(T::zero(), &start);
+        let meas = Measurement {
+            t: T::zero(),
+            base: Pose::new(T::zero(), T::zero(), T::zero()),
+            steering: T::zero(),
+            joints: Chain::<T, 6>::ur5().home(),
+            target,
+            target_velocity,
+        };
+        for _ in 0..2 {
+            let r = ctrl.step(black_box(&meas), T::of(DT));
+            black_box(&r);
+        }
     }
 }
 
