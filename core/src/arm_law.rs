@@ -101,6 +101,15 @@ pub(crate) fn implicit_rhs<T: Real, const M: usize, const N: usize>(
 
 /// `u_q = A⁻¹ v`, its sensitivity `A⁻¹ ∂v/∂u_b` (with the hold-aware discretisation only) and
 /// the 1-norm condition number of `A`.
+///
+/// When `A` cannot be inverted in the scalar type (its determinant rounds to zero) although
+/// the configuration is not singular — measured in `f32` with the target tens of kilometres
+/// away, where `Σ e_p,k ∇²e_p,k` of (24) dwarfs `(∂e_p/∂q)ᵀ ∂e_p/∂q` — it solves the damped
+/// least-squares problem instead, `(AᵀA + μ I) u_q = Aᵀ v` with `μ = 10⁻⁶ tr(AᵀA)/N`
+/// (symmetric positive definite, so always solvable unless `A = 0`). Rejecting such steps
+/// kept the robot still with its arm where `A` is singular, so every later step was rejected
+/// too: a lock-out (fuzz, 10⁷ steps). The fallback never acts where `A` is invertible, so it
+/// changes no other step.
 #[inline(always)]
 pub(crate) fn solve_square<T: Real, const N: usize>(
     a: &SMatrix<T, N, N>,
@@ -116,11 +125,45 @@ pub(crate) fn solve_square<T: Real, const N: usize>(
     } else {
         a
     };
-    let inv = linalg::inverse(a).ok_or(StepError::SingularTaskJacobian)?;
+    let Some(inv) = linalg::inverse(a) else {
+        return least_squares(a, rhs, drhs, half);
+    };
     let u_q = inv * rhs;
     // Only the hold-aware discretisation guesses with it.
     let sensitivity = if half > T::zero() { inv * drhs } else { SMatrix::zeros() };
     let condition = one_norm(a) * one_norm(&inv);
+    Ok((u_q, sensitivity, condition))
+}
+
+/// The damped least-squares fallback of [`solve_square`] for an `A` that rounds to singular.
+#[cold]
+#[inline(never)]
+fn least_squares<T: Real, const N: usize>(
+    a: &SMatrix<T, N, N>,
+    rhs: &SVector<T, N>,
+    drhs: &SMatrix<T, N, 3>,
+    half: T,
+) -> Result<(SVector<T, N>, SMatrix<T, N, 3>, T), StepError> {
+    let at = a.transpose();
+    let mut n = at * a;
+    let (mut trace, mut count) = (T::zero(), T::zero());
+    for i in 0..N {
+        trace += n[(i, i)];
+        count += T::one();
+    }
+    let mu = T::of(1e-6) * trace / count;
+    let usable = mu > T::zero() && mu.finite();
+    if !usable {
+        return Err(StepError::SingularTaskJacobian);
+    }
+    for i in 0..N {
+        n[(i, i)] += mu;
+    }
+    let inv = linalg::inverse(&n).ok_or(StepError::SingularTaskJacobian)?;
+    let pinv = inv * at;
+    let u_q = pinv * rhs;
+    let sensitivity = if half > T::zero() { pinv * drhs } else { SMatrix::zeros() };
+    let condition = one_norm(&n) * one_norm(&inv);
     Ok((u_q, sensitivity, condition))
 }
 
@@ -229,4 +272,37 @@ fn one_norm<T: Real, const R: usize, const C: usize>(m: &SMatrix<T, R, C>) -> T 
         }
     }
     best
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::{Matrix3, Vector3};
+
+    use super::*;
+
+    /// A matrix that rounds to singular gets the damped least-squares solution: finite, and
+    /// the minimum-norm solution of the consistent part (`A u = v` on A's range).
+    #[test]
+    fn a_singular_matrix_gets_the_damped_least_squares_solution() {
+        let a = Matrix3::<f32>::new(1.0, 1.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 2.0);
+        assert!(a.try_inverse().is_none());
+        let v = Vector3::new(2.0_f32, 2.0, 4.0);
+        let (u, sens, cond) = solve_square(&a, &v, &SMatrix::<f32, 3, 3>::identity(), 0.0, 0.5).unwrap();
+        assert!(u.iter().all(|x| x.is_finite()) && sens.iter().all(|x| x.is_finite()) && cond.is_finite());
+        // Minimum norm: u = (1, 1, 2) up to the damping.
+        for (got, want) in u.iter().zip([1.0, 1.0, 2.0]) {
+            assert!((got - want).abs() < 1e-4, "{u:?}");
+        }
+        // Invertible matrices are solved exactly as before.
+        let b = Matrix3::<f64>::new(2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 0.0, 0.0, 4.0);
+        let (u, _, _) = solve_square(&b, &Vector3::new(2.0, 3.0, 4.0), &SMatrix::zeros(), 0.0, 0.0).unwrap();
+        assert_eq!(u, Vector3::new(1.0, 1.0, 1.0));
+    }
+
+    #[test]
+    fn a_zero_matrix_is_still_a_typed_rejection() {
+        let z = Matrix3::<f64>::zeros();
+        let r = solve_square(&z, &Vector3::new(1.0, 0.0, 0.0), &SMatrix::zeros(), 0.0, 0.0);
+        assert_eq!(r.unwrap_err(), StepError::SingularTaskJacobian);
+    }
 }
