@@ -14,7 +14,8 @@
 //! - system: [`rt`] (real-time setup, the crate's only `unsafe`), [`signals`], [`clock`]
 //!   (time behind a trait), [`machine`], [`process`];
 //! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
-//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2);
+//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2), `zenoh_link` (Zenoh over
+//!   TCP, cargo feature `zenoh`), [`transport`] (`--transport`: the endpoint of either);
 //! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
 //!   `control`), [`latency`] (`companion latency`).
 //!
@@ -38,4 +39,7 @@ pub mod rt;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod transport;
 pub mod wire;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_link;

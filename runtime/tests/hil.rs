@@ -611,3 +611,7 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
     let lat = json(&d.join("latency.json"));
     assert!(lat["end"].as_str().unwrap().contains("scenario mismatch"), "{lat:#}");
 }
+
+/// The same demo over Zenoh (cargo feature `zenoh`).
+#[cfg(feature = "zenoh")]
+mod over_zenoh;

@@ -110,6 +110,8 @@ pub struct HilConfig {
     pub rt: Option<RtPlan>,
     /// Skip the plots.
     pub no_plots: bool,
+    /// The transport (iceoryx2 unless `--transport zenoh`).
+    pub transport: crate::transport::Transport,
 }
 
 impl HilConfig {
