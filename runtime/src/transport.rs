@@ -119,7 +119,11 @@ pub fn open<Tx: Message, Rx: Message>(
     role: Role,
     events: bool,
 ) -> Result<Endpoint<Tx, Rx>> {
-    let what = if role == Role::Plant { "opening the plant's transport" } else { "opening the controller's transport" };
+    let what = if role == Role::Plant {
+        "opening the plant's transport"
+    } else {
+        "opening the controller's transport"
+    };
     match transport {
         Transport::Iceoryx2 => {
             Ok(Endpoint::Iceoryx2(anyhow::Context::context(ipc::Endpoint::open(name, role, events), what)?))
@@ -193,7 +197,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
         match self {
             Self::Iceoryx2(e) => e.try_receive(),
             #[cfg(feature = "zenoh")]
-            Self::Zenoh(e) => Ok(e.try_receive()),
+            Self::Zenoh(e) => Ok(crate::zenoh_link::ZenohEndpoint::try_receive(e)),
         }
     }
 
@@ -203,7 +207,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
             Self::Iceoryx2(e) => e.wait_event(timeout),
             #[cfg(feature = "zenoh")]
             Self::Zenoh(e) => {
-                e.wait_event(timeout);
+                crate::zenoh_link::ZenohEndpoint::wait_event(e, timeout);
                 Ok(())
             }
         }

@@ -77,13 +77,18 @@ impl TcpEndpoint {
     /// Another protocol, no host, or no valid port.
     pub fn parse(s: &str) -> Result<Self> {
         let Some(rest) = s.strip_prefix("tcp/") else {
-            bail!("endpoint {s:?}: expected tcp/HOST:PORT, e.g. tcp/192.168.1.20:7447 (only TCP is built in)");
+            bail!(
+                "endpoint {s:?}: expected tcp/HOST:PORT, e.g. tcp/192.168.1.20:7447 (only TCP is built in)"
+            );
         };
         let Some((host, port)) = rest.rsplit_once(':') else {
             bail!("endpoint {s:?}: no port; expected tcp/HOST:PORT, e.g. tcp/127.0.0.1:7447");
         };
-        let port: u16 =
-            port.parse().map_err(|_| anyhow!("endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected tcp/HOST:PORT"))?;
+        let port: u16 = port.parse().map_err(|_| {
+            anyhow!(
+                "endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected tcp/HOST:PORT"
+            )
+        })?;
         let bad_host = host.is_empty()
             || !host.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._:[]".contains(&b))
             || host.contains(':') && !(host.starts_with('[') && host.ends_with(']'));
@@ -123,8 +128,7 @@ pub fn key(name: &str, what: &str) -> String {
     crate::ipc::service_name(name, what)
 }
 
-/// Peer states in [`Shared::peer`].
-const NOT_SEEN: u8 = 0;
+/// Peer states in [`Shared::peer`] (0: not seen yet).
 const ALIVE: u8 = 1;
 const LOST: u8 = 2;
 
@@ -133,7 +137,7 @@ const LOST: u8 = 2;
 struct Shared {
     /// The loop's thread, once it has waited ([`ZenohEndpoint::wait_event`]).
     waiter: OnceLock<Thread>,
-    /// [`NOT_SEEN`], [`ALIVE`] or [`LOST`].
+    /// 0 (not seen yet), [`ALIVE`] or [`LOST`].
     peer: AtomicU8,
     /// The peer's process id (from its token's key).
     peer_pid: AtomicI32,
@@ -205,8 +209,7 @@ fn config(link: &ZenohLink) -> Result<zenoh::Config> {
             // startup timeout bounds the wait (`wait_for_peer`).
             set("connect/timeout_ms", "-1")?;
             set("connect/exit_on_failure", "false")?;
-            set("connect/retry/period_init_ms", "50")?;
-            set("connect/retry/period_max_ms", "250")?;
+            set("connect/retry", "{ period_init_ms: 50, period_max_ms: 250, period_increase_factor: 2 }")?;
         }
     }
     Ok(c)
@@ -462,14 +465,21 @@ mod tests {
 
     #[test]
     fn endpoints_are_checked() {
-        assert_eq!(TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap(), TcpEndpoint {
-            host: "127.0.0.1".into(),
-            port: 7447
-        });
+        assert_eq!(
+            TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap(),
+            TcpEndpoint { host: "127.0.0.1".into(), port: 7447 }
+        );
         assert_eq!(TcpEndpoint::parse("tcp/robot-1.local:0").unwrap().port, 0);
         assert_eq!(TcpEndpoint::parse("tcp/[::1]:7447").unwrap().to_string(), "tcp/[::1]:7447");
-        for bad in ["127.0.0.1:7447", "udp/1.2.3.4:5", "tcp/1.2.3.4", "tcp/:7447", "tcp/h:99999", "tcp/h:x", "tcp/::1:5"]
-        {
+        for bad in [
+            "127.0.0.1:7447",
+            "udp/1.2.3.4:5",
+            "tcp/1.2.3.4",
+            "tcp/:7447",
+            "tcp/h:99999",
+            "tcp/h:x",
+            "tcp/::1:5",
+        ] {
             let e = TcpEndpoint::parse(bad).unwrap_err().to_string();
             assert!(e.contains("tcp/HOST:PORT") || e.contains("port"), "{bad}: {e}");
         }

@@ -346,7 +346,9 @@ fn code_of(st: Option<ExitStatus>) -> u8 {
 pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
     if a.connect.is_some() {
-        bail!("companion hil runs both roles: give the plant's --listen endpoint (or none: a free local port)");
+        bail!(
+            "companion hil runs both roles: give the plant's --listen endpoint (or none: a free local port)"
+        );
     }
     // Zenoh on one machine: the plant listens on a free local port unless told where.
     let picked = (a.transport == TransportArg::Zenoh && a.listen.is_none())

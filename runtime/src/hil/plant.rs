@@ -53,7 +53,8 @@ pub fn run(
     let timing = cfg.timing;
     let mut plant = sim::build_plant(s)?;
     let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
-    let mut ep: PlantEndpoint = transport::open(&cfg.transport, &cfg.name, Role::Plant, timing.wait == WaitMode::Event)?;
+    let mut ep: PlantEndpoint =
+        transport::open(&cfg.transport, &cfg.name, Role::Plant, timing.wait == WaitMode::Event)?;
     let mut announced = if timing.lockstep { flags::LOCKSTEP } else { 0 };
     if ep.notifies() {
         announced |= flags::NOTIFIES;

@@ -42,7 +42,8 @@ fn lockstep_over_zenoh_is_byte_identical_to_sim() {
         // ... and two, the controller connecting before the plant listens.
         let ep = free_endpoint();
         let td = two_dir.to_str().unwrap();
-        let mut common = vec!["--transport", "zenoh", "--lockstep", "--duration", "3", "--no-plots", "--name", &n];
+        let mut common =
+            vec!["--transport", "zenoh", "--lockstep", "--duration", "3", "--no-plots", "--name", &n];
         common.extend(extra);
         let mut control = common.clone();
         control.extend(["--connect", &ep]);
@@ -230,8 +231,11 @@ fn a_partition_is_a_dead_peer_hold_stop_report_clean_exit_codes() {
     drop(proxy);
     // A silent network (connections kept, nothing forwarded): the peer is alive but silent,
     // hung after --peer-timeout.
-    let (proxy, plant, control, d) =
-        through_proxy("zenoh-stall", Duration::ZERO, &["--duration", "20", "--hold-periods", "5", "--peer-timeout", "1"]);
+    let (proxy, plant, control, d) = through_proxy(
+        "zenoh-stall",
+        Duration::ZERO,
+        &["--duration", "20", "--hold-periods", "5", "--peer-timeout", "1"],
+    );
     std::thread::sleep(Duration::from_millis(2500));
     proxy.stall();
     let (cst, cseen) = control.wait(Duration::from_secs(20));
@@ -245,7 +249,9 @@ fn a_partition_is_a_dead_peer_hold_stop_report_clean_exit_codes() {
 fn bad_endpoints_are_clear_errors() {
     let _g = serial();
     // Malformed.
-    for (role, flag, bad) in [("plant", "--listen", "localhost:7447"), ("control", "--connect", "tcp/host:port")] {
+    for (role, flag, bad) in
+        [("plant", "--listen", "localhost:7447"), ("control", "--connect", "tcp/host:port")]
+    {
         let (st, _, err) = run(&[role, "--transport", "zenoh", flag, bad, "--duration", "1"]);
         assert_eq!(st.code(), Some(2), "{err}");
         assert!(err.contains("tcp/HOST:PORT") && err.contains(bad), "{err}");
@@ -260,16 +266,34 @@ fn bad_endpoints_are_clear_errors() {
     let taken = TcpListener::bind("127.0.0.1:0").unwrap();
     let ep = format!("tcp/127.0.0.1:{}", taken.local_addr().unwrap().port());
     let d = dir("zenoh-taken");
-    let (st, _, err) =
-        run(&["plant", "--transport", "zenoh", "--listen", &ep, "--duration", "1", "--out", d.to_str().unwrap()]);
+    let (st, _, err) = run(&[
+        "plant",
+        "--transport",
+        "zenoh",
+        "--listen",
+        &ep,
+        "--duration",
+        "1",
+        "--out",
+        d.to_str().unwrap(),
+    ]);
     assert_eq!(st.code(), Some(2), "{err}");
     assert!(err.contains("cannot listen on") && err.contains(&ep), "{err}");
     drop(taken);
     // Nobody listens: an error naming the endpoint within the startup timeout.
     let ep = free_endpoint();
     let t0 = Instant::now();
-    let (st, _, err) =
-        run(&["control", "--transport", "zenoh", "--connect", &ep, "--duration", "1", "--startup-timeout", "2"]);
+    let (st, _, err) = run(&[
+        "control",
+        "--transport",
+        "zenoh",
+        "--connect",
+        &ep,
+        "--duration",
+        "1",
+        "--startup-timeout",
+        "2",
+    ]);
     let took = t0.elapsed();
     assert_eq!(st.code(), Some(2), "{err}");
     assert!(err.contains("nothing answered at") && err.contains(&ep), "{err}");
