@@ -614,4 +614,5 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
 
 /// The same demo over Zenoh (cargo feature `zenoh`).
 #[cfg(feature = "zenoh")]
+#[path = "hil/over_zenoh.rs"]
 mod over_zenoh;

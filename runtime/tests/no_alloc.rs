@@ -210,7 +210,7 @@ fn the_zenoh_exchange_allocates_only_in_zenoh() {
             std::thread::yield_now();
         }
     };
-    let mut cycle = |plant: &mut ZenohPlant, control: &mut ZenohControl| -> (u64, u64, u64, u64) {
+    let cycle = |plant: &mut ZenohPlant, control: &mut ZenohControl| -> (u64, u64, u64, u64) {
         let (a, ()) = allocations_in(|| plant.send(&m).unwrap());
         let mut got = None;
         let mut b = 0;

@@ -3,6 +3,7 @@
 //! across a network are injected by a forwarding proxy on loopback ([`proxy`]); the tests
 //! start and stop everything they use.
 
+#[path = "over_zenoh/proxy.rs"]
 mod proxy;
 
 use std::net::TcpListener;
