@@ -94,6 +94,9 @@ pub fn listen_to_connect(t: &Transport) -> Transport {
 }
 
 /// One side of the exchange on the chosen transport.
+// One endpoint per process, on the loop's stack: a box would only add an indirection to
+// every message (iceoryx2's ports are large, Zenoh's handles small).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug)]
 pub enum Endpoint<Tx: Message, Rx: Message> {
     /// iceoryx2.

@@ -250,6 +250,8 @@ fn the_zenoh_exchange_allocates_only_in_zenoh() {
         all as f64 / n as f64
     );
     assert_eq!((own.1, own.3), (0, 0), "receiving is a ring pop");
+    // zenoh 1.10's `put`: two allocations (the payload's buffer and its shared handle).
+    assert_eq!((own.0, own.2), (2 * n, 2 * n), "allocations of the two publications");
     assert_eq!(plant.malformed() + control.malformed(), 0);
 }
 
