@@ -15,7 +15,8 @@
 //!   [`machine`], [`process`] (children and signals), [`lock`] (one process per role and demo
 //!   name) — `rt`, `process` and `lock` hold the crate's only `unsafe` (plain libc calls);
 //! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
-//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2);
+//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2), `zenoh_link` (Zenoh over
+//!   TCP, cargo feature `zenoh`), [`transport`] (`--transport`: the endpoint of either);
 //! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
 //!   `control`), [`latency`] (`companion latency`);
 //! - many runs: [`trial`] (one run without files), [`knobs`] (the parameters that are
@@ -45,6 +46,9 @@ pub mod rt;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod transport;
 pub mod trial;
 pub mod tune;
 pub mod wire;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_link;

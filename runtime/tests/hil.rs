@@ -714,3 +714,7 @@ fn two_demos_with_one_name_started_at_once_never_cross() {
         }
     }
 }
+/// The same demo over Zenoh (cargo feature `zenoh`).
+#[cfg(feature = "zenoh")]
+#[path = "hil/over_zenoh.rs"]
+mod over_zenoh;

@@ -31,6 +31,9 @@ use companion_runtime::wire::{
 
 struct Counting;
 
+/// Allocations by every thread of the process (Zenoh receives on threads of its own).
+static ALL_THREADS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 thread_local! {
     // Per thread: the tests run in parallel.
     static COUNTING: Cell<bool> = const { Cell::new(false) };
@@ -40,6 +43,7 @@ thread_local! {
 }
 
 fn count_one() {
+    ALL_THREADS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     if COUNTING.with(Cell::get) {
         ALLOCATIONS.with(|n| n.set(n.get() + 1));
     }
@@ -262,6 +266,80 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
         "the controller's loop allocated {n_control} times in {} answers ({build} to build the law at the handshake)",
         stats.answered
     );
+}
+
+/// The Zenoh exchange (feature `zenoh`), measured rather than assumed: receiving is a pop from
+/// the preallocated ring (nothing), but Zenoh allocates to publish and, on its own threads,
+/// to deliver. The counts asserted are the ones measured with zenoh 1.10 (a change in them is
+/// a change worth seeing).
+#[cfg(feature = "zenoh")]
+#[test]
+fn the_zenoh_exchange_allocates_only_in_zenoh() {
+    use std::sync::atomic::Ordering;
+
+    use companion_runtime::ipc::Role;
+    use companion_runtime::zenoh_link::{TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant};
+
+    let name = format!("noalloc-zenoh-{}", std::process::id());
+    let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
+    let ep = TcpEndpoint::parse(&format!("tcp/127.0.0.1:{port}")).unwrap();
+    let mut plant = ZenohPlant::open(&name, Role::Plant, ZenohLink::Listen(ep.clone())).unwrap();
+    let mut control = ZenohControl::open(&name, Role::Control, ZenohLink::Connect(ep)).unwrap();
+    plant.wait_for_peer(Duration::from_secs(10), || None).unwrap();
+    control.wait_for_peer(Duration::from_secs(10), || None).unwrap();
+    let m = measurement(0, 0);
+    let diag = LoggedDiagnostics::IDLE;
+    let c = CommandMsg::answer::<3>(&m, &command_header(), &companion_core::Command::zero(), None, &diag);
+    let wait = |f: &mut dyn FnMut() -> bool| {
+        let end = std::time::Instant::now() + Duration::from_secs(5);
+        while !f() {
+            assert!(std::time::Instant::now() < end, "no message within 5 s");
+            std::thread::yield_now();
+        }
+    };
+    let cycle = |plant: &mut ZenohPlant, control: &mut ZenohControl| -> (u64, u64, u64, u64) {
+        let (a, ()) = allocations_in(|| plant.send(&m).unwrap());
+        let mut got = None;
+        let mut b = 0;
+        wait(&mut || {
+            let (k, r) = allocations_in(|| control.try_receive());
+            b += k;
+            got = r;
+            got.is_some()
+        });
+        let (d, ()) = allocations_in(|| control.send(&c).unwrap());
+        let mut e = 0;
+        wait(&mut || {
+            let (k, r) = allocations_in(|| plant.try_receive());
+            e += k;
+            r.is_some()
+        });
+        (a, b, d, e)
+    };
+    for _ in 0..500 {
+        cycle(&mut plant, &mut control);
+    }
+    let n = 5_000u64;
+    let before = ALL_THREADS.load(Ordering::Relaxed);
+    let mut own = (0, 0, 0, 0);
+    for _ in 0..n {
+        let (a, b, d, e) = cycle(&mut plant, &mut control);
+        own = (own.0 + a, own.1 + b, own.2 + d, own.3 + e);
+    }
+    let all = ALL_THREADS.load(Ordering::Relaxed) - before;
+    println!(
+        "zenoh, per exchange of one measurement and one command: publish {} + {}, receive {} + {} \
+         allocations on the loop's thread; {:.1} in the whole process (Zenoh's threads included)",
+        own.0 as f64 / n as f64,
+        own.2 as f64 / n as f64,
+        own.1 as f64 / n as f64,
+        own.3 as f64 / n as f64,
+        all as f64 / n as f64
+    );
+    assert_eq!((own.1, own.3), (0, 0), "receiving is a ring pop");
+    // zenoh 1.10's `put`: two allocations (the payload's buffer and its shared handle).
+    assert_eq!((own.0, own.2), (2 * n, 2 * n), "allocations of the two publications");
+    assert_eq!(plant.malformed() + control.malformed(), 0);
 }
 
 /// A link whose controller answers at once, in process.

@@ -25,6 +25,7 @@ use companion_runtime::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRA
 use companion_runtime::record::Failure;
 use companion_runtime::scenario::{short, Scenario};
 use companion_runtime::signals::termination_requested;
+use companion_runtime::transport::{self, Transport};
 
 use super::args::ScenarioArgs;
 use super::exit::{
@@ -77,6 +78,15 @@ impl From<WaitMode> for WaitArg {
 const MAX_PEER_TIMEOUT_S: f64 = 3600.0;
 /// The longest `--startup-timeout` (s).
 const MAX_STARTUP_TIMEOUT_S: f64 = 86_400.0;
+
+/// `--transport`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum TransportArg {
+    /// iceoryx2 shared memory: both roles on one machine.
+    Iceoryx2,
+    /// Zenoh over TCP: the roles on one machine or two (a build with `--features zenoh`).
+    Zenoh,
+}
 
 /// Flags of `companion hil`, `companion plant` and `companion control` (one set, so that the
 /// demo can hand its own flags to the plant it starts; each role uses the flags it needs).
@@ -147,6 +157,20 @@ pub struct HilArgs {
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// The transport between the two roles: iceoryx2 shared memory on one machine, or Zenoh
+    /// over TCP across machines (`companion plant --transport zenoh --listen tcp/ADDR:PORT`,
+    /// `companion control --transport zenoh --connect tcp/ADDR:PORT`; `companion hil` picks a
+    /// free local port). Zenoh needs a build with `--features zenoh`.
+    #[arg(long, value_enum, default_value = "iceoryx2")]
+    pub transport: TransportArg,
+    /// Zenoh: listen on this endpoint, tcp/ADDR:PORT (usually the plant; 0.0.0.0 for every
+    /// interface).
+    #[arg(long, value_name = "tcp/ADDR:PORT")]
+    pub listen: Option<String>,
+    /// Zenoh: connect to this endpoint, tcp/ADDR:PORT (usually the controller; retried until
+    /// the peer listens, up to --startup-timeout).
+    #[arg(long, value_name = "tcp/ADDR:PORT")]
+    pub connect: Option<String>,
     /// Lockstep only: the plant simulates a pure delay between a measurement and the moment
     /// its command takes effect (s, 0 to 8 periods and at most the law's max_delay), and
     /// announces it to the controller — the same run as `companion sim --delay`. In real
@@ -263,6 +287,13 @@ impl HilArgs {
                 Some(ChaosConfig { seed, epoch_ns: epoch.unwrap_or(0) })
             }
         };
+        let transport = match self.transport {
+            TransportArg::Iceoryx2 if self.listen.is_some() || self.connect.is_some() => {
+                bail!("--listen and --connect are endpoints of --transport zenoh")
+            }
+            TransportArg::Iceoryx2 => Transport::Iceoryx2,
+            TransportArg::Zenoh => transport::zenoh(self.listen.as_deref(), self.connect.as_deref())?,
+        };
         let cfg = HilConfig {
             name: self.name.clone(),
             out: self.out.clone(),
@@ -272,6 +303,7 @@ impl HilArgs {
             no_plots: self.no_plots,
             acceptance,
             chaos,
+            transport,
         };
         Ok((cfg, s))
     }
@@ -396,7 +428,20 @@ fn code_of(st: Option<ExitStatus>) -> u8 {
 /// A bad flag, or the plant could not be started.
 pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
-    let (mut cfg, s) = a.resolve()?;
+    if a.connect.is_some() {
+        bail!(
+            "companion hil runs both roles: give the plant's --listen endpoint (or none: a free local port)"
+        );
+    }
+    // Zenoh on one machine: the plant listens on a free local port unless told where.
+    let picked = (a.transport == TransportArg::Zenoh && a.listen.is_none())
+        .then(transport::free_local_endpoint)
+        .transpose()?;
+    let mut own = a.clone();
+    if let Some(ep) = &picked {
+        own.listen = Some(ep.clone());
+    }
+    let (mut cfg, s) = own.resolve()?;
     let inject = a.injections()?;
     if a.child {
         bail!("--child is for the plant that `companion hil` starts");
@@ -414,15 +459,25 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         Ok(l) => l,
         Err(e) => return name_in_use_or(e),
     };
-    let iox = ipc::config()?;
-    for role in [Role::Control, Role::Plant] {
-        if let Err(e) = ipc::ensure_name_free(&iox, &cfg.name, role) {
-            return name_in_use_or(e);
+    if cfg.transport == Transport::Iceoryx2 {
+        let iox = ipc::config()?;
+        for role in [Role::Control, Role::Plant] {
+            if let Err(e) = ipc::ensure_name_free(&iox, &cfg.name, role) {
+                return name_in_use_or(e);
+            }
         }
+    } else {
+        // The controller connects where the plant listens.
+        cfg.transport = transport::listen_to_connect(&cfg.transport);
     }
     let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
     let mut plant = Process::new(&exe);
-    plant.arg("plant").args(forwarded_args()).arg("--child").stdin(Stdio::null());
+    plant
+        .arg("plant")
+        .args(forwarded_args())
+        .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
+        .arg("--child")
+        .stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {
         // The faults count from a second from now in both processes.
         c.epoch_ns = companion_runtime::rt::monotonic_ns() + 1_000_000_000;
@@ -586,10 +641,11 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         Err(e) => return name_in_use_or(e),
     };
     eprintln!(
-        "controller: demo '{}' waiting for its plant (companion plant --name {}); protocol version {}, services {}, \
-         scenario hash {:#018x}",
+        "controller: demo '{}' waiting for its plant (companion plant --name {}) over {}; protocol version {}, \
+         services {}, scenario hash {:#018x}",
         cfg.name,
         cfg.name,
+        cfg.transport.describe(),
         companion_runtime::wire::PROTOCOL_VERSION,
         ipc::service_name(&cfg.name, "{measurement,command}"),
         companion_runtime::hil::handshake::controller_hash(&s.controller)

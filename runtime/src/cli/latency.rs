@@ -86,14 +86,15 @@ fn transport(s: &str) -> Result<Transport, String> {
         "iox-spin" => Ok(Transport::IoxSpin),
         "iox-event" => Ok(Transport::IoxEvent),
         "uds" => Ok(Transport::Uds),
-        _ => Err(format!("unknown transport {s:?} (iox-spin, iox-event, uds)")),
+        "zenoh" => Ok(Transport::Zenoh),
+        _ => Err(format!("unknown transport {s:?} (iox-spin, iox-event, uds, zenoh)")),
     }
 }
 
 /// Flags of the hidden `latency-peer` subcommand (the echoing side).
 #[derive(Args, Clone, Debug)]
 pub struct PeerArgs {
-    /// The transport: iox-spin, iox-event or uds.
+    /// The transport: iox-spin, iox-event, uds or zenoh.
     #[arg(long, value_parser = transport)]
     pub transport: Transport,
     /// The iceoryx2 demo name.
@@ -102,6 +103,9 @@ pub struct PeerArgs {
     /// The folder of the sockets (uds).
     #[arg(long)]
     pub socket_dir: Option<PathBuf>,
+    /// The endpoint to connect to (zenoh).
+    #[arg(long)]
+    pub endpoint: Option<String>,
     /// Real-time setup, pinned to this CPU.
     #[arg(long, allow_hyphen_values = true)]
     pub rt_cpu: Option<usize>,
@@ -120,6 +124,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
         transport: a.transport,
         name: a.name.clone(),
         socket_dir: a.socket_dir.clone(),
+        endpoint: a.endpoint.clone(),
         rt_cpu: a.rt_cpu,
     };
     peer(&opts, &Terminal::lines())

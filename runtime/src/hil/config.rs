@@ -123,6 +123,8 @@ pub struct HilConfig {
     pub acceptance: Acceptance,
     /// `--chaos SEED`: faults injected on purpose (see [`super::chaos`]).
     pub chaos: Option<ChaosConfig>,
+    /// The transport (iceoryx2 unless `--transport zenoh`).
+    pub transport: crate::transport::Transport,
 }
 
 /// A chaos run's seed and the time its faults count from.

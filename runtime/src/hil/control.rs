@@ -19,12 +19,13 @@ use super::serve::{serve, ServeOptions};
 use super::stats::ControlStats;
 use crate::clock::MonotonicClock;
 use crate::histogram::fmt_ns;
-use crate::ipc::{ControlEndpoint, Role};
+use crate::ipc::Role;
 use crate::lock::NameLock;
 use crate::observe::Observer;
 use crate::process::{exit_text, send_signal, ChildGuard, Signal};
 use crate::scenario::Scenario;
 use crate::signals::termination_requested;
+use crate::transport::{self, ControlEndpoint};
 
 /// How long the controller waits for the plant to read its last message.
 const LINGER: Duration = Duration::from_secs(1);
@@ -82,7 +83,8 @@ pub fn session(
 ) -> Result<Session> {
     debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
     let opt = serve_options(cfg, s);
-    let ep = ControlEndpoint::control(&cfg.name, cfg.timing.wait.uses_events())?;
+    let ep: ControlEndpoint =
+        transport::open(&cfg.transport, &cfg.name, Role::Control, cfg.timing.wait.uses_events())?;
     ep.wait_for_peer(cfg.startup_timeout, abort)?;
     let rt = cfg.rt_config(Role::Control).map(|c| crate::rt::apply(&c));
     if let Some(w) = rt.as_ref().and_then(|r| r.warning("controller")) {
@@ -107,6 +109,10 @@ pub fn session(
     // before this process exits and its samples with it.
     if matches!(&r, Ok(ControlEnd::EndOfRun)) || r.as_ref().is_err_and(|e| e.is::<super::serve::Refused>()) {
         ep.linger(LINGER);
+    }
+    let dropped = ep.transport_malformed();
+    if dropped > 0 {
+        observer.warn(&format!("controller: {dropped} messages of the wrong size dropped by the transport"));
     }
     let end = r?;
     if matches!(end, ControlEnd::PlantDied { .. }) {

@@ -14,13 +14,15 @@ use super::plant_loop::{run_real_time, Lockstep, Lost, PlantSide};
 use super::report::{self, LatencyReport};
 use super::stats::{LiveFigures, PlantStats};
 use crate::clock::MonotonicClock;
-use crate::ipc::{PlantEndpoint, Role};
+use crate::ipc::Role;
+use crate::link::Link as _;
 use crate::lock::NameLock;
 use crate::observe::Observer;
 use crate::record::verdict::{deadline_failures, rejection_failure, DeadlineFigures};
 use crate::record::{write_summary, LogItem, OutputDir, RecordWriter, Recorder, Row, RowSink, RunOutcome};
 use crate::scenario::Scenario;
 use crate::sim::{self, LoopEnd};
+use crate::transport::{self, PlantEndpoint};
 use crate::wire::{flags, platform};
 
 /// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
@@ -89,7 +91,8 @@ pub fn run(
     let mut plant = sim::build_plant(s)?;
     let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
-    let mut ep = PlantEndpoint::plant(&cfg.name, timing.wait.uses_events())?;
+    let mut ep: PlantEndpoint =
+        transport::open(&cfg.transport, &cfg.name, Role::Plant, timing.wait.uses_events())?;
     let mut announced = if timing.lockstep { flags::LOCKSTEP } else { 0 };
     if ep.notifies() {
         announced |= flags::NOTIFIES;
@@ -106,8 +109,11 @@ pub fn run(
     let out = OutputDir::prepare(&cfg.out)?;
     let steps = s.steps();
     observer.note(&format!(
-        "plant: demo '{}' waiting for its controller (companion control --name {}); scenario hash {:#018x}",
-        cfg.name, cfg.name, stamp.scenario_hash
+        "plant: demo '{}' waiting for its controller (companion control --name {}) over {}; scenario hash {:#018x}",
+        cfg.name,
+        cfg.name,
+        cfg.transport.describe(),
+        stamp.scenario_hash
     ));
     if let Err(e) = ep.wait_for_peer(cfg.startup_timeout, || None) {
         out.discard();
@@ -189,6 +195,10 @@ pub fn run(
         }
     }
     live.finish();
+    let dropped = ep.transport_malformed();
+    if dropped > 0 {
+        observer.warn(&format!("plant: {dropped} messages of the wrong size dropped by the transport"));
+    }
     if stats.event_fallback {
         observer.warn(
             "the controller does not notify command-ready (flag NOTIFIES clear): the plant polled (hybrid) \

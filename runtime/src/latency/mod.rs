@@ -9,7 +9,8 @@
 //!    HIL's rate: caches and predictors cool between exchanges), and the same with the event
 //!    service;
 //! 3. a Unix-domain datagram socket ping-pong with blocking receives — what a user would
-//!    otherwise pick;
+//!    otherwise pick — and, in a build with the `zenoh` feature, a Zenoh ping-pong over
+//!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's);
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
@@ -22,6 +23,8 @@
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
 pub mod pingpong;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
 
 use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
@@ -318,6 +321,14 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     let uds = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    #[cfg(feature = "zenoh")]
+    let zenoh_p50 = {
+        observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
+        let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, observer)?;
+        let p50 = z.percentiles().p50;
+        push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
+        p50
+    };
     let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
     let mut hil = Vec::new();
     let load_threads = crate::rt::online_cpus();
@@ -354,6 +365,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         ("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)),
         ("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)),
     ];
+    #[cfg(feature = "zenoh")]
+    ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
     for (mode, _, f) in hil.iter().filter(|h| h.1 == Load::Idle) {
         ratios.push((
             format!("HIL {} / iceoryx2 busy-poll", mode.as_str()),
@@ -433,6 +446,7 @@ mod tests {
             no_plots: true,
             acceptance: crate::record::Acceptance::default(),
             chaos: None,
+            transport: crate::transport::Transport::Iceoryx2,
         };
         let mut st = PlantStats { cycles: 7, deadline_misses: 2, ..PlantStats::default() };
         st.round_trip.record(5_000);

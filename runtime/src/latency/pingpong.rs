@@ -38,6 +38,9 @@ pub enum Transport {
     IoxEvent,
     /// Unix-domain datagram socket, blocking.
     Uds,
+    /// Zenoh over loopback TCP, both sides sleeping until the message arrives (a build with
+    /// the `zenoh` feature).
+    Zenoh,
 }
 
 impl Transport {
@@ -47,6 +50,7 @@ impl Transport {
             Self::IoxSpin => "iox-spin",
             Self::IoxEvent => "iox-event",
             Self::Uds => "uds",
+            Self::Zenoh => "zenoh",
         }
     }
 }
@@ -60,11 +64,13 @@ pub struct PeerOptions {
     pub name: String,
     /// The folder of the sockets (uds).
     pub socket_dir: Option<PathBuf>,
+    /// The endpoint to connect to (zenoh).
+    pub endpoint: Option<String>,
     /// Real-time setup, pinned to this CPU.
     pub rt_cpu: Option<usize>,
 }
 
-fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
+pub(super) fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
     let diag = LoggedDiagnostics::IDLE;
     let identity =
         ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 1.0 };
@@ -72,7 +78,7 @@ fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
     CommandMsg::answer::<3>(m, &header, &Command::zero(), None, &diag)
 }
 
-fn ping(seq: u64, last: bool) -> MeasurementMsg {
+pub(super) fn ping(seq: u64, last: bool) -> MeasurementMsg {
     let m = companion_core::Measurement::<f64, 3> {
         t: 0.0,
         base: companion_core::Pose::new(0.0, 0.0, 0.0),
@@ -110,6 +116,13 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
             let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
             peer_uds(dir)
         }
+        #[cfg(feature = "zenoh")]
+        Transport::Zenoh => {
+            let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
+            super::zenoh::peer(&a.name, ep)
+        }
+        #[cfg(not(feature = "zenoh"))]
+        Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),
     }
 }
 
@@ -163,7 +176,7 @@ fn peer_uds(dir: &Path) -> Result<()> {
     }
 }
 
-fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
+pub(super) fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
     let child = Process::new(exe)
         .arg("latency-peer")
         .args(args)

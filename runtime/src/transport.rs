@@ -1,0 +1,234 @@
+//! Which transport a HIL role uses (`--transport`), and the one endpoint type the two
+//! processes open: iceoryx2 shared memory on one machine ([`crate::ipc`], the default), or
+//! Zenoh over TCP across machines ([`crate::zenoh_link`], built with the cargo feature
+//! `zenoh`). Both carry the same wire messages under the same policies; the loops see only
+//! [`Link`].
+
+use std::time::Duration;
+
+use anyhow::{bail, Result};
+
+use crate::ipc::{self, Role};
+use crate::link::{Link, PeerState};
+use crate::wire::{CommandMsg, MeasurementMsg, WireMessage};
+use zerocopy::{FromBytes, Immutable, IntoBytes};
+
+/// How this program was told to build when it lacks the Zenoh transport.
+pub const BUILD_WITH_ZENOH: &str =
+    "this companion was built without the Zenoh transport; rebuild it with `cargo build --release -p \
+     companion-runtime --features zenoh` (or `cargo install --path runtime --features zenoh`)";
+
+/// A wire message as both transports carry it: an iceoryx2 payload and plain bytes.
+pub trait Message: WireMessage + IntoBytes + FromBytes + Immutable + Send {}
+impl<T: WireMessage + IntoBytes + FromBytes + Immutable + Send> Message for T {}
+
+/// The transport of a HIL run.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub enum Transport {
+    /// iceoryx2 shared memory (one machine).
+    #[default]
+    Iceoryx2,
+    /// Zenoh over TCP: this side listens or connects.
+    #[cfg(feature = "zenoh")]
+    Zenoh(crate::zenoh_link::ZenohLink),
+}
+
+impl Transport {
+    /// `iceoryx2`, or `zenoh (listening on tcp/…)`.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Iceoryx2 => "iceoryx2".into(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(l) => format!("zenoh ({l})"),
+        }
+    }
+}
+
+/// The Zenoh transport from `--listen`/`--connect` (exactly one).
+///
+/// # Errors
+/// Both or neither given, a malformed endpoint, or a build without the feature
+/// ([`BUILD_WITH_ZENOH`]).
+pub fn zenoh(listen: Option<&str>, connect: Option<&str>) -> Result<Transport> {
+    #[cfg(feature = "zenoh")]
+    {
+        use crate::zenoh_link::{TcpEndpoint, ZenohLink};
+        match (listen, connect) {
+            (Some(l), None) => Ok(Transport::Zenoh(ZenohLink::Listen(TcpEndpoint::parse(l)?))),
+            (None, Some(c)) => Ok(Transport::Zenoh(ZenohLink::Connect(TcpEndpoint::parse(c)?))),
+            (Some(_), Some(_)) => bail!("--transport zenoh: give --listen or --connect, not both"),
+            (None, None) => bail!(
+                "--transport zenoh needs an endpoint: --listen tcp/ADDR:PORT (usually the plant) or --connect \
+                 tcp/ADDR:PORT (usually the controller)"
+            ),
+        }
+    }
+    #[cfg(not(feature = "zenoh"))]
+    {
+        let _ = (listen, connect);
+        bail!("--transport zenoh: {BUILD_WITH_ZENOH}")
+    }
+}
+
+/// `tcp/127.0.0.1:PORT` with a port that was free a moment ago (the kernel's pick): where
+/// `companion hil --transport zenoh` lets its plant listen.
+///
+/// # Errors
+/// No local TCP port can be bound.
+pub fn free_local_endpoint() -> Result<String> {
+    let l = std::net::TcpListener::bind(("127.0.0.1", 0))
+        .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?;
+    let port = l.local_addr().map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?.port();
+    Ok(format!("tcp/127.0.0.1:{port}"))
+}
+
+/// The transport that connects where `t` listens (`t` itself otherwise).
+pub fn listen_to_connect(t: &Transport) -> Transport {
+    match t {
+        #[cfg(feature = "zenoh")]
+        Transport::Zenoh(crate::zenoh_link::ZenohLink::Listen(e)) => {
+            Transport::Zenoh(crate::zenoh_link::ZenohLink::Connect(e.clone()))
+        }
+        other => other.clone(),
+    }
+}
+
+/// One side of the exchange on the chosen transport.
+// One endpoint per process, on the loop's stack: a box would only add an indirection to
+// every message (iceoryx2's ports are large, Zenoh's handles small).
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug)]
+pub enum Endpoint<Tx: Message, Rx: Message> {
+    /// iceoryx2.
+    Iceoryx2(ipc::Endpoint<Tx, Rx>),
+    /// Zenoh.
+    #[cfg(feature = "zenoh")]
+    Zenoh(crate::zenoh_link::ZenohEndpoint<Tx, Rx>),
+}
+
+/// The plant's endpoint.
+pub type PlantEndpoint = Endpoint<MeasurementMsg, CommandMsg>;
+/// The controller's endpoint.
+pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
+
+/// Opens `role`'s side of demo `name` on `transport`; `events`: iceoryx2's event services
+/// too (Zenoh always wakes a waiting receiver).
+///
+/// # Errors
+/// As [`ipc::Endpoint::open`] or [`crate::zenoh_link::ZenohEndpoint::open`].
+pub fn open<Tx: Message, Rx: Message>(
+    transport: &Transport,
+    name: &str,
+    role: Role,
+    events: bool,
+) -> Result<Endpoint<Tx, Rx>> {
+    let what = if role == Role::Plant {
+        "opening the plant's transport"
+    } else {
+        "opening the controller's transport"
+    };
+    match transport {
+        Transport::Iceoryx2 => {
+            Ok(Endpoint::Iceoryx2(anyhow::Context::context(ipc::Endpoint::open(name, role, events), what)?))
+        }
+        #[cfg(feature = "zenoh")]
+        Transport::Zenoh(l) => Ok(Endpoint::Zenoh(anyhow::Context::context(
+            crate::zenoh_link::ZenohEndpoint::open(name, role, l.clone()),
+            what,
+        )?)),
+    }
+}
+
+impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
+    /// Waits until the peer is there and hears us (at most `timeout`); `abort` is asked while
+    /// waiting whether to give up.
+    ///
+    /// # Errors
+    /// The timeout passed, a peer of another version waits (iceoryx2), or `abort` said so.
+    pub fn wait_for_peer(&self, timeout: Duration, abort: impl FnMut() -> Option<String>) -> Result<()> {
+        match self {
+            Self::Iceoryx2(e) => e.wait_for_peer(timeout, abort),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.wait_for_peer(timeout, abort),
+        }
+    }
+
+    /// Waits (at most `max`) for the peer to leave after a last message.
+    pub fn linger(&self, max: Duration) {
+        match self {
+            Self::Iceoryx2(e) => e.linger(max),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.linger(max),
+        }
+    }
+
+    /// Removes a dead peer's resources (iceoryx2's shared memory; nothing over Zenoh).
+    pub fn cleanup_dead_nodes(&self) -> u64 {
+        match self {
+            Self::Iceoryx2(e) => e.cleanup_dead_nodes(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(_) => 0,
+        }
+    }
+
+    /// Messages the transport dropped before the loop saw them: Zenoh payloads of the wrong
+    /// size (iceoryx2 checks the type when the service is opened: 0).
+    pub fn transport_malformed(&self) -> u64 {
+        match self {
+            Self::Iceoryx2(_) => 0,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.malformed(),
+        }
+    }
+}
+
+impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
+    type Tx = Tx;
+    type Rx = Rx;
+
+    #[inline]
+    fn publish(&mut self, msg: &Tx) -> Result<()> {
+        match self {
+            Self::Iceoryx2(e) => e.send(msg),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.send(msg),
+        }
+    }
+
+    #[inline]
+    fn try_receive(&mut self) -> Result<Option<Rx>> {
+        match self {
+            Self::Iceoryx2(e) => e.try_receive(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => Ok(crate::zenoh_link::ZenohEndpoint::try_receive(e)),
+        }
+    }
+
+    #[inline]
+    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+        match self {
+            Self::Iceoryx2(e) => e.wait_event(timeout),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => {
+                crate::zenoh_link::ZenohEndpoint::wait_event(e, timeout);
+                Ok(())
+            }
+        }
+    }
+
+    fn peer_state(&mut self) -> Result<PeerState> {
+        match self {
+            Self::Iceoryx2(e) => e.peer_state(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => Ok(crate::zenoh_link::ZenohEndpoint::peer_state(e)),
+        }
+    }
+
+    fn notifies(&self) -> bool {
+        match self {
+            Self::Iceoryx2(e) => e.notifies(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(_) => true,
+        }
+    }
+}

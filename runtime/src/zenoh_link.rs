@@ -1,0 +1,487 @@
+//! The Zenoh transport of the HIL loop (cargo feature `zenoh`): the same two wire messages,
+//! byte for byte, between two processes on one machine or two, over a TCP link.
+//!
+//! ## Endpoints
+//!
+//! One side listens (`--listen tcp/ADDR:PORT`, by default the plant), the other connects
+//! (`--connect tcp/ADDR:PORT`, by default the controller). Both are Zenoh *peers* with
+//! multicast scouting and gossip off: they meet only through the endpoint given, never
+//! another program's Zenoh network. The connecting side retries until its peer listens, so
+//! either may start first; a listening side whose port is taken fails at once.
+//!
+//! ## Key expressions (protocol version 3)
+//!
+//! | key expression | from → to | payload |
+//! |---|---|---|
+//! | `companion/N/v3/measurement` | plant → controller | [`MeasurementMsg::to_bytes`] (232 bytes) |
+//! | `companion/N/v3/command` | controller → plant | [`CommandMsg::to_bytes`] (232 bytes) |
+//! | `companion/N/v3/alive/ROLE/PID` | liveliness token of each side | — |
+//!
+//! (`N` is `--name`.) Publications are express (not batched), priority real time, and dropped
+//! rather than blocked on congestion: a late message is worth less than the next one. A
+//! payload of another size is counted and dropped ([`ZenohEndpoint::malformed`]); its
+//! content is checked by the loops as on every transport ([`crate::wire::check_command`]).
+//!
+//! ## Receiving without allocating in the loop
+//!
+//! Zenoh delivers each sample on one of its own threads to a callback, which copies the bytes
+//! into a preallocated single-producer single-consumer ring ([`RING`] messages; a full ring
+//! drops the newest and counts it) and wakes the loop's thread if it sleeps in
+//! [`ZenohEndpoint::wait_event`] (`thread::park_timeout`: every message wakes its receiver, so
+//! this transport always announces `NOTIFIES`). The loop's `try_receive` is a ring pop. Zenoh
+//! itself allocates per message, on its own threads and in `put` (see the `no_alloc` test for
+//! the measured count).
+//!
+//! ## Liveness
+//!
+//! Each side declares a liveliness token after its subscriber, so seeing the peer's token
+//! means the peer can hear us; [`ZenohEndpoint::wait_for_peer`] waits for it and for our
+//! publisher to match the peer's subscriber. The token disappears when the peer's session
+//! ends — its process exited or was killed (the TCP connection closes at once) or the link
+//! stayed silent past Zenoh's lease (10 s) — and [`ZenohEndpoint::peer_state`] then reports
+//! the peer [`PeerState::Dead`] (across a network a killed process and a cut link look the
+//! same). A peer that stays connected but silent is alive: the loops call it hung after
+//! `--peer-timeout`, as on iceoryx2.
+
+use std::marker::PhantomData;
+use std::sync::atomic::{AtomicI32, AtomicU64, AtomicU8, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::Thread;
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Context, Result};
+use zenoh::sample::SampleKind;
+use zenoh::Wait;
+use zerocopy::{FromBytes, Immutable, IntoBytes};
+
+use crate::ipc::Role;
+use crate::link::{Link, PeerState};
+use crate::wire::{CommandMsg, MeasurementMsg, PROTOCOL_VERSION};
+
+/// Received messages waiting for the loop (allocated once).
+pub const RING: usize = 16;
+
+/// A Zenoh TCP endpoint, `tcp/HOST:PORT`, checked.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TcpEndpoint {
+    /// The host (a name or an address; IPv6 in brackets).
+    pub host: String,
+    /// The port.
+    pub port: u16,
+}
+
+impl TcpEndpoint {
+    /// Parses `tcp/HOST:PORT`.
+    ///
+    /// # Errors
+    /// Another protocol, no host, or no valid port.
+    pub fn parse(s: &str) -> Result<Self> {
+        let Some(rest) = s.strip_prefix("tcp/") else {
+            bail!(
+                "endpoint {s:?}: expected tcp/HOST:PORT, e.g. tcp/192.168.1.20:7447 (only TCP is built in)"
+            );
+        };
+        let Some((host, port)) = rest.rsplit_once(':') else {
+            bail!("endpoint {s:?}: no port; expected tcp/HOST:PORT, e.g. tcp/127.0.0.1:7447");
+        };
+        let port: u16 = port.parse().map_err(|_| {
+            anyhow!(
+                "endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected tcp/HOST:PORT"
+            )
+        })?;
+        let bad_host = host.is_empty()
+            || !host.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._:[]".contains(&b))
+            || host.contains(':') && !(host.starts_with('[') && host.ends_with(']'));
+        if bad_host {
+            bail!("endpoint {s:?}: bad host {host:?}; expected tcp/HOST:PORT (an IPv6 address in brackets)");
+        }
+        Ok(Self { host: host.to_string(), port })
+    }
+}
+
+impl std::fmt::Display for TcpEndpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "tcp/{}:{}", self.host, self.port)
+    }
+}
+
+/// Which way this side's link is set up.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum ZenohLink {
+    /// Listen on the endpoint (the peer connects).
+    Listen(TcpEndpoint),
+    /// Connect to the endpoint (retried until the peer listens).
+    Connect(TcpEndpoint),
+}
+
+impl std::fmt::Display for ZenohLink {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Listen(e) => write!(f, "listening on {e}"),
+            Self::Connect(e) => write!(f, "connecting to {e}"),
+        }
+    }
+}
+
+/// The key expression of `what` in demo `name`: `companion/NAME/v3/WHAT`.
+pub fn key(name: &str, what: &str) -> String {
+    crate::ipc::service_name(name, what)
+}
+
+/// Peer states in [`Shared::peer`] (0: not seen yet).
+const ALIVE: u8 = 1;
+const LOST: u8 = 2;
+
+/// What the Zenoh callbacks and the loop share.
+#[derive(Debug, Default)]
+struct Shared {
+    /// The loop's thread, once it has waited ([`ZenohEndpoint::wait_event`]).
+    waiter: OnceLock<Thread>,
+    /// 0 (not seen yet), [`ALIVE`] or [`LOST`].
+    peer: AtomicU8,
+    /// The peer's process id (from its token's key).
+    peer_pid: AtomicI32,
+    /// Payloads of the wrong size.
+    malformed: AtomicU64,
+    /// Messages dropped on a full ring.
+    overflow: AtomicU64,
+}
+
+impl Shared {
+    fn wake(&self) {
+        if let Some(t) = self.waiter.get() {
+            t.unpark();
+        }
+    }
+}
+
+/// One side of the exchange over Zenoh.
+pub struct ZenohEndpoint<Tx, Rx> {
+    name: String,
+    role: Role,
+    link: ZenohLink,
+    session: zenoh::Session,
+    publisher: zenoh::pubsub::Publisher<'static>,
+    rx: rtrb::Consumer<Rx>,
+    shared: Arc<Shared>,
+    _subscriber: zenoh::pubsub::Subscriber<()>,
+    _liveliness: zenoh::pubsub::Subscriber<()>,
+    _token: zenoh::liveliness::LivelinessToken,
+    _tx: PhantomData<fn(&Tx)>,
+}
+
+impl<Tx, Rx> std::fmt::Debug for ZenohEndpoint<Tx, Rx> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ZenohEndpoint")
+            .field("name", &self.name)
+            .field("role", &self.role)
+            .field("link", &self.link)
+            .finish_non_exhaustive()
+    }
+}
+
+/// The plant's endpoint.
+pub type ZenohPlant = ZenohEndpoint<MeasurementMsg, CommandMsg>;
+/// The controller's endpoint.
+pub type ZenohControl = ZenohEndpoint<CommandMsg, MeasurementMsg>;
+
+fn zerr(e: zenoh::Error) -> anyhow::Error {
+    anyhow!("{e}")
+}
+
+/// The Zenoh configuration of one side: a peer that meets only the given endpoint.
+fn config(link: &ZenohLink) -> Result<zenoh::Config> {
+    let mut c = zenoh::Config::default();
+    let mut set = |k: &str, v: &str| c.insert_json5(k, v).map_err(|e| anyhow!("zenoh config {k} = {v}: {e}"));
+    set("mode", "\"peer\"")?;
+    set("scouting/multicast/enabled", "false")?;
+    set("scouting/gossip/enabled", "false")?;
+    match link {
+        ZenohLink::Listen(e) => {
+            set("listen/endpoints", &format!("[\"{e}\"]"))?;
+            set("listen/exit_on_failure", "true")?;
+        }
+        ZenohLink::Connect(e) => {
+            set("listen/endpoints", "[]")?;
+            set("connect/endpoints", &format!("[\"{e}\"]"))?;
+            // Open at once and keep trying in the background (no timeout, no exit on failure:
+            // zenoh then connects from a task of its own): the peer may start later; the
+            // startup timeout bounds the wait (`wait_for_peer`).
+            set("connect/timeout_ms", "-1")?;
+            set("connect/exit_on_failure", "false")?;
+            set("connect/retry", "{ period_init_ms: 50, period_max_ms: 250, period_increase_factor: 2 }")?;
+        }
+    }
+    Ok(c)
+}
+
+fn own_pid() -> i32 {
+    i32::try_from(std::process::id()).unwrap_or(0)
+}
+
+impl<Tx, Rx> ZenohEndpoint<Tx, Rx>
+where
+    Tx: IntoBytes + Immutable,
+    Rx: FromBytes + Send + 'static,
+{
+    /// Opens `role`'s side of demo `name` over `link`: the session, a subscriber to the
+    /// peer's messages, a publisher of ours, then our liveliness token and a watch on the
+    /// peer's.
+    ///
+    /// # Errors
+    /// A bad name, or Zenoh cannot open the session (e.g. the port to listen on is taken).
+    pub fn open(name: &str, role: Role, link: ZenohLink) -> Result<Self> {
+        crate::ipc::validate_name(name)?;
+        let (tx, rx_what) = match role {
+            Role::Plant => ("measurement", "command"),
+            Role::Control => ("command", "measurement"),
+        };
+        let session = zenoh::open(config(&link)?).wait().map_err(|e| match &link {
+            ZenohLink::Listen(ep) => anyhow!(
+                "cannot listen on {ep}: {e} (is the port in use, or the address not one of this machine's?)"
+            ),
+            ZenohLink::Connect(ep) => anyhow!("cannot open a Zenoh session to {ep}: {e}"),
+        })?;
+        let shared = Arc::new(Shared::default());
+        let (producer, consumer) = rtrb::RingBuffer::<Rx>::new(RING);
+        // Only Zenoh's thread that delivers this subscriber's samples takes the lock.
+        let producer = Mutex::new(producer);
+        let sh = Arc::clone(&shared);
+        let subscriber = session
+            .declare_subscriber(key(name, rx_what))
+            .callback(move |sample: zenoh::sample::Sample| {
+                let bytes = sample.payload().to_bytes();
+                match Rx::read_from_bytes(&bytes) {
+                    Ok(msg) => {
+                        let mut p = producer.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                        if p.push(msg).is_err() {
+                            sh.overflow.fetch_add(1, Ordering::Relaxed);
+                        }
+                        sh.wake();
+                    }
+                    Err(_) => {
+                        sh.malformed.fetch_add(1, Ordering::Relaxed);
+                    }
+                }
+            })
+            .wait()
+            .map_err(zerr)
+            .with_context(|| format!("subscribing to {}", key(name, rx_what)))?;
+        let publisher = session
+            .declare_publisher(key(name, tx))
+            .congestion_control(zenoh::qos::CongestionControl::Drop)
+            .priority(zenoh::qos::Priority::RealTime)
+            .express(true)
+            .wait()
+            .map_err(zerr)
+            .with_context(|| format!("declaring the publisher of {}", key(name, tx)))?;
+        let peer_key = key(name, &format!("alive/{}/*", role.peer().as_str()));
+        let sh = Arc::clone(&shared);
+        let liveliness = session
+            .liveliness()
+            .declare_subscriber(&peer_key)
+            .history(true)
+            .callback(move |sample: zenoh::sample::Sample| match sample.kind() {
+                SampleKind::Put => {
+                    let pid = sample.key_expr().as_str().rsplit('/').next().and_then(|p| p.parse().ok());
+                    sh.peer_pid.store(pid.unwrap_or(0), Ordering::Relaxed);
+                    sh.peer.store(ALIVE, Ordering::Release);
+                    sh.wake();
+                }
+                SampleKind::Delete => {
+                    sh.peer.store(LOST, Ordering::Release);
+                    sh.wake();
+                }
+            })
+            .wait()
+            .map_err(zerr)
+            .with_context(|| format!("watching {peer_key}"))?;
+        let own_key = key(name, &format!("alive/{}/{}", role.as_str(), own_pid()));
+        let token = session
+            .liveliness()
+            .declare_token(&own_key)
+            .wait()
+            .map_err(zerr)
+            .with_context(|| format!("declaring the liveliness token {own_key}"))?;
+        Ok(Self {
+            name: name.to_string(),
+            role,
+            link,
+            session,
+            publisher,
+            rx: consumer,
+            shared,
+            _subscriber: subscriber,
+            _liveliness: liveliness,
+            _token: token,
+            _tx: PhantomData,
+        })
+    }
+
+    /// Publishes one message (its bytes; Zenoh copies them into a buffer of its own).
+    ///
+    /// # Errors
+    /// A Zenoh failure.
+    #[inline]
+    pub fn send(&self, msg: &Tx) -> Result<()> {
+        self.publisher.put(msg.as_bytes()).wait().map_err(|e| anyhow!("zenoh put: {e}"))
+    }
+
+    /// Takes the oldest waiting message, if any.
+    #[inline]
+    pub fn try_receive(&mut self) -> Option<Rx> {
+        self.rx.pop().ok()
+    }
+
+    /// Sleeps until a message arrives, the peer's liveliness changes, or `timeout` passes.
+    #[inline]
+    pub fn wait_event(&self, timeout: Duration) {
+        let _ = self.shared.waiter.get_or_init(std::thread::current);
+        if self.rx.is_empty() {
+            std::thread::park_timeout(timeout);
+        }
+    }
+
+    /// The peer's state, from its liveliness token: [`PeerState::Alive`] while it exists,
+    /// [`PeerState::Dead`] once it disappeared, [`PeerState::Absent`] before it was seen.
+    pub fn peer_state(&self) -> PeerState {
+        let pid = self.shared.peer_pid.load(Ordering::Relaxed);
+        match self.shared.peer.load(Ordering::Acquire) {
+            ALIVE => PeerState::Alive(pid),
+            LOST => PeerState::Dead(pid),
+            _ => PeerState::Absent,
+        }
+    }
+
+    /// Payloads of the wrong size received so far (dropped).
+    pub fn malformed(&self) -> u64 {
+        self.shared.malformed.load(Ordering::Relaxed)
+    }
+
+    /// Messages dropped because the loop had not taken the [`RING`] before them.
+    pub fn overflow(&self) -> u64 {
+        self.shared.overflow.load(Ordering::Relaxed)
+    }
+
+    /// Whether the peer is there and hears us: its token is seen and our publisher matches
+    /// its subscriber.
+    pub fn peer_connected(&self) -> bool {
+        self.shared.peer.load(Ordering::Acquire) == ALIVE
+            && self.publisher.matching_status().wait().is_ok_and(|m| m.matching())
+    }
+
+    /// Waits until [`ZenohEndpoint::peer_connected`], polling every millisecond; `abort` is
+    /// asked each time whether to give up.
+    ///
+    /// # Errors
+    /// The timeout passed (the message names the endpoint), or `abort` said so.
+    pub fn wait_for_peer(&self, timeout: Duration, mut abort: impl FnMut() -> Option<String>) -> Result<()> {
+        let start = Instant::now();
+        while !self.peer_connected() {
+            if let Some(why) = abort() {
+                return Err(anyhow!("{why}"));
+            }
+            if crate::signals::termination_requested() {
+                return Err(anyhow!("interrupted while waiting for the {}", self.role.peer().as_str()));
+            }
+            if start.elapsed() > timeout {
+                let peer = self.role.peer().as_str();
+                let hint = match &self.link {
+                    ZenohLink::Connect(e) => format!(
+                        "nothing answered at {e} (is `companion {peer} --transport zenoh --listen {e} --name {}` \
+                         running, and the address reachable from here?)",
+                        self.name
+                    ),
+                    ZenohLink::Listen(e) => format!(
+                        "nobody connected to {e} (start `companion {peer} --transport zenoh --connect {e} --name {}`)",
+                        self.name
+                    ),
+                };
+                return Err(anyhow!(
+                    "no {peer} joined demo '{}' over Zenoh within {:.0} s: {hint}; key expressions {} and {}, \
+                     protocol version {PROTOCOL_VERSION}",
+                    self.name,
+                    timeout.as_secs_f64(),
+                    key(&self.name, "measurement"),
+                    key(&self.name, "command"),
+                ));
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        Ok(())
+    }
+
+    /// Waits (at most `max`) until the peer's token has gone: after a last message, so that
+    /// the peer reads it before this session closes.
+    pub fn linger(&self, max: Duration) {
+        let end = Instant::now() + max;
+        while self.shared.peer.load(Ordering::Acquire) == ALIVE && Instant::now() < end {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// The Zenoh session id of this side (for messages).
+    pub fn zid(&self) -> String {
+        self.session.zid().to_string()
+    }
+}
+
+impl<Tx, Rx> Link for ZenohEndpoint<Tx, Rx>
+where
+    Tx: IntoBytes + Immutable + Copy,
+    Rx: FromBytes + Send + Copy + 'static,
+{
+    type Tx = Tx;
+    type Rx = Rx;
+
+    #[inline]
+    fn publish(&mut self, msg: &Tx) -> Result<()> {
+        self.send(msg)
+    }
+
+    #[inline]
+    fn try_receive(&mut self) -> Result<Option<Rx>> {
+        Ok(ZenohEndpoint::try_receive(self))
+    }
+
+    #[inline]
+    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+        ZenohEndpoint::wait_event(self, timeout);
+        Ok(())
+    }
+
+    fn peer_state(&mut self) -> Result<PeerState> {
+        Ok(ZenohEndpoint::peer_state(self))
+    }
+
+    fn notifies(&self) -> bool {
+        true
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoints_are_checked() {
+        assert_eq!(
+            TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap(),
+            TcpEndpoint { host: "127.0.0.1".into(), port: 7447 }
+        );
+        assert_eq!(TcpEndpoint::parse("tcp/robot-1.local:0").unwrap().port, 0);
+        assert_eq!(TcpEndpoint::parse("tcp/[::1]:7447").unwrap().to_string(), "tcp/[::1]:7447");
+        for bad in [
+            "127.0.0.1:7447",
+            "udp/1.2.3.4:5",
+            "tcp/1.2.3.4",
+            "tcp/:7447",
+            "tcp/h:99999",
+            "tcp/h:x",
+            "tcp/::1:5",
+        ] {
+            let e = TcpEndpoint::parse(bad).unwrap_err().to_string();
+            assert!(e.contains("tcp/HOST:PORT") || e.contains("port"), "{bad}: {e}");
+        }
+    }
+}
