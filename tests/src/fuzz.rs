@@ -55,7 +55,7 @@ fn in_domain(
     f32_law: bool,
 ) -> Result<(), String> {
     let distance = (m.base.x - m.target.x).hypot(m.base.y - m.target.y);
-    if f32_law && !(distance < F32_REACH) {
+    if f32_law && (distance.is_nan() || distance >= F32_REACH) {
         return Err(format!("f32 law {distance:.0} m from the target"));
     }
     for i in 0..JOINTS {
