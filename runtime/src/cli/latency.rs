@@ -5,7 +5,8 @@ use std::path::PathBuf;
 use anyhow::{anyhow, Result};
 use clap::Args;
 use companion_runtime::histogram::fmt_ns;
-use companion_runtime::latency::pingpong::{run_peer as peer, PeerOptions, Transport};
+use companion_runtime::latency::pingpong::{PeerOptions, Transport};
+use companion_runtime::latency::run_peer as peer;
 use companion_runtime::latency::{Benchmark, LatencyOptions, Load};
 
 use super::hil::WaitArg;

@@ -97,9 +97,10 @@ pub fn run(args: &TuneArgs) -> Result<()> {
     let space = space.transpose()?;
     let tuning = Tuning::new(runs, space.as_ref(), args.budget, sc.seed)?;
     let term = Terminal::bar_of(args.budget as u64, "candidates", args.quiet);
-    let report = tuning.run(&term)?;
+    let candidates = tuning.run(&term)?;
     term.finish();
-    tune::write(&args.out, &tuning, &report)?;
+    let report = tune::report::TuneReport::new(&tuning, candidates);
+    tune::report::write(&args.out, &tuning, &report)?;
     match report.best() {
         Some(b) => {
             let values: Vec<String> =

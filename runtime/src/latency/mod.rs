@@ -29,18 +29,19 @@ pub mod zenoh;
 use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use serde::{Deserialize, Serialize};
 
-use self::pingpong::RtScope;
+use self::pingpong::{PeerOptions, RtScope, Transport};
 use crate::clock::{Clock, MonotonicClock};
 use crate::controller::{platform_name, AnyController, Scalar};
 use crate::hil::WaitMode;
 use crate::histogram::{fmt_ns, LatencyHistogram, Percentiles};
 use crate::machine::Machine;
 use crate::observe::Observer;
+use crate::rt;
 use crate::scenario::{Scenario, ScenarioError};
 
 /// What `companion latency` measures.
@@ -413,6 +414,35 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         observer.warn(&format!("plot: {e:#}"));
     }
     Ok(bench)
+}
+
+/// The hidden `latency-peer` subcommand: echoes until the end-of-run flag (or until the parent
+/// is gone).
+///
+/// # Errors
+/// A transport failure.
+pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
+    if let Some(cpu) = a.rt_cpu {
+        if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency peer") {
+            observer.warn(&w);
+        }
+    }
+    match a.transport {
+        Transport::IoxSpin | Transport::IoxEvent => {
+            pingpong::peer_iox(&a.name, a.transport == Transport::IoxEvent)
+        }
+        Transport::Uds => {
+            let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
+            pingpong::peer_uds(dir)
+        }
+        #[cfg(feature = "zenoh")]
+        Transport::Zenoh => {
+            let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
+            zenoh::peer(&a.name, ep)
+        }
+        #[cfg(not(feature = "zenoh"))]
+        Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),
+    }
 }
 
 #[cfg(test)]

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
 use std::time::Duration;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use companion_core::Command;
 
 use crate::histogram::LatencyHistogram;
@@ -99,34 +99,7 @@ pub(super) fn ping(seq: u64, last: bool) -> MeasurementMsg {
     MeasurementMsg::new(header, &m)
 }
 
-/// The hidden `latency-peer` subcommand: echoes until the end-of-run flag (or until the parent
-/// is gone).
-///
-/// # Errors
-/// A transport failure.
-pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
-    if let Some(cpu) = a.rt_cpu {
-        if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency peer") {
-            observer.warn(&w);
-        }
-    }
-    match a.transport {
-        Transport::IoxSpin | Transport::IoxEvent => peer_iox(&a.name, a.transport == Transport::IoxEvent),
-        Transport::Uds => {
-            let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
-            peer_uds(dir)
-        }
-        #[cfg(feature = "zenoh")]
-        Transport::Zenoh => {
-            let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
-            super::zenoh::peer(&a.name, ep)
-        }
-        #[cfg(not(feature = "zenoh"))]
-        Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),
-    }
-}
-
-fn peer_iox(name: &str, events: bool) -> Result<()> {
+pub(super) fn peer_iox(name: &str, events: bool) -> Result<()> {
     let mut ep = ControlEndpoint::control(name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
@@ -155,7 +128,7 @@ fn peer_iox(name: &str, events: bool) -> Result<()> {
     }
 }
 
-fn peer_uds(dir: &Path) -> Result<()> {
+pub(super) fn peer_uds(dir: &Path) -> Result<()> {
     let me = dir.join("peer.sock");
     let sock = UnixDatagram::bind(&me).with_context(|| format!("binding {}", me.display()))?;
     sock.connect(dir.join("bench.sock")).context("connecting to the benchmark's socket")?;

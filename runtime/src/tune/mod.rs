@@ -35,13 +35,12 @@
 //! optimisation library with a standard Nelder–Mead; its particle swarm would spend a budget
 //! of a few hundred runs on tens of particles without refining.
 
-mod report;
+pub mod report;
 
 use std::collections::HashMap;
-use std::path::Path;
 use std::sync::Mutex;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use argmin::core::{CostFunction, Error as ArgminError, Executor};
 use argmin::solver::neldermead::NelderMead;
 use companion_core::PlatformKind;
@@ -50,7 +49,6 @@ use rand::{Rng as _, SeedableRng};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-pub use self::report::TuneReport;
 use crate::knobs::{self, Knob};
 use crate::observe::Observer;
 use crate::record::Summary;
@@ -290,7 +288,7 @@ impl Tuning {
     ///
     /// # Errors
     /// The optimiser failed for a reason other than the budget.
-    pub fn run(&self, observer: &dyn Observer) -> Result<TuneReport> {
+    pub fn run(&self, observer: &dyn Observer) -> Result<Vec<Candidate>> {
         let archive = Mutex::new(Vec::<Candidate>::new());
         let push = |c: Candidate| -> Result<Candidate> {
             observer.advance(1);
@@ -359,7 +357,7 @@ impl Tuning {
             }
         }
         let candidates = archive.into_inner().map_err(|_| anyhow!("lock poisoned"))?;
-        Ok(TuneReport::new(self, candidates))
+        Ok(candidates)
     }
 }
 
@@ -470,15 +468,6 @@ impl CostFunction for Problem<'_> {
         self.cache.lock().map_err(|_| anyhow!("lock poisoned"))?.insert(key, cost);
         Ok(cost + outside)
     }
-}
-
-/// Writes the report's files into `out`.
-///
-/// # Errors
-/// A file cannot be written.
-pub fn write(out: &Path, tuning: &Tuning, report: &TuneReport) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    report.write(out, tuning)
 }
 
 #[cfg(test)]

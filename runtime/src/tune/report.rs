@@ -196,3 +196,12 @@ impl TuneReport {
         Ok(())
     }
 }
+
+/// Writes the report's files into `out`.
+///
+/// # Errors
+/// A file cannot be written.
+pub fn write(out: &Path, tuning: &Tuning, report: &TuneReport) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    report.write(out, tuning)
+}

@@ -54,8 +54,8 @@ fn the_search_is_deterministic_and_its_report_consistent() {
     let runs = set(PlatformKind::Unicycle, 2.0);
     let file = space("[parameters]\nepsilon_1 = [0.1, 0.3]\nk_bar_3 = [10.0, 1000.0]");
     let t = Tuning::new(runs, Some(&file), 10, 3).unwrap();
-    let a = t.run(&Silent).unwrap();
-    let b = t.run(&Silent).unwrap();
+    let a = report::TuneReport::new(&t, t.run(&Silent).unwrap());
+    let b = report::TuneReport::new(&t, t.run(&Silent).unwrap());
     assert_eq!(serde_json::to_string(&a).unwrap(), serde_json::to_string(&b).unwrap());
     assert_eq!(a.candidates.len(), 10, "the budget is spent exactly");
     assert_eq!(a.candidates[0].stage, "baseline");
