@@ -20,16 +20,7 @@ pub(crate) fn inverse<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> Option<S
     let mut m = *a;
     let mut inv = SMatrix::<T, N, N>::identity();
     for col in 0..N {
-        // The largest pivot in the column, at or below the diagonal.
-        let mut piv = col;
-        let mut best = m[(col, col)].abs();
-        for r in col + 1..N {
-            let v = m[(r, col)].abs();
-            if v > best {
-                best = v;
-                piv = r;
-            }
-        }
+        let (piv, best) = pivot(&m, col);
         if best <= T::zero() || !best.finite() {
             return None;
         }
@@ -65,15 +56,7 @@ pub(crate) fn determinant<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> T {
     let mut m = *a;
     let mut det = T::one();
     for col in 0..N {
-        let mut piv = col;
-        let mut best = m[(col, col)].abs();
-        for r in col + 1..N {
-            let v = m[(r, col)].abs();
-            if v > best {
-                best = v;
-                piv = r;
-            }
-        }
+        let (piv, best) = pivot(&m, col);
         if best == T::zero() {
             return T::zero();
         }
@@ -93,6 +76,22 @@ pub(crate) fn determinant<T: Real, const N: usize>(a: &SMatrix<T, N, N>) -> T {
         }
     }
     det
+}
+
+/// Partial pivoting: the row of the largest magnitude in column `col`, at or below the
+/// diagonal (the first of equals), and that magnitude.
+#[inline(always)]
+fn pivot<T: Real, const N: usize>(m: &SMatrix<T, N, N>, col: usize) -> (usize, T) {
+    let mut piv = col;
+    let mut best = m[(col, col)].abs();
+    for r in col + 1..N {
+        let v = m[(r, col)].abs();
+        if v > best {
+            best = v;
+            piv = r;
+        }
+    }
+    (piv, best)
 }
 
 #[cfg(test)]
