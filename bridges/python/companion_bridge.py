@@ -760,7 +760,7 @@ class Bridge:
             "v_sign_changes": self.summary.v_sign_changes,
             "max_abs_v": self.summary.max_v,
             "max_abs_omega": self.summary.max_w,
-            "max_ep_norm_after_20s": self.summary.max_ep_after_20,
+            "max_ep_norm_after_20s": self.summary.max_ep_after_20 if self.summary.ep_after_20 else None,
             "median_ep_norm_after_20s": statistics.median(self.summary.ep_after_20) if self.summary.ep_after_20 else None,
             "steps": self.summary.steps,
             "max_joint_scale": self.max_joint_scale,

@@ -87,6 +87,13 @@ fn a_run_writes_csv_summary_and_plots() {
         assert!(summary.get(key).is_some(), "summary.json lacks {key}");
     }
     assert_eq!(summary["steps"], 2001);
+    // A 2 s run has no step after 20 s: its figures "after 20 s" are unknown (null), never 0
+    // (which would read as a perfect tracking it never measured).
+    assert_eq!(summary["steps_after_20s"], 0);
+    assert!(summary["max_ep_norm_after_20s"].is_null(), "{}", summary["max_ep_norm_after_20s"]);
+    assert!(summary["fraction_ep_below_1e-3_after_20s"].is_null());
+    let index = std::fs::read_to_string(dir.join("index.html")).unwrap();
+    assert!(index.contains("<td>n/a</td>"), "the index shows the unknown figures as n/a");
     for f in ["path.svg", "ep.svg", "velocities.svg", "hs.svg", "joints.svg", "index.html"] {
         let text = std::fs::read_to_string(dir.join(f)).unwrap();
         assert!(text.len() > 500, "{f} is nearly empty");

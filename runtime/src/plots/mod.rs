@@ -139,6 +139,15 @@ fn page_head(title: &str) -> String {
     )
 }
 
+/// `x` formatted, or "n/a" for a figure the run has no data for (NaN: no step after 20 s).
+fn or_na(x: f64, f: impl Fn(f64) -> String) -> String {
+    if x.is_nan() {
+        "n/a".to_owned()
+    } else {
+        f(x)
+    }
+}
+
 fn summary_table(runs: &[&RunOutcome]) -> String {
     let mut t = String::from(
         "<table><tr><th>run</th><th>final ‖e_p‖</th><th>max ‖e_p‖ t≥20 s</th><th>tracked t≥20 s</th>\
@@ -148,12 +157,12 @@ fn summary_table(runs: &[&RunOutcome]) -> String {
         let s = &r.summary;
         let _ = write!(
             t,
-            "<tr><td>{}</td><td>{:.2e}</td><td>{:.2e}</td><td>{:.1} %</td><td>{:.2}</td><td>{}</td>\
+            "<tr><td>{}</td><td>{:.2e}</td><td>{}</td><td>{}</td><td>{:.2}</td><td>{}</td>\
              <td>{:.3}</td><td>{:.3}</td><td>{:.4} {:.4} {:.4}</td></tr>",
             s.scenario,
             s.final_ep_norm,
-            s.max_ep_norm_after_20s,
-            100.0 * s.fraction_ep_below_1e_3_after_20s,
+            or_na(s.max_ep_norm_after_20s, |x| format!("{x:.2e}")),
+            or_na(s.fraction_ep_below_1e_3_after_20s, |x| format!("{:.1} %", 100.0 * x)),
             s.path_length,
             s.v_sign_changes,
             s.max_abs_v,

@@ -14,9 +14,10 @@ pub struct Summary {
     pub scenario: String,
     /// `‖e_p‖` at the last step.
     pub final_ep_norm: f64,
-    /// The largest `‖e_p‖` for `t ≥ 20 s`.
+    /// The largest `‖e_p‖` for `t ≥ 20 s`; NaN (`null` in JSON) when no step had `t ≥ 20 s`
+    /// (a shorter run says nothing about it, which `0` would have claimed it did).
     pub max_ep_norm_after_20s: f64,
-    /// The fraction of steps with `t ≥ 20 s` where `‖e_p‖ < 1e−3`.
+    /// The fraction of steps with `t ≥ 20 s` where `‖e_p‖ < 1e−3`; NaN (`null`) as above.
     #[serde(rename = "fraction_ep_below_1e-3_after_20s")]
     pub fraction_ep_below_1e_3_after_20s: f64,
     /// Per joint, the smallest distance to the nearer limit over the run (rad or m).
@@ -241,6 +242,9 @@ impl SummaryAccumulator {
         #[allow(clippy::cast_precision_loss)]
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
+        } else {
+            s.max_ep_norm_after_20s = f64::NAN;
+            s.fraction_ep_below_1e_3_after_20s = f64::NAN;
         }
         s.steps_after_20s = self.after20;
         s.wall_time_s = wall_time_s;

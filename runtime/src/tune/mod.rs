@@ -383,7 +383,12 @@ fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
                 s.rejected_steps > 0 || margin.is_nan() || margin <= 0.0 || t.tail.diverged_at.is_some();
             RunScore {
                 run: r.name.clone(),
-                tracked: if failed { 0.0 } else { s.fraction_ep_below_1e_3_after_20s },
+                // NaN when the run has no step after 20 s: such a run tracks nothing measurable.
+                tracked: if failed || s.steps_after_20s == 0 {
+                    0.0
+                } else {
+                    s.fraction_ep_below_1e_3_after_20s
+                },
                 rms_v: s.rms_v,
                 maneuvers: s.maneuvers,
                 rejected_steps: s.rejected_steps,
