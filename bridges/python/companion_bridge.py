@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """The reference bridge: a replacement for `companion plant`, in Python.
 
-Written from docs/protocol.md alone (protocol version 3) with the official iceoryx2 binding
+Written from docs/protocol.md alone (protocol version 4) with the official iceoryx2 binding
 (`pip install iceoryx2==0.10.0`). It plays the plant: it simulates the paper's unicycle with
 its RPR arm tracking trajectory 1 (a bridge to hardware would read its sensors in `measure()`
 and drive its motors in `apply()`), publishes one measurement per period, applies the
@@ -31,19 +31,23 @@ import iceoryx2 as iox
 
 # ----- the wire (docs/protocol.md §3) ---------------------------------------------------------
 
-PROTOCOL_VERSION = 3
+PROTOCOL_VERSION = 4
 MAX_JOINTS = 8
 PREFIX = "companion_"
 
 END_OF_RUN, LOCKSTEP, STOPPED, NOTIFIES = 1, 2, 4, 8
 PLATFORMS = {"unicycle": 1, "car": 2, "omni": 3}
 PLATFORM_NAMES = {1: "unicycle", 2: "car-like", 3: "omnidirectional"}
+PLANAR, SPATIAL = 1, 2
+SPACE_NAMES = {PLANAR: "planar (SE(2))", SPATIAL: "spatial (SE(3))"}
 REFUSALS = {
     0x8001: "protocol version",
     0x8002: "joint count",
     0x8003: "platform",
     0x8004: "scenario",
     0x8005: "period (dt)",
+    0x8006: "target space",
+    0x8007: "arm",
 }
 
 EXIT_OK, EXIT_ERROR, EXIT_PEER_LOST, EXIT_PEER_HUNG, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
@@ -54,7 +58,7 @@ def _type_name(name):
 
 
 class Measurement(ctypes.Structure):
-    """MeasurementMsg, 232 bytes, little-endian, no padding."""
+    """MeasurementMsg, 344 bytes, little-endian, no padding."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -62,6 +66,7 @@ class Measurement(ctypes.Structure):
         ("seq", ctypes.c_uint64),
         ("session", ctypes.c_uint64),
         ("scenario_hash", ctypes.c_uint64),
+        ("arm_hash", ctypes.c_uint64),
         ("plant_time_ns", ctypes.c_uint64),
         ("period_ns", ctypes.c_uint64),
         ("sim_time", ctypes.c_double),
@@ -70,18 +75,20 @@ class Measurement(ctypes.Structure):
         ("platform", ctypes.c_uint32),
         ("hold_periods", ctypes.c_uint32),
         ("joint_count", ctypes.c_uint32),
-        ("reserved", ctypes.c_uint32),
+        ("space", ctypes.c_uint32),
         ("base", ctypes.c_double * 3),
         ("steering", ctypes.c_double),
-        ("target", ctypes.c_double * 3),
-        ("target_velocity", ctypes.c_double * 3),
+        ("target_position", ctypes.c_double * 3),
+        ("target_rotation", ctypes.c_double * 9),
+        ("target_yaw", ctypes.c_double),
+        ("target_twist", ctypes.c_double * 6),
         ("joints", ctypes.c_double * MAX_JOINTS),
     ]
-    type_name = _type_name("companion::MeasurementV3")
+    type_name = _type_name("companion::MeasurementV4")
 
 
 class Command(ctypes.Structure):
-    """CommandMsg, 232 bytes."""
+    """CommandMsg, 248 bytes."""
 
     _fields_ = [
         ("version", ctypes.c_uint32),
@@ -96,6 +103,9 @@ class Command(ctypes.Structure):
         ("flags", ctypes.c_uint32),
         ("platform", ctypes.c_uint32),
         ("scenario_hash", ctypes.c_uint64),
+        ("arm_hash", ctypes.c_uint64),
+        ("space", ctypes.c_uint32),
+        ("reserved", ctypes.c_uint32),
         ("delay", ctypes.c_double),
         ("v", ctypes.c_double),
         ("v_lat", ctypes.c_double),
@@ -109,26 +119,28 @@ class Command(ctypes.Structure):
         ("alpha_rate", ctypes.c_double * 2),
         ("joint_scale", ctypes.c_double),
     ]
-    type_name = _type_name("companion::CommandV3")
+    type_name = _type_name("companion::CommandV4")
 
 
 class CommandWithoutJointScale(ctypes.Structure):
-    """(tests) CommandMsg as a bridge out of date would declare it: protocol 2's 224 bytes under
-    protocol 3's type name. iceoryx2 compares name, size and alignment, so the two never connect."""
+    """(tests) CommandMsg as a bridge with a wrong declaration would have it: its last field
+    missing (240 bytes) under the type name. iceoryx2 compares name, size and alignment, so
+    the two never connect."""
 
     _fields_ = Command._fields_[:-1]
-    type_name = _type_name("companion::CommandV3")
+    type_name = _type_name("companion::CommandV4")
 
 
-assert ctypes.sizeof(Measurement) == 232 and ctypes.alignment(Measurement) == 8
-assert ctypes.sizeof(Command) == 232 and ctypes.alignment(Command) == 8
-assert Measurement.joints.offset == 168 and Command.joints.offset == 112
+assert ctypes.sizeof(Measurement) == 344 and ctypes.alignment(Measurement) == 8
+assert ctypes.sizeof(Command) == 248 and ctypes.alignment(Command) == 8
+assert Measurement.target_yaw.offset == 224 and Measurement.joints.offset == 280
+assert Command.joints.offset == 128 and Command.joint_scale.offset == 240
 
 
 def known_status(code):
     """Whether a command status is one the protocol defines (docs/protocol.md, status codes)."""
     return (
-        code in (0, 0x200, 0x400, 0x500, 0x600, 0x700)
+        code in (0, 0x200, 0x400, 0x500, 0x600, 0x700, 0x800)
         or 0x100 <= code <= 0x105
         or 0x300 <= code < 0x300 + MAX_JOINTS
     )
@@ -178,6 +190,39 @@ def fnv1a(data):
 
 def scenario_hash(value):
     return fnv1a(canonical_text(value).encode()) or 1
+
+
+def rpr_arm_description():
+    """The paper's RPR arm as docs/protocol.md ("The arm hash") describes it."""
+    identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+
+    def frame(x):
+        return {"rotation": identity, "translation": [x, 0.0, 0.0]}
+
+    def joint(kind, axis, lower, upper):
+        return {"kind": kind, "origin": frame(0.0), "axis": axis, "lower": lower, "upper": upper}
+
+    vertical = [0.0, 0.0, 1.0]
+    return {
+        "mount": frame(0.4),
+        "joints": [
+            joint("revolute", vertical, -math.pi / 3.0, math.pi / 3.0),
+            joint("prismatic", [1.0, 0.0, 0.0], 0.0, 0.7),
+            joint("revolute", vertical, -math.pi / 2.0, math.pi / 2.0),
+        ],
+        "tool": frame(0.15),
+    }
+
+
+RPR_ARM_HASH = scenario_hash(rpr_arm_description())
+
+
+def planar_target(pose, velocity):
+    """A planar target on the wire (docs/protocol.md, the target): position, rotation R_z(θ)
+    row by row, the exact yaw, the 6-DOF body twist."""
+    x, y, th = pose
+    s, c = math.sin(th), math.cos(th)
+    return (x, y, 0.0), (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0), th, (velocity[0], velocity[1], 0.0, 0.0, 0.0, velocity[2])
 
 
 # ----- the robot: the paper's unicycle and RPR arm, trajectory 1 (docs/protocol.md §8) ------
@@ -546,12 +591,17 @@ class Bridge:
         m.sim_time = t
         m.dt = self.a.dt
         m.delay = delay
+        m.arm_hash = self.a.arm_hash
         m.platform = PLATFORMS[self.a.platform]
         m.hold_periods = self.a.hold_periods
         m.joint_count = self.a.joint_count
+        m.space = self.a.space
         m.base[:] = base
-        m.target[:] = target
-        m.target_velocity[:] = ud
+        position, rotation, yaw, twist = planar_target(target, ud)
+        m.target_position[:] = position
+        m.target_rotation[:] = rotation
+        m.target_yaw = yaw
+        m.target_twist[:] = twist
         for i in range(3):
             m.joints[i] = q[i]
         return m
@@ -793,6 +843,13 @@ def describe_refusal(c, mine):
         )
     elif c.status == 0x8004:
         detail = f"this bridge's scenario hash is {mine.scenario_hash:#018x}, the controller's {c.scenario_hash:#018x}"
+    elif c.status == 0x8006:
+        detail = (
+            f"this bridge's target is {SPACE_NAMES.get(mine.space, mine.space)}, the controller tracks a "
+            f"{SPACE_NAMES.get(c.space, c.space)} one"
+        )
+    elif c.status == 0x8007:
+        detail = f"this bridge's arm hash is {mine.arm_hash:#018x}, the controller's {c.arm_hash:#018x}"
     else:
         detail = f"dt = {mine.dt} s"
     return f"the controller refused this plant ({what} mismatch): {detail}"
@@ -830,7 +887,7 @@ def _terminate(*_):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v3/…)")
+    p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v4/…)")
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
     p.add_argument("--dt", type=float, default=0.001, help="control period and hold (s)")
     p.add_argument("--lockstep", action="store_true", help="wait for every command (deterministic)")
@@ -844,6 +901,10 @@ def main(argv=None):
     p.add_argument("--scenario-hash", type=lambda s: int(s, 0), default=0, help="sent as is (0: not checked)")
     p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
     p.add_argument("--joint-count", type=int, default=3)
+    p.add_argument(
+        "--arm-hash", type=lambda s: int(s, 0), default=RPR_ARM_HASH, help="sent as is (default: the RPR arm's; 0: not checked)"
+    )
+    p.add_argument("--space", type=int, default=PLANAR, help="(tests) the target space code sent")
     p.add_argument("--protocol-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version field")
     p.add_argument("--service-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version in the names")
     p.add_argument(

@@ -9,14 +9,14 @@
 //! All resources live under iceoryx2's `global.prefix` [`PREFIX`] (`companion_`; files
 //! `/tmp/iceoryx2/…` and `/dev/shm/companion_…`), so that programs with the default prefix
 //! (`iox2_`) neither see nor clean them. A demo named `N` (`--name`, default `demo`) uses,
-//! for protocol version 3:
+//! for protocol version 4:
 //!
 //! | service | pattern | from → to | payload |
 //! |---|---|---|---|
-//! | `companion/N/v3/measurement` | publish–subscribe | plant → controller | [`MeasurementMsg`] |
-//! | `companion/N/v3/command` | publish–subscribe | controller → plant | [`CommandMsg`] |
-//! | `companion/N/v3/measurement-ready` | event | plant → controller | — |
-//! | `companion/N/v3/command-ready` | event | controller → plant | — |
+//! | `companion/N/v4/measurement` | publish–subscribe | plant → controller | [`MeasurementMsg`] |
+//! | `companion/N/v4/command` | publish–subscribe | controller → plant | [`CommandMsg`] |
+//! | `companion/N/v4/measurement-ready` | event | plant → controller | — |
+//! | `companion/N/v4/command-ready` | event | controller → plant | — |
 //!
 //! The version in the names keeps peers of different versions apart; while waiting for its
 //! peer each side looks for a peer of another version on the same demo and names it
@@ -184,7 +184,7 @@ fn node_name(name: &str, role: Role) -> String {
 }
 
 /// The name of service `what` of demo `name` in this protocol version:
-/// `companion/NAME/v3/WHAT`.
+/// `companion/NAME/v4/WHAT`.
 pub fn service_name(name: &str, what: &str) -> String {
     format!("companion/{name}/v{PROTOCOL_VERSION}/{what}")
 }
@@ -245,8 +245,8 @@ pub fn ensure_name_free(cfg: &Config, name: &str, role: Role) -> Result<()> {
 }
 
 /// A live process waiting on demo `name` with another protocol version, if any: a service
-/// `companion/NAME/measurement` (version 1) or `companion/NAME/vK/measurement` (K ≠ 2) with
-/// a live node of another process.
+/// `companion/NAME/measurement` (version 1) or `companion/NAME/vK/measurement`
+/// (K ≠ [`PROTOCOL_VERSION`]) with a live node of another process.
 ///
 /// # Errors
 /// The service list cannot be read.
@@ -706,8 +706,8 @@ mod tests {
 
     #[test]
     fn service_names_carry_the_protocol_version() {
-        assert_eq!(service_name("demo", "measurement"), "companion/demo/v3/measurement");
-        assert_eq!(service_name("x", "command-ready"), "companion/x/v3/command-ready");
+        assert_eq!(service_name("demo", "measurement"), "companion/demo/v4/measurement");
+        assert_eq!(service_name("x", "command-ready"), "companion/x/v4/command-ready");
     }
 
     #[test]

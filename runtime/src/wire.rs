@@ -13,15 +13,16 @@
 //! [`MEASUREMENT_TYPE_NAME`] and [`COMMAND_TYPE_NAME`] (see [`crate::ipc`]); a transport that
 //! carries bytes sends [`MeasurementMsg::to_bytes`].
 //!
-//! ## Rules of the exchange (protocol version 3)
+//! ## Rules of the exchange (protocol version 4)
 //!
 //! - **The plant owns time.** It numbers measurements `seq = 0, 1, 2, …` within a `session`
 //!   (a random non-zero id per plant run), stamps each with `plant_time_ns` (its
 //!   `CLOCK_MONOTONIC` when the values were measured) and says how long a command is held
 //!   (`dt`, on the time scale of `sim_time`) and how often it publishes (`period_ns`).
 //! - **The plant announces everything the commands depend on** besides the measured values:
-//!   `platform`, `joint_count`, `dt`, `period_ns`, `hold_periods`, the [`flags::LOCKSTEP`]
-//!   and [`flags::NOTIFIES`] bits and the `scenario_hash` ([`Announcement`]). The controller
+//!   `platform`, `joint_count`, the target's `space`, `arm_hash`, `dt`, `period_ns`,
+//!   `hold_periods`, the [`flags::LOCKSTEP`] and [`flags::NOTIFIES`] bits and the
+//!   `scenario_hash` ([`Announcement`]). The controller
 //!   checks them on the first measurement of a session ([`ControllerIdentity::admit`]) and
 //!   refuses a plant it cannot serve with a [`Refusal`] command that names the mismatch;
 //!   later measurements of the session must announce the same ([`WireError::Changed`]).
@@ -40,36 +41,41 @@
 //! - Non-finite *values* in a well-formed measurement are the law's business: it answers them
 //!   with the safe command (all velocities zero) and a `status` saying why.
 //!
-//! ## Layout of [`MeasurementMsg`] (232 bytes)
+//! ## Layout of [`MeasurementMsg`] (344 bytes)
 //!
 //! ```text
 //! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (3)
+//!      0 u32       version          PROTOCOL_VERSION (4)
 //!      4 u32       flags            END_OF_RUN 1, LOCKSTEP 2, STOPPED 4, NOTIFIES 8
 //!      8 u64       seq              period number, from 0
 //!     16 u64       session          random non-zero id of this plant run
 //!     24 u64       scenario_hash    canonical hash of the controller's scenario; 0 = unchecked
-//!     32 u64       plant_time_ns    plant's CLOCK_MONOTONIC when measured (ns)
-//!     40 u64       period_ns        publication period (ns); 0 in lockstep
-//!     48 f64       sim_time         the plant's time t (s)
-//!     56 f64       dt               how long each command is held (s)
-//!     64 f64       delay            expected measurement-to-effect delay of the answer (s)
-//!     72 u32       platform         1 unicycle, 2 car-like, 3 omnidirectional
-//!     76 u32       hold_periods     periods the plant holds a command after a miss
-//!     80 u32       joint_count      joints used (3 for the paper's arm)
-//!     84 u32       reserved         0
-//!     88 f64[3]    base             platform pose r_b = (x, y, θ) (m, m, rad)
-//!    112 f64       steering         car-like steering ξ (1/m); 0 otherwise
-//!    120 f64[3]    target           target pose r_d = (x, y, θ) (m, m, rad)
-//!    144 f64[3]    target_velocity  target body velocity u_d (m/s, m/s, rad/s)
-//!    168 f64[8]    joints           joint positions q (rad or m)
+//!     32 u64       arm_hash         canonical hash of the plant's arm; 0 = unchecked
+//!     40 u64       plant_time_ns    plant's CLOCK_MONOTONIC when measured (ns)
+//!     48 u64       period_ns        publication period (ns); 0 in lockstep
+//!     56 f64       sim_time         the plant's time t (s)
+//!     64 f64       dt               how long each command is held (s)
+//!     72 f64       delay            expected measurement-to-effect delay of the answer (s)
+//!     80 u32       platform         1 unicycle, 2 car-like, 3 omnidirectional
+//!     84 u32       hold_periods     periods the plant holds a command after a miss
+//!     88 u32       joint_count      joints used (3 for the paper's arm, ≤ 8)
+//!     92 u32       space            the target's space: 1 planar (SE(2)), 2 spatial (SE(3))
+//!     96 f64[3]    base             platform pose r_b = (x, y, θ) (m, m, rad)
+//!    120 f64       steering         car-like steering ξ (1/m); 0 otherwise
+//!    128 f64[3]    target_position  target origin p_d = (x, y, z) (m), fixed frame
+//!    152 f64[9]    target_rotation  target rotation R_d, row by row (R₁₁ R₁₂ R₁₃ R₂₁ …)
+//!    224 f64       target_yaw       target yaw ψ (rad): exact θ of a planar target
+//!    232 f64[6]    target_twist     target body twist (v, ω) (m/s, rad/s)
+//!    280 f64[8]    joints           joint positions q (rad or m)
 //! ```
 //!
-//! ## Layout of [`CommandMsg`] (232 bytes)
+//! The target's fields and the planar ↔ spatial conversion: [`target`].
+//!
+//! ## Layout of [`CommandMsg`] (248 bytes)
 //!
 //! ```text
 //! offset type      field            meaning
-//!      0 u32       version          PROTOCOL_VERSION (3)
+//!      0 u32       version          PROTOCOL_VERSION (4)
 //!      4 u32       status           0 ok; 0x100–0x7ff the law's rejection; 0x80nn refusal
 //!      8 u64       seq              the measurement this answers
 //!     16 u64       session          copied from the measurement
@@ -81,52 +87,62 @@
 //!     56 u32       flags            NOTIFIES 8
 //!     60 u32       platform         the controller's platform (codes as above)
 //!     64 u64       scenario_hash    the controller's scenario hash
-//!     72 f64       delay            the delay the law predicted over (s)
-//!     80 f64       v                forward speed (m/s)
-//!     88 f64       v_lat            lateral speed (m/s), omnidirectional platform
-//!     96 f64       omega            angular speed (rad/s)
-//!    104 f64       v_xi             steering rate (1/(m·s)), car-like platform
-//!    112 f64[8]    joints           joint velocities u_q (rad/s or m/s)
-//!    176 f64       ep_norm          ‖e_p‖ (logged; NaN when rejected)
-//!    184 f64       h_s              h_s (logged; NaN when rejected)
-//!    192 f64       psi              Ψ (logged; NaN when rejected)
-//!    200 f64       saturation       common saturation factor ≥ 1 (logged; NaN when rejected)
-//!    208 f64[2]    alpha_rate       α̇ (logged; NaN when rejected)
-//!    224 f64       joint_scale      joint guard's factor ≥ 1 (logged; NaN when rejected)
+//!     72 u64       arm_hash         the controller's arm hash
+//!     80 u32       space            the controller's target space (codes as above)
+//!     84 u32       reserved         0
+//!     88 f64       delay            the delay the law predicted over (s)
+//!     96 f64       v                forward speed (m/s)
+//!    104 f64       v_lat            lateral speed (m/s), omnidirectional platform
+//!    112 f64       omega            angular speed (rad/s)
+//!    120 f64       v_xi             steering rate (1/(m·s)), car-like platform
+//!    128 f64[8]    joints           joint velocities u_q (rad/s or m/s)
+//!    192 f64       ep_norm          ‖e_p‖ (logged; NaN when rejected)
+//!    200 f64       h_s              h_s (logged; NaN when rejected)
+//!    208 f64       psi              Ψ (logged; NaN when rejected)
+//!    216 f64       saturation       common saturation factor ≥ 1 (logged; NaN when rejected)
+//!    224 f64[2]    alpha_rate       α̇ (logged; NaN when rejected)
+//!    240 f64       joint_scale      joint guard's factor ≥ 1 (logged; NaN when rejected)
 //! ```
 //!
 //! `status` codes. The law answered with the safe command (all velocities zero): `0x100 + f`
 //! a non-finite measured field `f` (0 time, 1 base pose, 2 steering, 3 joints, 4 target pose,
 //! 5 target velocity); `0x200` bad time step; `0x300 + j` joint `j` (from 0) at or beyond its
 //! limit; `0x400` singular arm; `0x500` singular task Jacobian; `0x600` numerical failure;
-//! `0x700` bad delay; `0x800` target yaw undefined (spatial arms). The controller refuses the run ([`Refusal`]; velocities zero, the
-//! controller exits after sending it): `0x8001` protocol version, `0x8002` joint count,
-//! `0x8003` platform, `0x8004` scenario, `0x8005` period (`dt`).
+//! `0x700` bad delay; `0x800` target yaw undefined (spatial arms). The controller refuses the
+//! run ([`Refusal`]; velocities zero, the controller exits after sending it): `0x8001`
+//! protocol version, `0x8002` joint count, `0x8003` platform, `0x8004` scenario, `0x8005`
+//! period (`dt`), `0x8006` target space, `0x8007` arm.
 //!
-//! ## Joints
+//! ## Joints, space and arm
 //!
 //! Both messages have room for [`MAX_JOINTS`] = 8 joints and a `joint_count` saying how many
 //! are used (the rest are zero); a controller built for `N` joints refuses another count.
+//! The target is always carried in SE(3) with its yaw ([`target`]); `space` says whether it
+//! is planar (the `rpr` arm's task, §4) or spatial (§5), and a controller refuses the other.
+//! `arm_hash` ([`canonical::arm_hash`]) names the arm: a plant and a controller with
+//! different arms refuse each other (0 on either side: not checked).
 
 pub mod canonical;
+pub mod target;
 
-use companion_core::nalgebra::{SVector, Vector3};
-use companion_core::{Command, Field, Measurement, PlatformCommand, Pose, StepError};
+use companion_core::nalgebra::SVector;
+use companion_core::{Command, Field, Measurement, Planar, PlatformCommand, Pose, StepError};
 use iceoryx2::prelude::ZeroCopySend;
+pub use target::{WireSpace, WireTarget};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
 /// The protocol version both messages carry. Changed whenever the layout or meaning changes;
 /// it is also part of the service names ([`crate::ipc`]), so that peers of different
 /// versions never open each other's services.
-pub const PROTOCOL_VERSION: u32 = 3;
+pub const PROTOCOL_VERSION: u32 = 4;
 
 /// Room for joints in both messages.
 pub const MAX_JOINTS: usize = 8;
 
 /// The iceoryx2 type name of [`MeasurementMsg`] (what a bridge in another language declares).
-pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV3";
+pub const MEASUREMENT_TYPE_NAME: &str = "companion::MeasurementV4";
 /// The iceoryx2 type name of [`CommandMsg`].
-pub const COMMAND_TYPE_NAME: &str = "companion::CommandV3";
+pub const COMMAND_TYPE_NAME: &str = "companion::CommandV4";
 
 /// Bits of [`MeasurementMsg::flags`] (and [`flags::NOTIFIES`] of [`CommandMsg::flags`]).
 pub mod flags {
@@ -190,7 +206,7 @@ pub mod platform {
 /// layout and the rules.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::MeasurementV3")]
+#[type_name("companion::MeasurementV4")]
 #[repr(C)]
 pub struct MeasurementMsg {
     /// [`PROTOCOL_VERSION`].
@@ -203,6 +219,8 @@ pub struct MeasurementMsg {
     pub session: u64,
     /// [`canonical::scenario_hash`] of the controller's scenario; 0 = not checked.
     pub scenario_hash: u64,
+    /// [`canonical::arm_hash`] of the plant's arm; 0 = not checked.
+    pub arm_hash: u64,
     /// The plant's `CLOCK_MONOTONIC` when the values were measured (ns).
     pub plant_time_ns: u64,
     /// The publication period (ns); 0 in lockstep.
@@ -220,16 +238,20 @@ pub struct MeasurementMsg {
     pub hold_periods: u32,
     /// Joints used.
     pub joint_count: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// The target's [`target::space`] code.
+    pub space: u32,
     /// Platform pose `r_b = (x, y, θ)` (m, m, rad).
     pub base: [f64; 3],
     /// Car-like steering `ξ` (1/m); 0 otherwise.
     pub steering: f64,
-    /// Target pose `r_d` (m, m, rad).
-    pub target: [f64; 3],
-    /// Target body velocity `u_d` (m/s, m/s, rad/s).
-    pub target_velocity: [f64; 3],
+    /// Target origin `p_d = (x, y, z)` (m), fixed frame.
+    pub target_position: [f64; 3],
+    /// Target rotation `R_d`, row by row.
+    pub target_rotation: [f64; 9],
+    /// Target yaw `ψ` (rad): the exact `θ` of a planar target ([`target`]).
+    pub target_yaw: f64,
+    /// Target body twist `(v, ω)`: `ṗ_d = R_d v`, `Ṙ_d = R_d [ω]×` (m/s, rad/s).
+    pub target_twist: [f64; 6],
     /// Joint positions `q` (rad or m); entries past `joint_count` are zero.
     pub joints: [f64; MAX_JOINTS],
 }
@@ -237,7 +259,7 @@ pub struct MeasurementMsg {
 /// One command of the controller, answering one measurement. See the module docs.
 #[allow(unsafe_code)]
 #[derive(Clone, Copy, Debug, PartialEq, ZeroCopySend, IntoBytes, FromBytes, Immutable, KnownLayout)]
-#[type_name("companion::CommandV3")]
+#[type_name("companion::CommandV4")]
 #[repr(C)]
 pub struct CommandMsg {
     /// [`PROTOCOL_VERSION`].
@@ -264,6 +286,12 @@ pub struct CommandMsg {
     pub platform: u32,
     /// The controller's scenario hash.
     pub scenario_hash: u64,
+    /// The controller's arm hash.
+    pub arm_hash: u64,
+    /// The controller's [`target::space`] code.
+    pub space: u32,
+    /// Zero.
+    pub reserved: u32,
     /// The delay the law predicted over (s).
     pub delay: f64,
     /// Forward speed `v` (m/s).
@@ -306,9 +334,9 @@ impl WireMessage for CommandMsg {
 }
 
 /// The size of [`MeasurementMsg`] in bytes.
-pub const MEASUREMENT_SIZE: usize = 232;
+pub const MEASUREMENT_SIZE: usize = 344;
 /// The size of [`CommandMsg`] in bytes.
-pub const COMMAND_SIZE: usize = 232;
+pub const COMMAND_SIZE: usize = 248;
 
 const _: () = assert!(core::mem::size_of::<MeasurementMsg>() == MEASUREMENT_SIZE);
 const _: () = assert!(core::mem::size_of::<CommandMsg>() == COMMAND_SIZE);
@@ -339,6 +367,10 @@ pub enum WireError {
     Changed,
     /// The controller refused the run (the [`Refusal`] code).
     Refused(u32),
+    /// A planar target off the plane (`z`, `v_z`, `ω_x` or `ω_y` not 0).
+    NotPlanar,
+    /// A spatial target whose finite rotation is not orthonormal ([`target::ROTATION_TOLERANCE`]).
+    NotARotation,
 }
 
 impl core::fmt::Display for WireError {
@@ -353,6 +385,8 @@ impl core::fmt::Display for WireError {
             Self::NonFinite => f.write_str("non-finite velocity"),
             Self::Changed => f.write_str("announcement changed within the session"),
             Self::Refused(c) => write!(f, "the controller refused the run (status {c:#x})"),
+            Self::NotPlanar => f.write_str("planar target off the plane (z, v_z, ω_x or ω_y not 0)"),
+            Self::NotARotation => f.write_str("target rotation not orthonormal"),
         }
     }
 }
@@ -372,6 +406,8 @@ impl WireError {
             Self::NonFinite => "non_finite",
             Self::Changed => "changed",
             Self::Refused(_) => "refused",
+            Self::NotPlanar => "not_planar",
+            Self::NotARotation => "not_a_rotation",
         }
     }
 }
@@ -449,6 +485,8 @@ pub struct Announcement {
     pub platform: u32,
     /// Joints used.
     pub joint_count: u32,
+    /// The target's [`target::space`] code.
+    pub space: u32,
     /// Hold limit (periods).
     pub hold_periods: u32,
     /// How long each command is held (s).
@@ -457,6 +495,8 @@ pub struct Announcement {
     pub period_ns: u64,
     /// Scenario hash; 0 = not checked.
     pub scenario_hash: u64,
+    /// Arm hash; 0 = not checked.
+    pub arm_hash: u64,
 }
 
 impl Announcement {
@@ -466,10 +506,12 @@ impl Announcement {
             flags: m.flags & flags::ANNOUNCED,
             platform: m.platform,
             joint_count: m.joint_count,
+            space: m.space,
             hold_periods: m.hold_periods,
             dt: m.dt,
             period_ns: m.period_ns,
             scenario_hash: m.scenario_hash,
+            arm_hash: m.arm_hash,
         }
     }
 
@@ -524,6 +566,20 @@ pub enum Refusal {
         /// The plant's `dt` (s).
         dt: f64,
     },
+    /// Another target space (a planar plant and a spatial controller, or the reverse).
+    Space {
+        /// The plant's [`target::space`] code.
+        plant: u32,
+        /// The controller's.
+        controller: u32,
+    },
+    /// Another arm (both hashes non-zero and different).
+    Arm {
+        /// The plant's arm hash.
+        plant: u64,
+        /// The controller's.
+        controller: u64,
+    },
 }
 
 /// The refusal codes (`status` of a refusal command).
@@ -538,6 +594,10 @@ pub mod refusal {
     pub const SCENARIO: u32 = 0x8004;
     /// A `dt` the law does not admit.
     pub const PERIOD: u32 = 0x8005;
+    /// Another target space.
+    pub const SPACE: u32 = 0x8006;
+    /// Another arm.
+    pub const ARM: u32 = 0x8007;
 
     /// Whether a `status` is a refusal.
     pub fn is_refusal(status: u32) -> bool {
@@ -554,6 +614,8 @@ impl Refusal {
             Self::Platform { .. } => refusal::PLATFORM,
             Self::Scenario { .. } => refusal::SCENARIO,
             Self::Period { .. } => refusal::PERIOD,
+            Self::Space { .. } => refusal::SPACE,
+            Self::Arm { .. } => refusal::ARM,
         }
     }
 
@@ -565,6 +627,8 @@ impl Refusal {
             refusal::PLATFORM => Self::Platform { plant: m.platform, controller: c.platform },
             refusal::SCENARIO => Self::Scenario { plant: m.scenario_hash, controller: c.scenario_hash },
             refusal::PERIOD => Self::Period { dt: m.dt },
+            refusal::SPACE => Self::Space { plant: m.space, controller: c.space },
+            refusal::ARM => Self::Arm { plant: m.arm_hash, controller: c.arm_hash },
             _ => return None,
         })
     }
@@ -598,6 +662,19 @@ impl core::fmt::Display for Refusal {
                 "the controller does not admit the plant's dt = {dt} s (it must be positive, finite and at most \
                  the law's max_time_step)"
             ),
+            Self::Space { plant, controller } => write!(
+                f,
+                "target space mismatch: the plant's target is {}, the controller's arm tracks a {} one",
+                target::space::describe(*plant),
+                target::space::describe(*controller)
+            ),
+            Self::Arm { plant, controller } => write!(
+                f,
+                "arm mismatch: the plant's arm is {}, the controller is built for {} (arm hashes differ; \
+                 send 0 to skip the check)",
+                canonical::describe_arm(*plant),
+                canonical::describe_arm(*controller)
+            ),
         }
     }
 }
@@ -611,6 +688,10 @@ pub struct ControllerIdentity {
     pub platform: u32,
     /// Its joint count.
     pub joint_count: u32,
+    /// Its target's [`target::space`] code.
+    pub space: u32,
+    /// Its arm's hash (0 = do not check).
+    pub arm_hash: u64,
     /// Its scenario hash (0 = do not check).
     pub scenario_hash: u64,
     /// The largest `dt` its law admits (s).
@@ -629,6 +710,12 @@ impl ControllerIdentity {
         if m.joint_count != self.joint_count {
             return Err(Refusal::JointCount { plant: m.joint_count, controller: self.joint_count });
         }
+        if m.space != self.space {
+            return Err(Refusal::Space { plant: m.space, controller: self.space });
+        }
+        if self.arm_hash != 0 && m.arm_hash != 0 && m.arm_hash != self.arm_hash {
+            return Err(Refusal::Arm { plant: m.arm_hash, controller: self.arm_hash });
+        }
         if m.platform != self.platform {
             return Err(Refusal::Platform { plant: m.platform, controller: self.platform });
         }
@@ -643,22 +730,25 @@ impl ControllerIdentity {
 }
 
 impl MeasurementMsg {
-    /// A measurement of `N` joints with the given header fields.
+    /// A measurement of `N` joints and a planar or spatial target with the given header
+    /// fields (the target converted by [`WireSpace::to_wire`]).
     ///
     /// # Panics
     /// At compile time if `N > MAX_JOINTS`.
-    pub fn new<const N: usize>(header: MeasurementHeader, m: &Measurement<f64, N>) -> Self {
+    pub fn new<const N: usize, S: WireSpace>(header: MeasurementHeader, m: &Measurement<f64, N, S>) -> Self {
         const { assert!(N <= MAX_JOINTS) };
         let mut joints = [0.0; MAX_JOINTS];
         for (j, q) in joints.iter_mut().zip(m.joints.iter()) {
             *j = *q;
         }
+        let t = S::to_wire(&m.target, &m.target_velocity);
         Self {
             version: PROTOCOL_VERSION,
             flags: header.flags,
             seq: header.seq,
             session: header.session,
             scenario_hash: header.scenario_hash,
+            arm_hash: header.arm_hash,
             plant_time_ns: header.plant_time_ns,
             period_ns: header.period_ns,
             sim_time: m.t,
@@ -667,32 +757,54 @@ impl MeasurementMsg {
             platform: header.platform,
             hold_periods: header.hold_periods,
             joint_count: count_u32(N),
-            reserved: 0,
+            space: S::CODE,
             base: [m.base.x, m.base.y, m.base.theta],
             steering: m.steering,
-            target: [m.target.x, m.target.y, m.target.theta],
-            target_velocity: [m.target_velocity[0], m.target_velocity[1], m.target_velocity[2]],
+            target_position: t.position,
+            target_rotation: t.rotation,
+            target_yaw: t.yaw,
+            target_twist: t.twist,
             joints,
         }
     }
 
-    /// The measurement for a controller of `N` joints (`None` if `joint_count` is not `N`).
-    pub fn measurement<const N: usize>(&self) -> Option<Measurement<f64, N>> {
-        if self.joint_count != count_u32(N) {
-            return None;
+    /// The target's fields.
+    pub fn target(&self) -> WireTarget {
+        WireTarget {
+            position: self.target_position,
+            rotation: self.target_rotation,
+            yaw: self.target_yaw,
+            twist: self.target_twist,
         }
-        Some(Measurement {
+    }
+
+    /// The measurement for a controller of `N` joints tracking a target in `S`.
+    ///
+    /// # Errors
+    /// [`WireError::JointCount`] if `joint_count` is not `N`, [`WireError::Changed`] if
+    /// `space` is not `S`'s, or the target's [`WireSpace::from_wire`] error.
+    pub fn read<const N: usize, S: WireSpace>(&self) -> Result<Measurement<f64, N, S>, WireError> {
+        if self.joint_count != count_u32(N) {
+            return Err(WireError::JointCount(self.joint_count));
+        }
+        if self.space != S::CODE {
+            return Err(WireError::Changed);
+        }
+        let (target, target_velocity) = S::from_wire(&self.target())?;
+        Ok(Measurement {
             t: self.sim_time,
             base: Pose::new(self.base[0], self.base[1], self.base[2]),
             steering: self.steering,
             joints: SVector::<f64, N>::from_fn(|i, _| self.joints[i]),
-            target: Pose::new(self.target[0], self.target[1], self.target[2]),
-            target_velocity: Vector3::new(
-                self.target_velocity[0],
-                self.target_velocity[1],
-                self.target_velocity[2],
-            ),
+            target,
+            target_velocity,
         })
+    }
+
+    /// The measurement for a controller of `N` joints and a planar target (`None` if the
+    /// message does not give one: [`read`](Self::read)).
+    pub fn measurement<const N: usize>(&self) -> Option<Measurement<f64, N>> {
+        self.read::<N, Planar>().ok()
     }
 
     /// Whether a flag bit is set.
@@ -723,6 +835,8 @@ pub struct MeasurementHeader {
     pub session: u64,
     /// Scenario hash.
     pub scenario_hash: u64,
+    /// Arm hash.
+    pub arm_hash: u64,
     /// Measurement time (ns).
     pub plant_time_ns: u64,
     /// Period (ns), 0 in lockstep.
@@ -817,6 +931,9 @@ impl CommandMsg {
             flags: header.flags,
             platform: header.identity.platform,
             scenario_hash: header.identity.scenario_hash,
+            arm_hash: header.identity.arm_hash,
+            space: header.identity.space,
+            reserved: 0,
             delay: header.delay,
             v: p.v,
             v_lat: p.v_lat,

@@ -9,13 +9,13 @@
 //! another program's Zenoh network. The connecting side retries until its peer listens, so
 //! either may start first; a listening side whose port is taken fails at once.
 //!
-//! ## Key expressions (protocol version 3)
+//! ## Key expressions (protocol version 4)
 //!
 //! | key expression | from → to | payload |
 //! |---|---|---|
-//! | `companion/N/v3/measurement` | plant → controller | [`MeasurementMsg::to_bytes`] (232 bytes) |
-//! | `companion/N/v3/command` | controller → plant | [`CommandMsg::to_bytes`] (232 bytes) |
-//! | `companion/N/v3/alive/ROLE/PID` | liveliness token of each side | — |
+//! | `companion/N/v4/measurement` | plant → controller | [`MeasurementMsg::to_bytes`] (344 bytes) |
+//! | `companion/N/v4/command` | controller → plant | [`CommandMsg::to_bytes`] (248 bytes) |
+//! | `companion/N/v4/alive/ROLE/PID` | liveliness token of each side | — |
 //!
 //! (`N` is `--name`.) Publications are express (not batched), priority real time, and dropped
 //! rather than blocked on congestion: a late message is worth less than the next one. A
@@ -123,7 +123,7 @@ impl std::fmt::Display for ZenohLink {
     }
 }
 
-/// The key expression of `what` in demo `name`: `companion/NAME/v3/WHAT`.
+/// The key expression of `what` in demo `name`: `companion/NAME/v4/WHAT`.
 pub fn key(name: &str, what: &str) -> String {
     crate::ipc::service_name(name, what)
 }

@@ -175,7 +175,9 @@ fn lockstep_through_the_python_bridge_equals_the_simulation_to_the_printed_digit
     let (reference, scenario) = sim(&d, "5");
     let out = d.join("bridge.json");
     // The controller first, the bridge second; the bridge sends the scenario hash it computes
-    // from scenario.json (a different hash would be refused).
+    // from scenario.json and the RPR arm's hash it computes from docs/protocol.md's
+    // description (a different hash would be refused), and its planar target in protocol 4's
+    // SE(3) fields.
     let (scenario, out_s) = (scenario.to_str().unwrap(), out.to_str().unwrap());
     let ((bs, bt), (cs, ct)) = pair(
         &["--name", &n, "--duration", "5"],
@@ -187,8 +189,7 @@ fn lockstep_through_the_python_bridge_equals_the_simulation_to_the_printed_digit
     assert_eq!(printed(&got), printed(&reference));
     assert_eq!(got["steps"], 5001);
     assert!(ct.contains("answered 5001 measurements (0 skipped as superseded, 0 dropped"), "{ct}");
-    // The joint guard's factor came back on every command (protocol 3), as the simulation
-    // logged it.
+    // The joint guard's factor came back on every command, as the simulation logged it.
     assert_eq!(got["joint_scale_invalid"], 0, "{got}");
     assert_eq!(got["max_joint_scale"], reference["max_joint_scale"], "{got}");
     assert_eq!(got["joint_guard_steps"], reference["joint_guard_steps"], "{got}");
@@ -336,8 +337,8 @@ fn a_bridge_with_iceoryx2_default_settings_is_served_whoever_starts_first() {
     }
 }
 
-/// A bridge out of date (protocol 2's 224-byte command under protocol 3's type name): the side
-/// that opens second names both payload types; the side that created the service can only say
+/// A bridge with a wrong declaration (the command without its last field, 240 bytes, under
+/// protocol 4's type name): the side that opens second names both payload types; the side that created the service can only say
 /// that no peer joined. Both exit 2, whoever starts first.
 #[test]
 fn a_bridge_with_another_command_layout_is_refused_by_name_whoever_starts_first() {
@@ -359,13 +360,13 @@ fn a_bridge_with_another_command_layout_is_refused_by_name_whoever_starts_first(
         if bridge_first {
             // companion lists the service and names the bridge's type and its own.
             let says =
-                "the peer created it with companion::CommandV3 (224 bytes, alignment 8); this program \
-                        (protocol version 3) uses companion::CommandV3 (232 bytes, alignment 8)";
+                "the peer created it with companion::CommandV4 (240 bytes, alignment 8); this program \
+                        (protocol version 4) uses companion::CommandV4 (248 bytes, alignment 8)";
             assert!(ct.contains(says), "{ct}");
             assert!(bt.contains("no controller joined demo"), "{bt}");
         } else {
             // The Python binding does not list a service's payload type: it names its own.
-            let says = "exists with another payload type than companion::CommandV3 (224 bytes, alignment 8";
+            let says = "exists with another payload type than companion::CommandV4 (240 bytes, alignment 8";
             assert!(bt.contains(says), "{bt}");
             assert!(ct.contains("no plant joined demo"), "{ct}");
         }
@@ -379,7 +380,7 @@ fn every_mismatch_is_named_on_both_sides() {
     }
     let _g = serial();
     // (bridge flags, what the controller says, what the bridge says)
-    let cases: [(&[&str], &str, &str); 4] = [
+    let cases: [(&[&str], &str, &str); 7] = [
         (
             &["--joint-count", "4"],
             "joint count mismatch: the plant has 4 joints, the controller is built for 3",
@@ -395,7 +396,29 @@ fn every_mismatch_is_named_on_both_sides() {
             "the plant's scenario hash is 0x0000000000001234",
             "scenario mismatch",
         ),
-        (&["--service-version", "4", "--protocol-version", "4"], "waits on demo", "with protocol version 3"),
+        (
+            &["--arm-hash", "0x1234"],
+            "arm mismatch: the plant's arm is 0x0000000000001234, the controller is built for rpr (0x",
+            "(arm mismatch): this bridge's arm hash is 0x0000000000001234",
+        ),
+        (
+            &["--space", "2"],
+            "target space mismatch: the plant's target is spatial (SE(3)), the controller's arm tracks a planar",
+            "this bridge's target is spatial (SE(3)), the controller tracks a planar (SE(2)) one",
+        ),
+        // A peer of protocol 3: its services are named v3, the two never connect, and each
+        // side finds the other's services and names both versions.
+        (
+            &["--service-version", "3", "--protocol-version", "3"],
+            "with protocol version 3 (service companion/",
+            "with protocol version 4 (service companion/",
+        ),
+        // Version 3 in the field of a version 4 message: refused at the handshake.
+        (
+            &["--protocol-version", "3"],
+            "the plant speaks version 3, the controller version 4",
+            "this bridge speaks version 3, the controller version 4",
+        ),
     ];
     for (flags, controller_says, bridge_says) in cases {
         let n = name("mismatch");

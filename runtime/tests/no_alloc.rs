@@ -104,8 +104,14 @@ fn scenario(duration: f64) -> Scenario {
 
 /// The command header of a controller of the paper's unicycle.
 fn command_header() -> CommandHeader {
-    let identity =
-        ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 0.01 };
+    let identity = ControllerIdentity {
+        platform: platform::UNICYCLE,
+        joint_count: 3,
+        space: companion_runtime::wire::target::space::PLANAR,
+        arm_hash: 0,
+        scenario_hash: 0,
+        max_dt: 0.01,
+    };
     CommandHeader { identity, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 }
 }
 
@@ -211,6 +217,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
             let stamp = Stamp {
                 session: 5,
                 scenario_hash: companion_runtime::hil::handshake::controller_hash(&s.controller),
+                arm_hash: companion_runtime::hil::handshake::arm_hash(),
                 period_ns: timing.period_ns,
                 dt: s.dt,
                 flags: 0,
@@ -401,6 +408,7 @@ fn the_plant_loop_allocates_nothing() {
     let stamp = Stamp {
         session: 1,
         scenario_hash: 0,
+        arm_hash: 0,
         period_ns: TIMING.period_ns,
         dt: s.dt,
         flags: 0,

@@ -642,13 +642,14 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     };
     eprintln!(
         "controller: demo '{}' waiting for its plant (companion plant --name {}) over {}; protocol version {}, \
-         services {}, scenario hash {:#018x}",
+         services {}, scenario hash {:#018x}, arm {}",
         cfg.name,
         cfg.name,
         cfg.transport.describe(),
         companion_runtime::wire::PROTOCOL_VERSION,
         ipc::service_name(&cfg.name, "{measurement,command}"),
-        companion_runtime::hil::handshake::controller_hash(&s.controller)
+        companion_runtime::hil::handshake::controller_hash(&s.controller),
+        companion_runtime::wire::canonical::describe_arm(companion_runtime::hil::handshake::arm_hash())
     );
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {

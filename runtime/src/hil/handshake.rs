@@ -1,6 +1,6 @@
 //! What the two roles agree on at start-up, computed the same way on both sides: the
-//! controller's identity (platform, joints, scenario hash, the longest period its law
-//! admits), the scenario hash, and the one parameter of the law that depends on the plant's
+//! controller's identity (platform, joints, target space, arm, scenario hash, the longest
+//! period its law admits), the scenario and arm hashes, and the one parameter of the law that depends on the plant's
 //! announcement — the joint guard κ.
 //!
 //! The joint guard: a real-time plant may hold a command for `hold_periods` periods after the
@@ -10,9 +10,12 @@
 //! `hold_periods` and the lockstep flag are the plant's, on the wire; the controller's own
 //! flags play no part.
 
+use companion_core::Chain;
+
 use crate::controller::{ControllerSpec, JOINTS};
 use crate::wire::canonical::scenario_hash;
-use crate::wire::{platform, Announcement, ControllerIdentity};
+use crate::wire::target::space;
+use crate::wire::{canonical, platform, Announcement, ControllerIdentity};
 
 /// κ₀: the core's default joint guard when the scenario does not set one.
 const DEFAULT_JOINT_STEP_FRACTION: f64 = 0.5;
@@ -23,12 +26,20 @@ pub fn controller_hash(spec: &ControllerSpec) -> u64 {
     serde_json::to_value(spec).map_or(0, |v| scenario_hash(&v))
 }
 
+/// The arm hash of the runtime's arm, the paper's RPR arm ([`canonical::arm_hash`]; both
+/// roles announce it).
+pub fn arm_hash() -> u64 {
+    canonical::arm_hash(&Chain::<f64, JOINTS>::rpr())
+}
+
 /// The controller's identity for a specification.
 pub fn identity(spec: &ControllerSpec) -> ControllerIdentity {
     #[allow(clippy::cast_possible_truncation)]
     ControllerIdentity {
         platform: platform::code(spec.platform),
         joint_count: JOINTS as u32,
+        space: space::PLANAR,
+        arm_hash: arm_hash(),
         scenario_hash: controller_hash(spec),
         max_dt: spec.params::<f64>().max_time_step,
     }
@@ -72,10 +83,12 @@ mod tests {
             flags: if lockstep { flags::LOCKSTEP } else { 0 },
             platform: platform::UNICYCLE,
             joint_count: 3,
+            space: crate::wire::target::space::PLANAR,
             hold_periods,
             dt: 1e-3,
             period_ns: if lockstep { 0 } else { 1_000_000 },
             scenario_hash: 0,
+            arm_hash: 0,
         }
     }
 

@@ -16,6 +16,8 @@ pub struct Stamp {
     pub session: u64,
     /// Scenario hash (0: not checked).
     pub scenario_hash: u64,
+    /// Arm hash (0: not checked).
+    pub arm_hash: u64,
     /// The period (ns); 0 in lockstep.
     pub period_ns: u64,
     /// How long each command is held (s).
@@ -45,6 +47,7 @@ impl Stamp {
             flags: self.flags | flags,
             session: self.session,
             scenario_hash: self.scenario_hash,
+            arm_hash: self.arm_hash,
             plant_time_ns,
             period_ns: self.period_ns,
             dt: self.dt,
@@ -95,6 +98,7 @@ mod tests {
         let stamp = Stamp {
             session: 5,
             scenario_hash: 0,
+            arm_hash: 0,
             period_ns: 0,
             dt: 1e-3,
             flags: crate::wire::flags::LOCKSTEP,
@@ -117,8 +121,14 @@ mod tests {
         );
         let mut r = StepReport::rejected(companion_core::StepError::SingularArm);
         r.command.platform.v = 3.0;
-        let id =
-            crate::wire::ControllerIdentity { platform: 1, joint_count: 3, scenario_hash: 0, max_dt: 0.1 };
+        let id = crate::wire::ControllerIdentity {
+            platform: 1,
+            joint_count: 3,
+            space: crate::wire::target::space::PLANAR,
+            arm_hash: 0,
+            scenario_hash: 0,
+            max_dt: 0.1,
+        };
         let header = CommandHeader { identity: id, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 };
         let c = answer(&m, &header, &r);
         assert_eq!((c.seq, c.session), (3, 5));

@@ -100,6 +100,7 @@ pub fn run(
     let stamp = Stamp {
         session: crate::ipc::new_session_id(),
         scenario_hash: controller_hash(&s.controller),
+        arm_hash: super::handshake::arm_hash(),
         period_ns: timing.period_ns,
         dt: s.dt,
         flags: announced,

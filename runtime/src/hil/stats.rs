@@ -31,8 +31,11 @@ impl InvalidCounts {
     pub fn count(&mut self, e: WireError) {
         match e {
             WireError::Version(_) => self.version += 1,
-            // (A changed announcement concerns measurements, not commands.)
-            WireError::Session | WireError::Changed => self.session += 1,
+            // (A changed announcement and a malformed target concern measurements, not
+            // commands.)
+            WireError::Session | WireError::Changed | WireError::NotPlanar | WireError::NotARotation => {
+                self.session += 1;
+            }
             WireError::Future(_) | WireError::Stale(_) => self.future_seq += 1,
             WireError::JointCount(_) => self.joint_count += 1,
             // (A refusal of this session ends the run before it would be counted.)

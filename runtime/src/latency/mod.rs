@@ -1,6 +1,6 @@
 //! `companion latency`: the worst-case latency benchmark.
 //!
-//! In one run, with the HIL's message sizes (232-byte measurement, 224-byte command):
+//! In one run, with the HIL's message sizes (344-byte measurement, 248-byte command):
 //!
 //! 1. the controller step alone, per platform and scalar type (in process, one sample per
 //!    step of a simulated run of trajectory 1, variant a);

@@ -1,6 +1,6 @@
 //! Bare ping-pong between two processes with the HIL's message sizes: the transport's floor.
 //!
-//! The parent sends a [`MeasurementMsg`] (232 bytes) and waits for the [`CommandMsg`] (224
+//! The parent sends a [`MeasurementMsg`] (344 bytes) and waits for the [`CommandMsg`] (248
 //! bytes) the peer — a hidden `latency-peer` subcommand of the same binary — sends back at
 //! once; the round trip is timed on the parent's clock. Three transports:
 //!
@@ -24,6 +24,7 @@ use crate::link::PeerState;
 use crate::observe::Observer;
 use crate::process::ChildGuard;
 use crate::rt;
+use crate::wire::target::space;
 use crate::wire::{
     flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
     MeasurementMsg, COMMAND_SIZE, MEASUREMENT_SIZE,
@@ -72,8 +73,14 @@ pub struct PeerOptions {
 
 pub(super) fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {
     let diag = LoggedDiagnostics::IDLE;
-    let identity =
-        ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 0, max_dt: 1.0 };
+    let identity = ControllerIdentity {
+        platform: platform::UNICYCLE,
+        joint_count: 3,
+        space: space::PLANAR,
+        arm_hash: 0,
+        scenario_hash: 0,
+        max_dt: 1.0,
+    };
     let header = CommandHeader { identity, flags: 0, received_ns, skipped: 0, delay: 0.0 };
     CommandMsg::answer::<3>(m, &header, &Command::zero(), None, &diag)
 }

@@ -29,7 +29,27 @@
 //! it. The companion plant sends the hash of the parameters it writes into `scenario.json`, so
 //! that a run's files never describe a controller other than the one that ran.
 
-use serde_json::Value;
+//!
+//! ## The arm hash
+//!
+//! The arm's identity, which both roles announce (`arm_hash`): the same hash of the JSON value
+//! that describes the arm as a robot *is* — its geometry and joint ranges, in the chain
+//! description of `companion_core::chain` (URDF's joint frames):
+//!
+//! ```text
+//! {"mount":  {"rotation": [R row by row, 9 numbers], "translation": [x, y, z]},
+//!  "joints": [{"kind": "revolute" | "prismatic",
+//!              "origin": {"rotation": [9], "translation": [3]},
+//!              "axis": [3], "lower": q⁻, "upper": q⁺}, …],
+//!  "tool":   {"rotation": [9], "translation": [3]}}
+//! ```
+//!
+//! What the controller prefers (home position, velocity limits, gains) is not part of it: the
+//! scenario hash covers that. A plant simulating a UR5 and a controller built for a Panda, or
+//! for a UR5 mounted elsewhere, refuse each other by name ([`arm_hash`], [`arm_name`]).
+
+use companion_core::{Chain, JointKind, Pose3};
+use serde_json::{json, Value};
 
 use super::fnv1a;
 
@@ -71,11 +91,101 @@ pub fn scenario_hash(v: &Value) -> u64 {
     fnv1a(canonical_text(v).as_bytes()).max(1)
 }
 
+fn frame(p: &Pose3<f64>) -> Value {
+    let r = &p.rotation;
+    let rows: Vec<f64> = (0..3).flat_map(|i| (0..3).map(move |j| r[(i, j)])).collect();
+    json!({"rotation": rows, "translation": [p.translation[0], p.translation[1], p.translation[2]]})
+}
+
+/// The JSON value an arm is hashed from (module docs).
+pub fn arm_description<const N: usize>(chain: &Chain<f64, N>) -> Value {
+    let joints: Vec<Value> = chain
+        .joints
+        .iter()
+        .map(|j| {
+            json!({
+                "kind": match j.kind { JointKind::Revolute => "revolute", JointKind::Prismatic => "prismatic" },
+                "origin": frame(&j.origin),
+                "axis": [j.axis[0], j.axis[1], j.axis[2]],
+                "lower": j.lower,
+                "upper": j.upper,
+            })
+        })
+        .collect();
+    json!({"mount": frame(&chain.mount), "joints": joints, "tool": frame(&chain.tool)})
+}
+
+/// The arm hash of a chain: [`scenario_hash`] of [`arm_description`].
+pub fn arm_hash<const N: usize>(chain: &Chain<f64, N>) -> u64 {
+    scenario_hash(&arm_description(chain))
+}
+
+/// The name of a preset arm (`rpr`, `ur5`, `panda`) by its hash.
+pub fn arm_name(hash: u64) -> Option<&'static str> {
+    [
+        ("rpr", arm_hash(&Chain::<f64, 3>::rpr())),
+        ("ur5", arm_hash(&Chain::<f64, 6>::ur5())),
+        ("panda", arm_hash(&Chain::<f64, 7>::panda())),
+    ]
+    .into_iter()
+    .find_map(|(name, h)| (h == hash).then_some(name))
+}
+
+/// An arm hash in words: `ur5 (0x…)`, or the hash alone for another arm; `0 (not checked)`.
+pub fn describe_arm(hash: u64) -> String {
+    match (hash, arm_name(hash)) {
+        (0, _) => "0 (not checked)".into(),
+        (h, Some(name)) => format!("{name} ({h:#018x})"),
+        (h, None) => format!("{h:#018x}"),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use serde_json::json;
 
     use super::*;
+
+    #[test]
+    fn the_rpr_arm_is_described_as_documented() {
+        // The paper's arm written by hand from docs/protocol.md (§8), as a bridge would.
+        let id = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+        let at = |x: f64| json!({"rotation": id, "translation": [x, 0.0, 0.0]});
+        let pi = core::f64::consts::PI;
+        let joint = |kind: &str, axis: [f64; 3], lower: f64, upper: f64| json!({"kind": kind, "origin": at(0.0), "axis": axis, "lower": lower, "upper": upper});
+        let by_hand = json!({
+            "mount": at(0.4),
+            "joints": [
+                joint("revolute", [0.0, 0.0, 1.0], -pi / 3.0, pi / 3.0),
+                joint("prismatic", [1.0, 0.0, 0.0], 0.0, 0.7),
+                joint("revolute", [0.0, 0.0, 1.0], -pi / 2.0, pi / 2.0),
+            ],
+            "tool": at(0.15),
+        });
+        assert_eq!(canonical_text(&arm_description(&Chain::<f64, 3>::rpr())), canonical_text(&by_hand));
+        assert_eq!(arm_hash(&Chain::<f64, 3>::rpr()), scenario_hash(&by_hand));
+    }
+
+    #[test]
+    fn presets_have_distinct_named_hashes_and_the_home_is_not_part_of_them() {
+        let (rpr, ur5, panda) = (
+            arm_hash(&Chain::<f64, 3>::rpr()),
+            arm_hash(&Chain::<f64, 6>::ur5()),
+            arm_hash(&Chain::<f64, 7>::panda()),
+        );
+        assert!(rpr != ur5 && ur5 != panda && rpr != panda);
+        assert_eq!(
+            (arm_name(rpr), arm_name(ur5), arm_name(panda), arm_name(1)),
+            (Some("rpr"), Some("ur5"), Some("panda"), None)
+        );
+        let mut moved = Chain::<f64, 6>::ur5();
+        moved.joints[2].home += 0.1;
+        moved.joints[2].max_velocity = 1.0;
+        assert_eq!(arm_hash(&moved), ur5);
+        moved.mount.translation[2] += 0.01;
+        assert_ne!(arm_hash(&moved), ur5);
+        assert!(describe_arm(ur5).starts_with("ur5 (0x") && describe_arm(0) == "0 (not checked)");
+    }
 
     #[test]
     fn the_documented_example() {

@@ -1,6 +1,7 @@
 use core::mem::offset_of;
 
-use companion_core::PlatformKind;
+use companion_core::nalgebra::{Vector3, Vector6};
+use companion_core::{PlatformKind, Pose3, Spatial};
 
 use super::*;
 
@@ -21,6 +22,7 @@ fn header() -> MeasurementHeader {
         flags: flags::LOCKSTEP,
         session: 42,
         scenario_hash: 9,
+        arm_hash: 0xa5,
         plant_time_ns: 123_456,
         period_ns: 1_000_000,
         dt: 1e-3,
@@ -31,7 +33,14 @@ fn header() -> MeasurementHeader {
 }
 
 fn identity() -> ControllerIdentity {
-    ControllerIdentity { platform: platform::UNICYCLE, joint_count: 3, scenario_hash: 9, max_dt: 0.01 }
+    ControllerIdentity {
+        platform: platform::UNICYCLE,
+        joint_count: 3,
+        space: target::space::PLANAR,
+        arm_hash: 0xa5,
+        scenario_hash: 9,
+        max_dt: 0.01,
+    }
 }
 
 fn command_header() -> CommandHeader {
@@ -63,6 +72,7 @@ fn measurement_fields() -> Vec<(&'static str, usize)> {
         ("seq", offset_of!(MeasurementMsg, seq)),
         ("session", offset_of!(MeasurementMsg, session)),
         ("scenario_hash", offset_of!(MeasurementMsg, scenario_hash)),
+        ("arm_hash", offset_of!(MeasurementMsg, arm_hash)),
         ("plant_time_ns", offset_of!(MeasurementMsg, plant_time_ns)),
         ("period_ns", offset_of!(MeasurementMsg, period_ns)),
         ("sim_time", offset_of!(MeasurementMsg, sim_time)),
@@ -71,11 +81,13 @@ fn measurement_fields() -> Vec<(&'static str, usize)> {
         ("platform", offset_of!(MeasurementMsg, platform)),
         ("hold_periods", offset_of!(MeasurementMsg, hold_periods)),
         ("joint_count", offset_of!(MeasurementMsg, joint_count)),
-        ("reserved", offset_of!(MeasurementMsg, reserved)),
+        ("space", offset_of!(MeasurementMsg, space)),
         ("base", offset_of!(MeasurementMsg, base)),
         ("steering", offset_of!(MeasurementMsg, steering)),
-        ("target", offset_of!(MeasurementMsg, target)),
-        ("target_velocity", offset_of!(MeasurementMsg, target_velocity)),
+        ("target_position", offset_of!(MeasurementMsg, target_position)),
+        ("target_rotation", offset_of!(MeasurementMsg, target_rotation)),
+        ("target_yaw", offset_of!(MeasurementMsg, target_yaw)),
+        ("target_twist", offset_of!(MeasurementMsg, target_twist)),
         ("joints", offset_of!(MeasurementMsg, joints)),
     ]
 }
@@ -94,6 +106,9 @@ fn command_fields() -> Vec<(&'static str, usize)> {
         ("flags", offset_of!(CommandMsg, flags)),
         ("platform", offset_of!(CommandMsg, platform)),
         ("scenario_hash", offset_of!(CommandMsg, scenario_hash)),
+        ("arm_hash", offset_of!(CommandMsg, arm_hash)),
+        ("space", offset_of!(CommandMsg, space)),
+        ("reserved", offset_of!(CommandMsg, reserved)),
         ("delay", offset_of!(CommandMsg, delay)),
         ("v", offset_of!(CommandMsg, v)),
         ("v_lat", offset_of!(CommandMsg, v_lat)),
@@ -215,15 +230,25 @@ fn bytes_follow_the_in_memory_layout() {
     let m = MeasurementMsg::new(header(), &meas());
     let b = m.to_bytes();
     assert_eq!(MeasurementMsg::from_bytes(&b), m);
+    // Offsets written out from docs/protocol.md, independently of the struct.
+    assert_eq!(&b[0..4], &4u32.to_le_bytes());
     assert_eq!(&b[8..16], &7u64.to_le_bytes());
-    assert_eq!(&b[64..72], &2.5e-4f64.to_le_bytes());
-    assert_eq!(&b[72..76], &1u32.to_le_bytes());
-    assert_eq!(&b[168 + 8..168 + 16], &0.35f64.to_le_bytes());
+    assert_eq!(&b[32..40], &0xa5u64.to_le_bytes());
+    assert_eq!(&b[72..80], &2.5e-4f64.to_le_bytes());
+    assert_eq!(&b[80..84], &1u32.to_le_bytes());
+    assert_eq!(&b[92..96], &1u32.to_le_bytes());
+    assert_eq!(&b[128..136], &2.6f64.to_le_bytes());
+    assert_eq!(&b[152..160], &1.0f64.to_le_bytes());
+    assert_eq!(&b[232 + 8..232 + 16], &(-0.157f64).to_le_bytes());
+    assert_eq!(&b[280 + 8..280 + 16], &0.35f64.to_le_bytes());
     let c = good_command();
     let b = c.to_bytes();
     assert_eq!(CommandMsg::from_bytes(&b), c);
-    assert_eq!(&b[80..88], &0.3f64.to_le_bytes());
-    assert_eq!(&b[112 + 8..112 + 16], &0.05f64.to_le_bytes());
+    assert_eq!(&b[72..80], &0xa5u64.to_le_bytes());
+    assert_eq!(&b[80..84], &1u32.to_le_bytes());
+    assert_eq!(&b[96..104], &0.3f64.to_le_bytes());
+    assert_eq!(&b[128 + 8..128 + 16], &0.05f64.to_le_bytes());
+    assert_eq!(&b[240..248], &1.25f64.to_le_bytes());
 }
 
 #[test]
@@ -233,7 +258,57 @@ fn measurement_round_trips() {
     assert_eq!(msg.joint_count, 3);
     assert_eq!(msg.measurement::<3>(), Some(m));
     assert_eq!(msg.measurement::<2>(), None);
+    assert_eq!(msg.read::<2, Planar>(), Err(WireError::JointCount(3)));
     assert!(msg.has(flags::LOCKSTEP) && !msg.has(flags::END_OF_RUN));
+    // A planar target on the wire: z = 0, a rotation about z, twist (v₁, v₂, 0, 0, 0, ω).
+    assert_eq!(msg.space, target::space::PLANAR);
+    assert_eq!(msg.target_position, [2.6, 1.0, 0.0]);
+    assert_eq!(msg.target_rotation, [1.0, -0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+    assert_eq!(msg.target_twist, [0.0, -0.157, 0.0, 0.0, 0.0, 0.0]);
+    // A spatial controller reads it as the lifted target; a planar one refuses a spatial one.
+    assert_eq!(msg.read::<3, Spatial>(), Err(WireError::Changed));
+    assert_eq!(msg.read::<3, Planar>(), Ok(m));
+}
+
+#[test]
+fn a_spatial_measurement_of_eight_joints_round_trips() {
+    let target = Pose3::exp(&Vector6::new(1.5, 0.2, 0.6, 0.3, -0.4, 1.1));
+    let m = Measurement::<f64, 8, Spatial> {
+        t: 0.25,
+        base: Pose::new(0.1, -0.2, 0.3),
+        steering: 0.0,
+        joints: SVector::<f64, 8>::from_fn(|i, _| 0.1 * f64::from(u8::try_from(i).unwrap()) - 0.3),
+        target,
+        target_velocity: Vector6::new(0.01, 0.02, 0.03, 0.04, 0.05, 0.06),
+    };
+    let msg = MeasurementMsg::new(header(), &m);
+    assert_eq!((msg.space, msg.joint_count), (target::space::SPATIAL, 8));
+    assert_eq!(msg.target_yaw, target.rotation[(1, 0)].atan2(target.rotation[(0, 0)]));
+    let back = MeasurementMsg::from_bytes(&msg.to_bytes());
+    assert_eq!(back.read::<8, Spatial>(), Ok(m));
+    assert_eq!(back.read::<8, Planar>(), Err(WireError::Changed));
+    // A rotation that is not one is malformed.
+    let mut bad = back;
+    bad.target_rotation[0] = 2.0;
+    assert_eq!(bad.read::<8, Spatial>(), Err(WireError::NotARotation));
+    // A planar message claiming a target off the plane is malformed.
+    let mut off = MeasurementMsg::new(header(), &meas());
+    off.target_position[2] = 0.3;
+    assert_eq!(off.read::<3, Planar>(), Err(WireError::NotPlanar));
+    // Eight joint velocities come back.
+    let mut cmd = Command::<f64, 8>::zero();
+    cmd.joints[7] = -0.75;
+    let id = ControllerIdentity { joint_count: 8, space: target::space::SPATIAL, ..identity() };
+    let c = CommandMsg::answer(
+        &msg,
+        &CommandHeader { identity: id, ..command_header() },
+        &cmd,
+        None,
+        &LoggedDiagnostics::IDLE,
+    );
+    assert_eq!(check_command::<8>(&c, 42, 7), Ok(()));
+    assert_eq!(c.command::<8>().joints[7], -0.75);
+    assert_eq!((c.space, c.arm_hash), (target::space::SPATIAL, 0xa5));
 }
 
 #[test]
@@ -328,7 +403,9 @@ fn the_controller_admits_only_a_plant_it_can_serve() {
     assert!(a.lockstep() && !a.notifies());
     assert_eq!((a.hold_periods, a.platform), (20, platform::UNICYCLE));
     let cases = [
-        (MeasurementMsg { version: 4, ..m }, Refusal::Version { plant: 4 }),
+        (MeasurementMsg { version: 3, ..m }, Refusal::Version { plant: 3 }),
+        (MeasurementMsg { space: target::space::SPATIAL, ..m }, Refusal::Space { plant: 2, controller: 1 }),
+        (MeasurementMsg { arm_hash: 0xb6, ..m }, Refusal::Arm { plant: 0xb6, controller: 0xa5 }),
         (MeasurementMsg { platform: platform::CAR, ..m }, Refusal::Platform { plant: 2, controller: 1 }),
         (MeasurementMsg { platform: 0, ..m }, Refusal::Platform { plant: 0, controller: 1 }),
         (MeasurementMsg { scenario_hash: 10, ..m }, Refusal::Scenario { plant: 10, controller: 9 }),
@@ -340,8 +417,21 @@ fn the_controller_admits_only_a_plant_it_can_serve() {
         let c = CommandMsg::refusal::<3>(&msg, &command_header(), &why);
         assert_eq!(Refusal::from_command(&c, &msg), Some(why), "{why}");
     }
-    // 0 on either side: the scenario is not checked.
+    // 0 on either side: the scenario (the arm) is not checked.
     assert!(id.admit(&MeasurementMsg { scenario_hash: 0, ..m }).is_ok());
+    assert!(id.admit(&MeasurementMsg { arm_hash: 0, ..m }).is_ok());
+    assert!(ControllerIdentity { arm_hash: 0, ..id }.admit(&MeasurementMsg { arm_hash: 5, ..m }).is_ok());
+    // The refusals name both sides: a v3 plant, a spatial plant, a UR5 against a Panda.
+    let v = Refusal::Version { plant: 3 }.to_string();
+    assert!(v.contains("plant speaks version 3, the controller version 4"), "{v}");
+    let sp = Refusal::Space { plant: 2, controller: 1 }.to_string();
+    assert!(sp.contains("target is spatial (SE(3))") && sp.contains("tracks a planar (SE(2)) one"), "{sp}");
+    let (ur5, panda) = (
+        canonical::arm_hash(&companion_core::Chain::<f64, 6>::ur5()),
+        canonical::arm_hash(&companion_core::Chain::<f64, 7>::panda()),
+    );
+    let a = Refusal::Arm { plant: ur5, controller: panda }.to_string();
+    assert!(a.contains("the plant's arm is ur5 (0x") && a.contains("built for panda (0x"), "{a}");
     assert!(ControllerIdentity { scenario_hash: 0, ..id }
         .admit(&MeasurementMsg { scenario_hash: 5, ..m })
         .is_ok());
@@ -372,6 +462,8 @@ fn measurements_of_a_session_are_checked_for_order_session_and_announcement() {
         MeasurementMsg { period_ns: 2, ..m },
         MeasurementMsg { platform: 3, ..m },
         MeasurementMsg { scenario_hash: 1, ..m },
+        MeasurementMsg { arm_hash: 1, ..m },
+        MeasurementMsg { space: 2, ..m },
     ] {
         assert_eq!(check_measurement(&changed, 42, &a, None), Err(WireError::Changed));
     }

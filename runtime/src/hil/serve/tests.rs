@@ -78,6 +78,7 @@ fn stamp(s: &Scenario, lockstep: bool) -> Stamp {
     Stamp {
         session: 77,
         scenario_hash: controller_hash(&s.controller),
+        arm_hash: crate::hil::handshake::arm_hash(),
         period_ns: if lockstep { 0 } else { 1_000_000 },
         dt: s.dt,
         flags: if lockstep { flags::LOCKSTEP } else { 0 },
@@ -162,11 +163,13 @@ fn a_dead_plant_is_noticed_after_the_silence_threshold() {
 fn a_plant_the_controller_cannot_serve_is_refused_on_the_wire_and_in_the_error() {
     let s = scenario();
     type Spoil = fn(&mut MeasurementMsg);
-    let cases: [(Spoil, u32, &str); 5] = [
+    let cases: [(Spoil, u32, &str); 7] = [
         (|m| m.scenario_hash ^= 1, refusal::SCENARIO, "scenario mismatch"),
         (|m| m.platform = platform::CAR, refusal::PLATFORM, "the plant is car-like"),
         (|m| m.joint_count = 4, refusal::JOINT_COUNT, "the plant has 4 joints"),
-        (|m| m.version = 4, refusal::VERSION, "the plant speaks version 4"),
+        (|m| m.version = 3, refusal::VERSION, "the plant speaks version 3, the controller version 4"),
+        (|m| m.space = 2, refusal::SPACE, "the plant's target is spatial (SE(3))"),
+        (|m| m.arm_hash ^= 1, refusal::ARM, "arm mismatch: the plant's arm is 0x"),
         (|m| m.dt = 1.0, refusal::PERIOD, "dt = 1 s"),
     ];
     for (spoil, code, text) in cases {
