@@ -170,7 +170,7 @@ struct Plant<T, const N: usize> {
 
 /// `(r_d(t), u_d(t))` of trajectory 1 with `r_d(0) = (2.6, 1, 0)`:
 /// `x_d = 2.6 + (cos(πt/2) − 1)/10`, `y_d = 1 − sin(πt/2)/10`, `θ_d = 0`.
-fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
+pub fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
     let (s, c) = (T::pi() * T::of(0.5) * t).sincos();
     let tenth = T::of(0.1);
     let speed = T::pi() / T::of(20.0);
@@ -180,7 +180,7 @@ fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
 
 /// Trajectory 1 lifted, from `start`: the circle of [`target`], level, plus
 /// `z = 0.05 sin(2πt/10)` m; the body twist `(ṗ, 0)` (the frame does not turn).
-fn lifted<T: Real>(t: T, start: &Vector3<T>) -> (Pose3<T>, Vector6<T>) {
+pub fn lifted<T: Real>(t: T, start: &Vector3<T>) -> (Pose3<T>, Vector6<T>) {
     let (planar, u) = target(t);
     let w = T::two_pi() / T::of(10.0);
     let (s, c) = (w * t).sincos();
