@@ -399,7 +399,12 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
 
     /// One step from `state`, which is written only at the end, once everything is known to
     /// be finite.
-    #[inline(always)]
+    ///
+    /// Never inlined: it is the whole law, and the step, the first step and the recovery
+    /// share this one copy. Inlined into each (and into every caller of `step`), it was
+    /// four copies per law instance in a firmware image (15–35 kB each in `f32` on a
+    /// Cortex-M4F), and their merged stack frames made the step's stack 5 kB.
+    #[inline(never)]
     fn compute(
         &self,
         state: &mut St<T, A, N>,

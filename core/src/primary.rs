@@ -20,7 +20,7 @@
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3};
 
 use crate::arm::Arm;
-use crate::arm_law::{implicit_rhs, solve_square, Linearised};
+use crate::arm_law::{implicit_rhs, solve_square_into, Linearised};
 use crate::error::{ParamError, StepError};
 use crate::params::{JointLimits, PrimaryTask};
 use crate::scalar::{wrap_angle, Real};
@@ -264,7 +264,23 @@ impl<T: Real, A: Arm<T, N>, const N: usize> Manipulator<T, N> for A {
             drhs,
         };
         let (rhs, drhs) = implicit_rhs(&lin, &task.gain, pt.guess, half);
-        let (u_q, sensitivity, condition) = solve_square(&prim.de_m_dq, &rhs, &drhs, T::zero(), half)?;
-        Ok(TaskStep { u_q, sensitivity, condition, e_p: prim.e_p, e_m: prim.e_m, h_l: prim.h_l })
+        let mut step = TaskStep {
+            u_q: SVector::zeros(),
+            sensitivity: SMatrix::zeros(),
+            condition: T::zero(),
+            e_p: prim.e_p,
+            e_m: prim.e_m,
+            h_l: prim.h_l,
+        };
+        step.condition = solve_square_into(
+            &prim.de_m_dq,
+            &rhs,
+            &drhs,
+            T::zero(),
+            half,
+            &mut step.u_q,
+            &mut step.sensitivity,
+        )?;
+        Ok(step)
     }
 }

@@ -86,7 +86,7 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 
-use crate::arm_law::{implicit_rhs, solve_redundant, solve_square, Linearised};
+use crate::arm_law::{implicit_rhs, solve_redundant, solve_square_into, Linearised};
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule, StepError};
 use crate::linalg;
@@ -322,7 +322,11 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
     }
 
     /// The task at a point (module docs).
-    #[inline(always)]
+    ///
+    /// Never inlined into the law: with its temporaries in the law's frame, that frame was
+    /// larger than the M4F's load/store offsets reach (±1 020 B), so that every access to
+    /// the stack took an extra address computation (~1 600 instructions of a step).
+    #[inline(never)]
     pub fn terms(
         &self,
         task: &PrimaryTask<T, N, Spatial>,
@@ -332,8 +336,9 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
         terms(&self.kinematics(point.q), task, limits, point)
     }
 
-    /// (30) at a point over the hold (module docs; [`Manipulator::arm_law`]).
-    #[inline(always)]
+    /// (30) at a point over the hold (module docs; [`Manipulator::arm_law`]). Never inlined
+    /// into the step, for the same reason as [`Self::terms`].
+    #[inline(never)]
     fn law(
         &self,
         task: &PrimaryTask<T, N, Spatial>,
@@ -356,7 +361,15 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
         // u_bd = u_d − B u_b with B = Ad_{r_db} restricted to the platform's (v₁, v₂, ω).
         let b = base_columns(pt.r_bd);
         let u_bd = pt.u_d - b * pt.u_b;
-        let (u_q, sensitivity, condition) = if N > 6 {
+        let mut step = TaskStep {
+            u_q: SVector::zeros(),
+            sensitivity: SMatrix::zeros(),
+            condition: T::zero(),
+            e_p: tm.e_p,
+            e_m: tm.e_m,
+            h_l: tm.h_l,
+        };
+        if N > 6 {
             // ė_p = G e_p with the first six gains; the penalty in the null space.
             let gain = SVector::<T, 6>::from_fn(|i, _| task.gain[i]);
             let transport = tm.de_p_du * u_bd;
@@ -372,7 +385,7 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
             let w = tm.hess_l.map(|h| T::one() + h);
             let z = SVector::<T, N>::from_fn(|i, _| -task.null_space_gain * tm.grad_l[i] / w[i]);
             let (onset, depth) = (self.damping_below, self.damping_depth);
-            solve_redundant(
+            (step.u_q, step.sensitivity, step.condition) = solve_redundant(
                 &tm.de_p_dq,
                 &w,
                 &z,
@@ -380,21 +393,29 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
                 &drhs,
                 |s: &Matrix6<T>| damping(s, hadamard_sym(s), onset, depth),
                 half,
-            )?
+            )?;
         } else {
-            let transport = tm.de_m_du * u_bd;
+            let transport = linalg::mul(&tm.de_m_du, &u_bd);
             let lin = Linearised {
                 e: &tm.e_m,
                 a: &tm.de_m_dq,
                 transport: &transport,
                 explicit: &tm.de_m_dt_explicit,
-                drhs: tm.de_m_du * b,
+                drhs: linalg::mul(&tm.de_m_du, &b),
             };
             let (rhs, drhs) = implicit_rhs(&lin, &task.gain, pt.guess, half);
             let lambda2 = damping(&tm.de_m_dq, tm.singularity, self.damping_below, self.damping_depth);
-            solve_square(&tm.de_m_dq, &rhs, &drhs, lambda2, half)?
-        };
-        Ok(TaskStep { u_q, sensitivity, condition, e_p: tm.e_p, e_m: tm.e_m, h_l: tm.h_l })
+            step.condition = solve_square_into(
+                &tm.de_m_dq,
+                &rhs,
+                &drhs,
+                lambda2,
+                half,
+                &mut step.u_q,
+                &mut step.sensitivity,
+            )?;
+        }
+        Ok(step)
     }
 }
 
@@ -544,13 +565,15 @@ fn hadamard_sym<T: Real>(s: &Matrix6<T>) -> T {
 /// The arm's measure `ρ = det(J Jᵀ)/((|W|²/3)³ (|Z|²/3)³)` of `J = [W; Z]` (module docs):
 /// for six joints `det(J Jᵀ) = det(J)²`.
 fn manipulability<T: Real, const N: usize>(w: &SMatrix<T, 3, N>, z: &SMatrix<T, 3, N>) -> T {
-    let mut j = SMatrix::<T, 6, N>::zeros();
-    j.fixed_rows_mut::<3>(0).copy_from(w);
-    j.fixed_rows_mut::<3>(3).copy_from(z);
     let det = if N == 6 {
-        let d = linalg::determinant(&SMatrix::<T, 6, 6>::from_fn(|r, c| j[(r, c)]));
+        // J itself, built once and eliminated in place.
+        let mut j = SMatrix::<T, 6, 6>::from_fn(|r, c| if r < 3 { w[(r, c)] } else { z[(r - 3, c)] });
+        let d = linalg::determinant_in_place(&mut j);
         d * d
     } else {
+        let mut j = SMatrix::<T, 6, N>::zeros();
+        j.fixed_rows_mut::<3>(0).copy_from(w);
+        j.fixed_rows_mut::<3>(3).copy_from(z);
         linalg::determinant(&(j * j.transpose()))
     };
     let third = T::one() / T::of(3.0);

@@ -134,7 +134,7 @@ class Remote:
             try:
                 chunk = self.sock.recv(65536)
             except socket.timeout:
-                raise Failure("QEMU's gdb stub stopped answering (30 s)") from None
+                raise Failure(f"QEMU's gdb stub stopped answering ({self.sock.gettimeout():.0f} s)") from None
             if not chunk:
                 raise Failure("QEMU closed the gdb connection (did the firmware exit early?)")
             self.buf += chunk
@@ -151,8 +151,15 @@ class Remote:
         return self.registers()[15]
 
     def resume(self, packet, what):
-        """Sends `s` or `c`; returns the stop reply (a signal stop, else a Failure)."""
-        reply = self.command(packet)
+        """Sends `s` or `c`; returns the stop reply (a signal stop, else a Failure). A
+        continue may run for long (to the spatial cases, past every f64 case: ~30 s of
+        emulation, more on a loaded machine), so it may take until the deadline."""
+        if packet == "c":
+            self.sock.settimeout(max(30.0, self.deadline - time.monotonic()))
+        try:
+            reply = self.command(packet)
+        finally:
+            self.sock.settimeout(30)
         if not reply.startswith(("T05", "S05")):
             raise Failure(f"{what}: the target stopped with {reply!r} (exited or faulted?)")
         if time.monotonic() > self.deadline:

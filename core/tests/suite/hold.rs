@@ -3,7 +3,8 @@
 //! (the SE(2) exponential of `common`, written independently of the core):
 //!
 //! - over one hold `e_m` follows `e_{k+1} = (1 − gh/2)/(1 + gh/2) e_k` to third order in `h`
-//!   (the residual shrinks ~8× when `h` halves): the discretisation is second order;
+//!   (the residual, its `h⁴` term removed by Richardson extrapolation, shrinks ~8× when `h`
+//!   halves): the discretisation is second order;
 //! - a delayed step is the step the robot would get from a measurement taken when the
 //!   command starts to act (the commands in flight are predicted exactly);
 //! - no lock-out: from any state, however extreme, a valid measurement is accepted at once,
@@ -65,14 +66,14 @@ fn steady(pt: &Point, h: f64) -> State<f64, 3> {
 }
 
 /// The residual `e_m(t_{k+1}) − P e_m(t_k)` of the step that starts 20 ms after `pt` (steps
-/// of `h`), with `P = (1 − gh/2)/(1 + gh/2)`. The steps before give it a guess (the previous
-/// command) that is one period old, as in a running loop, and the same time of the
-/// transient for every `h`.
+/// of `h`), with `P = (1 − gh/2)/(1 + gh/2)`, and the scale of `e_m`. The steps before give
+/// it a guess (the previous command) that is one period old, as in a running loop, and the
+/// same time of the transient for every `h`.
 fn residual<P: Platform<f64>>(
     law: &ControlLaw<f64, P, Rpr<f64>, 3>,
     pt: &Point,
     h: f64,
-) -> Result<(f64, f64), TestCaseError> {
+) -> Result<(Q, f64), TestCaseError> {
     #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let warm = (0.02 / h).round() as usize;
     let kind = kind_of::<P>();
@@ -92,19 +93,35 @@ fn residual<P: Platform<f64>>(
     let e2 = e_m_at(law, &st, &m);
     let g = law.params().primary.gain[0];
     let pade = (1.0 - g * h / 2.0) / (1.0 + g * h / 2.0);
-    Ok(((e2 - e1 * pade).amax(), e1.amax().max(1.0)))
+    Ok((e2 - e1 * pade, e1.amax().max(1.0)))
 }
 
+/// Third order: the residual is `R(h) = a h³ + b h⁴ + O(h⁵)`.
+///
+/// The raw ratio `R(h)/R(h/2) = 8 (1 + ρ)/(1 + ρ/2)`, `ρ = b h/a`, is 8 only where the
+/// third-order term dominates at 1 ms; at the points where `a` happens to be small it is
+/// not (a run (b) point with Ψ = 0.134 gave 5.7 in CI). Measured over 5 462 points of this
+/// strategy: the raw ratio down to 6.59, moving to 7.36 and 7.69 at 0.5 and 0.25 ms — its
+/// distance from 8 halving with `h`, the signature of the `h⁴` term; rounding would make it
+/// worse as `h` shrinks (the residuals there, ~10⁻¹¹, are far above it). So the `h⁴` term is
+/// removed first, with a third period (Richardson): `16 R(h/2) − R(h) = a h³ + O(h⁵)`, and
+/// the ratio of that for `h` and `h/2` must be ~8 — measured 7.98 to 8.14 at those points;
+/// larger elsewhere (to ~500 where `a` nearly vanishes: the residual then falls faster than
+/// third order, which the claim allows). Asserted > 6.
 fn order<P: Platform<f64>>(law: &ControlLaw<f64, P, Rpr<f64>, 3>, pt: &Point) -> Result<(), TestCaseError> {
-    let (r1, scale) = residual(law, pt, 1e-3)?;
-    let (r2, _) = residual(law, pt, 5e-4)?;
+    let (r0, scale) = residual(law, pt, 1e-3)?;
+    let (r1, _) = residual(law, pt, 5e-4)?;
+    let (r2, _) = residual(law, pt, 2.5e-4)?;
     // Below ~1e-9 of the scale rounding (amplified by ∂e_m/∂q) disturbs the ratio.
-    prop_assume!(r1 > 1e-9 * scale);
-    // Third order: 8 as h → 0 (measured: 7.0 to 8.1 over these points).
+    prop_assume!(r0.amax() > 1e-9 * scale);
+    let (a0, a1) = (r1 * 16.0 - r0, r2 * 16.0 - r1);
+    let ratio = a0.amax() / a1.amax();
     prop_assert!(
-        r1 / r2 > 6.0,
-        "residual {r1:e} at 1 ms, {r2:e} at 0.5 ms: ratio {} (third order: 8)",
-        r1 / r2
+        ratio > 6.0,
+        "residual {:e}, {:e}, {:e} at 1, 0.5, 0.25 ms: without its h⁴ term, ratio {ratio} (third order: 8)",
+        r0.amax(),
+        r1.amax(),
+        r2.amax()
     );
     Ok(())
 }
@@ -141,7 +158,7 @@ proptest! {
 
     /// Over one hold, the arm's task function follows the A-stable second-order
     /// discretisation of `ė_m = G e_m` to third order: halving the period divides the
-    /// residual by ~8 (asserted > 6).
+    /// residual's third-order part by ~8 (asserted > 6; see `order`).
     #[test]
     fn e_m_follows_its_discretisation_to_third_order(pt in near_tracking(), k in 0usize..4) {
         let run = [PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D][k];

@@ -22,16 +22,17 @@
 //! M <flash bytes> <static RAM bytes> <SysTick ticks per 20 000 instructions>
 //! K <function> <f32|libm-f32|f64> <mean instructions per call>
 //! S <case> <step index> <instructions of that step>
-//! C <case> <mean instructions/step> <min> <max> <first step> <stack bytes of a step> <stack bytes of the case>
+//! C <case> <mean instructions/step> <min> <max> <first step> <stack bytes of two steps> <stack bytes of the case> <stack bytes of building the controller and two steps>
 //! V <SysTick ticks per 20 000 instructions, measured again after the last case>
 //! E <why the counts cannot be trusted>
 //! ```
 //!
 //! The count of a step is the instructions executed between the two SysTick readings
 //! around the call of [`scenario::controller_step`] (or [`scenario::spatial_step`]: argument set-up, call, step, return)
-//! less those between the readings of an empty pair (the probe's own). The step's stack is
-//! that of building the controller and two steps; the case's adds the plant, the digest and
-//! the formatting of the output.
+//! less those between the readings of an empty pair (the probe's own). The steps' stack is
+//! that of the first two steps of a controller already built (the first initialises the
+//! state); the build's, of building the controller and the same two steps; the case's adds
+//! the plant, the digest and the formatting of the output.
 //!
 //! Exit code 0 when every case ran without a rejected step, 1 when a step was rejected,
 //! 3 when the SysTick calibration failed its checks, 101 on a panic.
@@ -47,7 +48,7 @@ use core::hint::black_box;
 use cortex_m::peripheral::{syst::SystClkSource, SYST};
 use cortex_m_rt::entry;
 
-use scenario::{Probe, CASES};
+use scenario::{NoStack, Probe, StackProbe, CASES};
 
 /// Line-buffered semihosting stdout (one host call per line, not per fragment).
 struct Out {
@@ -309,6 +310,15 @@ fn stack_of(f: impl FnOnce()) -> usize {
     top.saturating_sub(low_water(top))
 }
 
+/// The firmware's [`StackProbe`]: [`stack_of`].
+struct Painter;
+
+impl StackProbe for Painter {
+    fn measure(&mut self, f: &mut dyn FnMut()) -> usize {
+        stack_of(f)
+    }
+}
+
 /// Arguments typical of the law: angles within ±2π (`e^x` is called with −|x|).
 const FUNCTION_ARGS: [f64; 8] = [0.3, 1.2, -2.5, 3.0, 0.05, 2.0, -0.7, 5.5];
 
@@ -395,7 +405,12 @@ fn main() -> ! {
     function_costs::<f64>(&mut out, "f64", clock);
     let mut failed = false;
     for case in &CASES {
-        let step_stack = stack_of(|| scenario::first_step(case));
+        // The steps alone (the controller built before the stack is painted), then
+        // building the controller and the same steps.
+        let step_stack = scenario::first_steps(case, &mut Painter);
+        let build_stack = stack_of(|| {
+            scenario::first_steps(case, &mut NoStack);
+        });
         let mut meter = Meter::new(clock);
         let mut outcome = None;
         let case_stack = stack_of(|| outcome = Some(scenario::run_case(case, &mut out, &mut meter)));
@@ -407,7 +422,7 @@ fn main() -> ! {
         }
         let _ = writeln!(
             out,
-            "C {} {} {} {} {} {step_stack} {case_stack}",
+            "C {} {} {} {} {} {step_stack} {case_stack} {build_stack}",
             case.name,
             meter.mean(),
             meter.min,

@@ -170,7 +170,7 @@ struct Plant<T, const N: usize> {
 
 /// `(r_d(t), u_d(t))` of trajectory 1 with `r_d(0) = (2.6, 1, 0)`:
 /// `x_d = 2.6 + (cos(πt/2) − 1)/10`, `y_d = 1 − sin(πt/2)/10`, `θ_d = 0`.
-fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
+pub fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
     let (s, c) = (T::pi() * T::of(0.5) * t).sincos();
     let tenth = T::of(0.1);
     let speed = T::pi() / T::of(20.0);
@@ -180,7 +180,7 @@ fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
 
 /// Trajectory 1 lifted, from `start`: the circle of [`target`], level, plus
 /// `z = 0.05 sin(2πt/10)` m; the body twist `(ṗ, 0)` (the frame does not turn).
-fn lifted<T: Real>(t: T, start: &Vector3<T>) -> (Pose3<T>, Vector6<T>) {
+pub fn lifted<T: Real>(t: T, start: &Vector3<T>) -> (Pose3<T>, Vector6<T>) {
     let (planar, u) = target(t);
     let w = T::two_pi() / T::of(10.0);
     let (s, c) = (w * t).sincos();
@@ -419,22 +419,42 @@ where
     finish(c, rejected, digest, e_p, out)
 }
 
-/// One controller step from the initial state of case `c` (for the stack measurement).
-pub fn first_step(c: &Case) {
+/// Measures the stack a closure uses (the firmware paints the free stack and finds the
+/// lowest word written).
+pub trait StackProbe {
+    /// Runs `f`; the bytes of stack it used below the caller's frame.
+    fn measure(&mut self, f: &mut dyn FnMut()) -> usize;
+}
+
+/// Runs the closure, measures nothing (0).
+#[derive(Debug)]
+pub struct NoStack;
+
+impl StackProbe for NoStack {
+    fn measure(&mut self, f: &mut dyn FnMut()) -> usize {
+        f();
+        0
+    }
+}
+
+/// Builds the controller of case `c` and takes two steps from the initial state (the first
+/// initialises it); the stack of the two steps alone, measured by `stack` once the
+/// controller is built (0 if it cannot be).
+pub fn first_steps<S: StackProbe>(c: &Case, stack: &mut S) -> usize {
     match (c.plat, c.double) {
-        (Plat::Uni, false) => one::<f32, _>(c, Unicycle::paper()),
-        (Plat::Uni, true) => one::<f64, _>(c, Unicycle::paper()),
-        (Plat::Car, false) => one::<f32, _>(c, car()),
-        (Plat::Car, true) => one::<f64, _>(c, car()),
-        (Plat::Omni, false) => one::<f32, _>(c, Omnidirectional),
-        (Plat::Omni, true) => one::<f64, _>(c, Omnidirectional),
-        (Plat::Ur5Uni, false) => one_spatial::<f32, _>(Unicycle::paper()),
-        (Plat::Ur5Uni, true) => one_spatial::<f64, _>(Unicycle::paper()),
+        (Plat::Uni, false) => one::<f32, _, _>(c, Unicycle::paper(), stack),
+        (Plat::Uni, true) => one::<f64, _, _>(c, Unicycle::paper(), stack),
+        (Plat::Car, false) => one::<f32, _, _>(c, car(), stack),
+        (Plat::Car, true) => one::<f64, _, _>(c, car(), stack),
+        (Plat::Omni, false) => one::<f32, _, _>(c, Omnidirectional, stack),
+        (Plat::Omni, true) => one::<f64, _, _>(c, Omnidirectional, stack),
+        (Plat::Ur5Uni, false) => one_spatial::<f32, _, _>(Unicycle::paper(), stack),
+        (Plat::Ur5Uni, true) => one_spatial::<f64, _, _>(Unicycle::paper(), stack),
     }
 }
 
 /// [`one`] for the spatial law.
-fn one_spatial<T: Real, P: Platform<T>>(platform: P)
+fn one_spatial<T: Real, P: Platform<T>, S: StackProbe>(platform: P, stack: &mut S) -> usize
 where
     SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
 {
@@ -448,15 +468,25 @@ where
             target,
             target_velocity,
         };
-        for _ in 0..2 {
-            let r = ctrl.step(black_box(&meas), T::of(DT));
-            black_box(&r);
-        }
+        return stack.measure(&mut || two_steps(&mut ctrl, &meas));
+    }
+    0
+}
+
+/// Two steps of `ctrl` with the same measurement (the first initialises the state).
+fn two_steps<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize>(
+    ctrl: &mut Controller<T, P, A, N>,
+    meas: &Measurement<T, N, A::Space>,
+) {
+    for _ in 0..2 {
+        let r = ctrl.step(black_box(meas), T::of(DT));
+        black_box(&r);
     }
 }
 
-/// Builds the controller and takes two steps (the first initialises the state).
-fn one<T: Real, P: Platform<T>>(c: &Case, platform: P) {
+/// Builds the controller and takes two steps (the first initialises the state); the stack
+/// of the steps alone.
+fn one<T: Real, P: Platform<T>, S: StackProbe>(c: &Case, platform: P, stack: &mut S) -> usize {
     let mut params = Params::<T, 3>::paper(c.run);
     if P::KIND == PlatformKind::Car {
         params.velocity_limits = car_limits();
@@ -474,9 +504,7 @@ fn one<T: Real, P: Platform<T>>(c: &Case, platform: P) {
             target,
             target_velocity,
         };
-        for _ in 0..2 {
-            let r = ctrl.step(black_box(&meas), T::of(DT));
-            black_box(&r);
-        }
+        return stack.measure(&mut || two_steps(&mut ctrl, &meas));
     }
+    0
 }
