@@ -45,7 +45,7 @@ use companion_core::nalgebra::{Vector3, Vector6};
 use companion_core::{so3, Pose3};
 use serde::Deserialize;
 
-use crate::trajectory::{segment_ends, Location, PaperTrajectory, TrajectoryError};
+use crate::trajectory::{segment_ends, Location, PaperTrajectory, Trajectory, TrajectoryError};
 
 /// The default amplitude of the lifted trajectories' vertical sine (m).
 pub const LIFT_AMPLITUDE: f64 = 0.05;
@@ -272,7 +272,7 @@ impl SpatialTarget {
     /// How long the target moves (s): `None` for trajectory 1 (forever).
     pub fn duration(&self) -> Option<f64> {
         match self {
-            Self::Lifted(l) => crate::Trajectory::from(l.planar).duration(),
+            Self::Lifted(l) => Trajectory::from(l.planar).duration(),
             Self::Piecewise(p) => Some(p.duration()),
         }
     }
