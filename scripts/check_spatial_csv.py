@@ -39,3 +39,6 @@ for r in rows:
         after += 1; below += n < 1e-3
 print(f"rows {len(rows)}; tracked after 20 s (logged rows) {100*below/max(after,1):.1f} %; "
       f"largest disagreement with the CSV's ep_norm {worst:.1e}")
+# ‖e_p‖ as small as 1e-8 is computed through different products here: agree to 1e-4 of it
+# (or 1e-12 absolutely).
+sys.exit(0 if worst < 1e-4 else 1)
