@@ -17,7 +17,9 @@
 //! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
 //!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2), `zenoh_link` (Zenoh over
 //!   TCP, cargo feature `zenoh`), [`transport`] (`--transport`: the endpoint of either);
-//! - loops and processes: [`sim`] (`companion sim`), [`hil`] (`companion hil`, `plant`,
+//! - loops and processes: [`sim`] (`companion sim`), [`spatial`] (`companion sim --arm
+//!   ur5|panda|FILE`: the spatial law of §5 on a spatial plant; arms as data in [`arm`], a
+//!   domain module), [`hil`] (`companion hil`, `plant`,
 //!   `control`), [`latency`] (`companion latency`);
 //! - many runs: [`trial`] (one run without files), [`knobs`] (the parameters that are
 //!   sampled and searched), [`explore`] (`companion explore`: Monte Carlo over starts and
@@ -26,6 +28,7 @@
 //! A test in `companion-tests` (`module_cycles`) checks that no module depends on another in
 //! a cycle, in every crate of the workspace.
 
+pub mod arm;
 pub mod clock;
 pub mod controller;
 pub mod explore;
@@ -46,6 +49,7 @@ pub mod rt;
 pub mod scenario;
 pub mod signals;
 pub mod sim;
+pub mod spatial;
 pub mod transport;
 pub mod trial;
 pub mod tune;

@@ -404,3 +404,74 @@ fn every_command_lists_its_exit_codes_in_help() {
         }
     }
 }
+
+/// An arm file (`--arm FILE`) or spatial target that breaks a rule is refused before anything
+/// runs, naming the field: too few or too many joints, empty limits, a home outside them, a
+/// non-orthonormal mounting rotation, a target the chain cannot reach in height, a start
+/// outside the limits; and flags spatial runs do not have.
+#[test]
+fn bad_arm_files_and_spatial_targets_are_refused_by_field() {
+    let d = dir("arm");
+    let ur5 =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/arms/ur5.toml"))
+            .unwrap();
+    let joint = "[[joint]]\ntype = \"revolute\"\naxis = [0.0, 0.0, 1.0]\nlimits = [-1.0, 1.0]\nhome = 0.0\n";
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        ("three", joint.repeat(3), vec!["`joint`", "6 to 8 joints", "has 3"]),
+        ("nine", joint.repeat(9), vec!["`joint`", "6 to 8 joints", "has 9"]),
+        (
+            "empty",
+            ur5.replacen("limits = [-6.283185307179586, 6.283185307179586]", "limits = [0.5, 0.5]", 1),
+            vec!["joint 1: limits", "lower"],
+        ),
+        (
+            "home",
+            ur5.replacen("home = 0.0", "home = 9.0", 1),
+            vec!["joint 1: home", "inside the joint limits"],
+        ),
+        (
+            "mount",
+            ur5.replacen(
+                "rpy = [0.0, 0.0, 3.141592653589793]",
+                "rotation = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.2, 1.0]]",
+                1,
+            ),
+            vec!["mount.rotation", "orthonormal"],
+        ),
+        ("typo", ur5.replacen("max_velocity", "max_speed", 1), vec!["unknown field `max_speed`", "line"]),
+    ];
+    for (name, text, says) in &cases {
+        let arm = file(&d, &format!("{name}.toml"), text);
+        refused(&d, &["sim", "--arm", &arm, "--duration", "1"], says);
+    }
+    refused(
+        &d,
+        &["sim", "--arm", "/nonexistent/arm.toml"],
+        &["cannot read arm file", "/nonexistent/arm.toml"],
+    );
+    // A target 10 m up: out of the UR5's reach (0.5 m mount, ~1.1 m of links).
+    let high = file(&d, "high.toml", "[initial]\nr_bd = [2.5, 1.0, 10.0, 0.0, 0.0, 0.0]\n");
+    refused(
+        &d,
+        &["sim", "--arm", "ur5", "--target-file", &high],
+        &["cannot reach the target's height", "10.000"],
+    );
+    // A target that climbs out of reach during the run.
+    let climb = file(&d, "climb.toml", "[[segment]]\nduration = 20\nvelocity = [0, 0, 0.5, 0, 0, 0]\n");
+    refused(&d, &["sim", "--arm", "panda", "--target-file", &climb], &["cannot reach the target's height"]);
+    let start = file(&d, "start.toml", "[initial]\nq = [0, -1.5, 3.5, -1.5, -1.5, 0]\n");
+    refused(&d, &["sim", "--arm", "ur5", "--target-file", &start], &["`q[2]`", "joint 3"]);
+    let count = file(&d, "count.toml", "[initial]\nq = [0, 0, 0]\n");
+    refused(&d, &["sim", "--arm", "ur5", "--target-file", &count], &["`q` has 3 entries", "6 joints"]);
+    let planar = file(&d, "planar.toml", "[[segment]]\nduration = 1\nvelocity = [0, 0, 0]\n");
+    refused(
+        &d,
+        &["sim", "--arm", "ur5", "--target-file", &planar],
+        &["segment 1: `velocity` has 3 entries", "6"],
+    );
+    refused(&d, &["sim", "--arm", "ur5", "--all"], &["--all", "--arm"]);
+    refused(&d, &["sim", "--arm", "ur5", "--delay", "0.002"], &["--delay", "spatial arm"]);
+    refused(&d, &["sim", "--arm", "panda", "--noise"], &["noise", "spatial arm"]);
+    let gain = file(&d, "gain.toml", "[controller]\ngain = [1.0, 1.0, 1.0]\n");
+    refused(&d, &["sim", "--arm", "ur5", "--config", &gain], &["controller.gain", "planar arm"]);
+}

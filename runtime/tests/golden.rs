@@ -123,3 +123,13 @@ fn digest_is_a_function_of_the_trajectory() {
     let c = simulate("other", &["--trajectory", "1", "--choice", "a", "--duration", "2", "--dt", "0.002"]);
     assert_ne!(a, c);
 }
+
+/// `--arm rpr` (the default) is today's planar path: the reference run with the flag gives
+/// its stored digest, bit for bit.
+#[test]
+fn arm_rpr_is_the_planar_path() {
+    let with = simulate("arm-rpr", &["--trajectory", "1", "--choice", "a", "--arm", "rpr"]);
+    let stored = stored();
+    let (_, want) = stored.iter().find(|(n, _)| n == "uni-1a").expect("uni-1a is stored");
+    assert_eq!(&with, want);
+}

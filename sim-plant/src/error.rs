@@ -21,6 +21,8 @@ pub enum Rule {
     /// step longer than the lag is integrated in sub-steps no longer than it, so a lag of
     /// 1e-300 s would never finish a step.
     BelowMinimumLag,
+    /// The spatial plant does not simulate this imperfection (measurement noise).
+    Unsupported,
 }
 
 impl core::fmt::Display for Rule {
@@ -32,6 +34,7 @@ impl core::fmt::Display for Rule {
             Rule::NotAboveMinusOne => "must be > -1",
             Rule::BeyondSteeringLimit => "must lie within the steering limit",
             Rule::BelowMinimumLag => "must be >= 1e-4 s",
+            Rule::Unsupported => "is not supported by the spatial plant",
         })
     }
 }

@@ -29,6 +29,11 @@
 //! The targets ([`Trajectory`]) are the paper's trajectories 1 and 2 (§4.3, Table 1) and
 //! piecewise-constant velocities read from a TOML file (see [`trajectory`]).
 //!
+//! For spatial arms (§5), [`SpatialPlant`] carries a [`Chain`](companion_core::Chain) of six
+//! to eight joints on the same platforms, integrated by the same step, with a target in
+//! SE(3): the paper's trajectories lifted with a vertical sine, or 6-DOF body twists from a
+//! TOML file (see [`spatial_target`]).
+//!
 //! On request the plant is imperfect ([`Imperfections`]): first-order actuator lag,
 //! Gaussian measurement noise, a wheel-speed scale error. The default is the perfect plant
 //! of the paper. [`realistic_limits`] gives velocity limits of a plausible robot for the
@@ -71,6 +76,8 @@ mod imperfections;
 mod initial;
 mod limits;
 mod plant;
+mod spatial;
+pub mod spatial_target;
 pub mod trajectory;
 
 #[cfg(test)]
@@ -84,6 +91,10 @@ pub use limits::{
     REALISTIC_WHEELBASE,
 };
 pub use plant::{Plant, PlantConfig, PlantState};
+pub use spatial::{vertical_reach, SpatialInitial, SpatialPlant, SpatialState};
+pub use spatial_target::{
+    LiftedTrajectory, SpatialPiecewise, SpatialSegment, SpatialTarget, LIFT_AMPLITUDE, LIFT_PERIOD,
+};
 pub use trajectory::{
     paper_initial, Location, PaperTrajectory, PiecewiseTrajectory, Segment, Trajectory, TrajectoryError,
     PAPER_INITIAL_JOINTS,

@@ -255,33 +255,7 @@ impl PiecewiseTrajectory {
     /// A duration that is not finite or not `> 0`, a velocity component that is not finite,
     /// or a total duration that overflows.
     pub fn new(segments: Vec<Segment>) -> Result<Self, TrajectoryError> {
-        let mut ends = Vec::with_capacity(segments.len());
-        let mut end = 0.0;
-        for (k, s) in segments.iter().enumerate() {
-            let number = k + 1;
-            if !s.duration.is_finite() {
-                return Err(TrajectoryError::NonFinite {
-                    location: Location::Segment { number, key: "duration", index: None },
-                    value: s.duration,
-                });
-            }
-            if s.duration <= 0.0 {
-                return Err(TrajectoryError::NonPositiveDuration { segment: number, value: s.duration });
-            }
-            for (i, v) in s.velocity.iter().enumerate() {
-                if !v.is_finite() {
-                    return Err(TrajectoryError::NonFinite {
-                        location: Location::Segment { number, key: "velocity", index: Some(i) },
-                        value: *v,
-                    });
-                }
-            }
-            end += s.duration;
-            if !f64::is_finite(end) {
-                return Err(TrajectoryError::TotalDurationOverflow);
-            }
-            ends.push(end);
-        }
+        let ends = segment_ends(segments.iter().map(|s| (s.duration, s.velocity.as_slice())))?;
         Ok(Self { segments, ends, initial_r_bd: None, initial_joints: None })
     }
 
@@ -409,6 +383,42 @@ impl PiecewiseTrajectory {
             .map_err(|error| TrajectoryError::Io { path: path.to_path_buf(), error })?;
         Self::from_toml_str(&text)
     }
+}
+
+/// The end times of consecutive segments given as `(duration, velocity components)`, each
+/// checked: a finite duration `> 0`, finite components, a finite total. Shared by the planar
+/// and the spatial ([`crate::spatial_target`]) piecewise targets.
+pub(crate) fn segment_ends<'a>(
+    segments: impl Iterator<Item = (f64, &'a [f64])>,
+) -> Result<Vec<f64>, TrajectoryError> {
+    let mut ends = Vec::new();
+    let mut end = 0.0;
+    for (k, (duration, velocity)) in segments.enumerate() {
+        let number = k + 1;
+        if !duration.is_finite() {
+            return Err(TrajectoryError::NonFinite {
+                location: Location::Segment { number, key: "duration", index: None },
+                value: duration,
+            });
+        }
+        if duration <= 0.0 {
+            return Err(TrajectoryError::NonPositiveDuration { segment: number, value: duration });
+        }
+        for (i, v) in velocity.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(TrajectoryError::NonFinite {
+                    location: Location::Segment { number, key: "velocity", index: Some(i) },
+                    value: *v,
+                });
+            }
+        }
+        end += duration;
+        if !f64::is_finite(end) {
+            return Err(TrajectoryError::TotalDurationOverflow);
+        }
+        ends.push(end);
+    }
+    Ok(ends)
 }
 
 /// The file's layout (private: the public type is [`PiecewiseTrajectory`]).

@@ -107,8 +107,9 @@ pub enum LimitsArg {
 /// The scenario flags shared by `sim` and `hil`.
 #[derive(Args, Clone, Debug)]
 pub struct ScenarioArgs {
-    /// The target's motion: the paper's trajectory 1 (circle) or 2 (Table 1).
-    #[arg(long, default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2), allow_hyphen_values = true)]
+    /// The target's motion: the paper's trajectory 1 (circle) or 2 (Table 1); with a spatial
+    /// --arm, lifted with a vertical sine.
+    #[arg(long, visible_alias = "traj", default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2), allow_hyphen_values = true)]
     pub trajectory: u8,
     /// A user-defined target motion: a TOML file of piecewise-constant body velocities
     /// (replaces --trajectory).

@@ -5,9 +5,12 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
+use companion_plant::PaperTrajectory;
+use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::record::{Failure, RunOutcome};
 use companion_runtime::scenario::Target;
 use companion_runtime::sim::{all_scenarios, run_one_with};
+use companion_runtime::spatial::{run_spatial, SpatialScenario, SpatialTargetChoice};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -40,6 +43,13 @@ pub struct SimArgs {
     /// With --delay: do not tell the controller (to see what the delay does uncompensated).
     #[arg(long)]
     pub no_delay_compensation: bool,
+    /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
+    /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml). A spatial
+    /// arm runs the SE(3) law of §5 on the paper's trajectory lifted with a 5 cm vertical
+    /// sine at the arm's home height (--trajectory 1|2), or on a spatial --target-file of
+    /// 6-DOF body twists (sim-plant/examples/target3d.toml); it writes top and side views.
+    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    pub arm: String,
 }
 
 /// `sim`'s duration when `--duration` is not given (s).
@@ -53,6 +63,9 @@ const DEFAULT_DURATION: f64 = 120.0;
 pub fn run(args: &SimArgs) -> Result<ExitCode> {
     companion_runtime::signals::install_termination_handler()?;
     let acceptance = args.scenario.acceptance(0.0)?;
+    if let Some(arm) = SpatialArmSpec::from_choice(&ArmChoice::parse(&args.arm))? {
+        return run_spatial_cli(args, arm, acceptance.max_rejected);
+    }
     let outcomes = run_scenarios(args, &acceptance)?;
     let mut code = 0;
     for o in &outcomes {
@@ -114,6 +127,75 @@ fn run_scenarios(
         println!("wrote {}", args.out.display());
         Ok(vec![outcome])
     }
+}
+
+/// `companion sim --arm ur5|panda|FILE`: one spatial run.
+fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Result<ExitCode> {
+    if args.all {
+        anyhow::bail!("--all runs the paper's planar arm; it cannot be combined with --arm {}", args.arm);
+    }
+    let a = &args.scenario;
+    let target = match &a.target_file {
+        Some(p) => SpatialTargetChoice::File(p.clone()),
+        None if a.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
+        None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
+    };
+    // The planar scenario carries every other flag; its own target is not used.
+    let base = a
+        .builder(
+            a.config_file()?,
+            Target::Paper(PaperTrajectory::One),
+            a.choice.into(),
+            a.platform.into(),
+            DEFAULT_DURATION,
+        )
+        .delay(args.delay)
+        .delay_compensation(!args.no_delay_compensation)
+        .build()?;
+    let s = SpatialScenario::new(base, arm, target)?;
+    let term = Terminal::bar(s.steps() + 1, false);
+    let outcome = run_spatial(&s, &args.out, &term, max_rejected);
+    term.finish();
+    let outcome = outcome?;
+    if !args.no_plots {
+        companion_runtime::plots::spatial::render(&args.out, &outcome)?;
+    }
+    let m = &outcome.summary;
+    println!(
+        "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
+        "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"
+    );
+    let (after, tracked) = if m.steps_after_20s > 0 {
+        (
+            format!("{:>10.2e}", m.max_ep_norm_after_20s),
+            format!("{:>7.1}%", 100.0 * m.fraction_ep_below_1e_3_after_20s),
+        )
+    } else {
+        (format!("{:>10}", "n/a"), format!("{:>8}", "n/a"))
+    };
+    println!(
+        "{:<34} {:>10.2e} {after} {tracked} {:>11.4} ({}) {:>9} {}",
+        m.scenario,
+        m.final_ep_norm,
+        m.smallest_joint_margin,
+        m.smallest_margin_joint,
+        m.rejected_steps,
+        num(m.wall_time_s, 9, 3)
+    );
+    if m.rejected_steps > 0 {
+        println!("  {} steps rejected by the law: {}", m.rejected_steps, m.rejections.describe());
+    }
+    println!("wrote {}", args.out.display());
+    let mut code = 0;
+    for f in &m.failures {
+        eprintln!("warning: {}: RUN FAILED: {}", m.scenario, f.describe());
+        code = EXIT_REJECTED;
+    }
+    if m.ended_early {
+        eprintln!("interrupted: the run's files are written up to the step at which the signal came");
+        code = EXIT_INTERRUPTED;
+    }
+    Ok(ExitCode::from(code))
 }
 
 /// `x` in a column of `width` with `precision` decimals, or in scientific notation when it

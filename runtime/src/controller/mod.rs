@@ -4,8 +4,13 @@
 //! simulation and the HIL loop record ([`StepReport`]). A change of the law's inputs or
 //! parameters is merged here.
 
+mod spatial;
 mod spec;
 
+pub use spatial::{
+    command_f64, planar_only_keys, spatial_controller, spatial_params, SpatialReport, SpatialStep,
+    TARGET_DISTANCE,
+};
 pub use spec::{
     platform_name, run_name, ArmConfig, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig,
     LimitsConfig, RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR, OMNI_K_BAR,
@@ -15,8 +20,8 @@ pub use spec::{
 use companion_core::nalgebra::Vector2;
 use companion_core::nalgebra::Vector3;
 use companion_core::{
-    CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformCommand, PlatformKind,
-    Pose, Real, Rpr, Rule, StepError, Unicycle,
+    CarLike, Command, Controller, Measurement, Omnidirectional, ParamError, PlatformKind, Pose, Real, Rpr,
+    Rule, StepError, Unicycle,
 };
 
 /// The number of joints of the paper's arm (the wire and the logs carry this many).
@@ -181,20 +186,6 @@ pub fn measurement_in<T: Real>(m: &Measurement<f64, JOINTS>) -> Measurement<T, J
         joints: m.joints.map(T::of),
         target: pose(&m.target),
         target_velocity: m.target_velocity.map(T::of),
-    }
-}
-
-/// A command in `f64` (exact), for the plant.
-pub fn command_f64<T: Real>(c: &Command<T, JOINTS>) -> Command<f64, JOINTS> {
-    let p = &c.platform;
-    Command {
-        platform: PlatformCommand {
-            v: p.v.as_f64(),
-            v_lat: p.v_lat.as_f64(),
-            omega: p.omega.as_f64(),
-            v_xi: p.v_xi.as_f64(),
-        },
-        joints: c.joints.map(Real::as_f64),
     }
 }
 

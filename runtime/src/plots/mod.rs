@@ -22,6 +22,7 @@ use crate::record::{Row, RunOutcome};
 use crate::scenario::Target;
 
 mod latency;
+pub mod spatial;
 
 const W: u32 = 640;
 const H: u32 = 400;
@@ -277,18 +278,33 @@ fn log_plot(
     rows: &[Row],
     f: impl Fn(&Row) -> f64,
 ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
+    let pts: Vec<(f64, f64)> = rows.iter().map(|r| (r.plant.t, f(r))).collect();
+    let t1 = rows.last().map_or(1.0, |r| r.plant.t);
+    log_lines(file, title, t1, &[("", EFFECTOR, pts)])
+}
+
+/// A labelled curve: `(label, colour, points)`.
+type Curve<'a> = (&'a str, RGBColor, Vec<(f64, f64)>);
+
+/// Curves `(label, colour, (t, value))` on a log axis against time up to `t1`, values below
+/// 1e−12 drawn at 1e−12, non-finite ones left out; a legend when a label is given.
+fn log_lines(
+    file: &Path,
+    title: &str,
+    t1: f64,
+    series: &[Curve<'_>],
+) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let root: Area<'_> = SVGBackend::new(file, (W, H)).into_drawing_area();
     root.fill(&WHITE)?;
     let floor = 1e-12;
-    let pts: Vec<(f64, f64)> = rows
-        .iter()
-        .map(|r| (r.plant.t, f(r)))
-        .filter(|p| p.1.is_finite())
-        .map(|(t, v)| (t, v.max(floor)))
-        .collect();
-    let hi = pts.iter().map(|p| p.1).fold(floor, f64::max) * 3.0;
-    let lo = pts.iter().map(|p| p.1).fold(f64::INFINITY, f64::min).max(floor) / 3.0;
-    let t1 = rows.last().map_or(1.0, |r| r.plant.t).max(1e-3);
+    let clean = |pts: &[(f64, f64)]| -> Vec<(f64, f64)> {
+        pts.iter().filter(|p| p.1.is_finite()).map(|&(t, v)| (t, v.max(floor))).collect()
+    };
+    let series: Vec<Curve<'_>> = series.iter().map(|(l, c, p)| (*l, *c, clean(p))).collect();
+    let all = || series.iter().flat_map(|s| s.2.iter().map(|p| p.1));
+    let hi = all().fold(floor, f64::max) * 3.0;
+    let lo = all().fold(f64::INFINITY, f64::min).max(floor) / 3.0;
+    let t1 = t1.max(1e-3);
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 18))
         .margin(10)
@@ -296,7 +312,15 @@ fn log_plot(
         .y_label_area_size(64)
         .build_cartesian_2d(0.0..t1, (lo.min(hi / 10.0)..hi).log_scale())?;
     chart.configure_mesh().x_desc("t (s)").y_label_formatter(&|v| format!("{v:.0e}")).draw()?;
-    chart.draw_series(LineSeries::new(pts, EFFECTOR.stroke_width(1)))?;
+    for (label, colour, pts) in series.iter().cloned() {
+        let drawn = chart.draw_series(LineSeries::new(pts, colour.stroke_width(1)))?;
+        if !label.is_empty() {
+            drawn.label(label).legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
+        }
+    }
+    if series.iter().any(|s| !s.0.is_empty()) {
+        chart.configure_series_labels().background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
+    }
     root.present()?;
     Ok(())
 }

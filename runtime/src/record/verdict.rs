@@ -80,9 +80,14 @@ impl Rejections {
         add(self.bad_delay, StepError::BadDelay.to_string());
         add(self.target_yaw_undefined, StepError::TargetYawUndefined.to_string());
         add(self.numerical_failure, StepError::NumericalFailure.to_string());
-        parts.sort_by_key(|p| std::cmp::Reverse(p.0));
-        parts.iter().map(|(n, why)| format!("{why}: {n}")).collect::<Vec<_>>().join("; ")
+        reasons_in_words(parts)
     }
+}
+
+/// `(count, reason)` pairs as one line, most frequent first: `why: n; why: n`.
+pub fn reasons_in_words(mut parts: Vec<(u64, String)>) -> String {
+    parts.sort_by_key(|p| std::cmp::Reverse(p.0));
+    parts.iter().map(|(n, why)| format!("{why}: {n}")).collect::<Vec<_>>().join("; ")
 }
 
 /// What a run is held to.
