@@ -5,9 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use companion_runtime::record::{Failure, RunOutcome};
+use companion_runtime::record::{Failure, PlanarReplay, ReplaySummary, RunOutcome};
 use companion_runtime::scenario::Target;
-use companion_runtime::sim::{all_scenarios, run_one_with};
+use companion_runtime::sim::{all_scenarios, run_one_replayed, run_one_with};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -40,6 +40,12 @@ pub struct SimArgs {
     /// With --delay: do not tell the controller (to see what the delay does uncompensated).
     #[arg(long)]
     pub no_delay_compensation: bool,
+    /// Also write the run as an MCAP file for Foxglove (the robot in 3D: frame transforms,
+    /// a scene, joint states, command, tracking error), one frame per row of timeseries.csv
+    /// (so --log-every decimates it too). Folders are created if missing; a path that cannot
+    /// be written is refused before the run starts.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
 }
 
 /// `sim`'s duration when `--duration` is not given (s).
@@ -75,6 +81,13 @@ fn run_scenarios(
     acceptance: &companion_runtime::record::Acceptance,
 ) -> Result<Vec<RunOutcome>> {
     if args.all {
+        if let Some(path) = &args.mcap {
+            anyhow::bail!(
+                "--mcap writes one run, not the runs of --all: give the run's --trajectory, --choice and \
+                 --platform without --all (--mcap {})",
+                path.display()
+            );
+        }
         // Each run's builder has every flag applied; `all_scenarios` sets target, variant,
         // platform, duration and the Ψ̇ term.
         let a = &args.scenario;
@@ -104,9 +117,14 @@ fn run_scenarios(
         let a = &args.scenario;
         let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
         let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
+        // Created before the run, so that a path that cannot be written stops it here.
+        let replay = args.mcap.as_deref().map(|p| PlanarReplay::create(p, &s)).transpose()?;
         let term = Terminal::bar(s.steps() + 1, false);
-        let outcome = run_one_with(&s, &args.out, &term, acceptance)?;
+        let (outcome, replayed) = run_one_replayed(&s, &args.out, &term, acceptance, replay)?;
         term.finish();
+        if let Some(r) = &replayed {
+            print_replay(r);
+        }
         if !args.no_plots {
             companion_runtime::plots::render_run(&args.out, &outcome)?;
         }
@@ -114,6 +132,17 @@ fn run_scenarios(
         println!("wrote {}", args.out.display());
         Ok(vec![outcome])
     }
+}
+
+/// Says where the replay is and how to open it.
+fn print_replay(r: &ReplaySummary) {
+    #[allow(clippy::cast_precision_loss)]
+    let mb = r.bytes as f64 / 1e6;
+    println!(
+        "wrote {} ({} frames, {mb:.1} MB): open it in Foxglove (File > Open local file), 3D panel on /tf and /scene",
+        r.path.display(),
+        r.frames
+    );
 }
 
 /// `x` in a column of `width` with `precision` decimals, or in scientific notation when it
