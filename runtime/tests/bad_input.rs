@@ -167,6 +167,17 @@ fn bad_flag_values_are_refused_by_name_and_rule_before_anything_starts() {
     assert!(!mcap.exists(), "a refused run left {}", mcap.display());
     refused(&d, &["sim", "--all", "--mcap", mcap.to_str().unwrap()], &["--mcap writes one run"]);
     assert!(!mcap.exists(), "a refused run left {}", mcap.display());
+    // The plant records: `hil` (its child plant) and `plant` check the path; `control` has
+    // nothing to record.
+    for role in ["hil", "plant"] {
+        refused(
+            &d,
+            &[role, "--name", n, "--mcap", "/proc/companion-replay.mcap"],
+            &["--mcap: creating /proc/companion-replay.mcap"],
+        );
+    }
+    refused(&d, &["control", "--name", n, "--mcap", mcap.to_str().unwrap()], &["--mcap is for the plant"]);
+    assert!(!mcap.exists(), "a refused run left {}", mcap.display());
     let _ = std::fs::remove_dir_all(&d);
 }
 

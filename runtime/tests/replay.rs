@@ -177,3 +177,67 @@ fn a_failed_run_leaves_a_readable_replay() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn hil_in_lockstep_writes_the_same_replay_as_sim_byte_for_byte() {
+    // Needs no Python: the two files are compared byte for byte.
+    let d = dir("lockstep");
+    let name = format!("rp{}", std::process::id());
+    let (sim, hil) = (d.join("sim.mcap"), d.join("hil.mcap"));
+    let (sim_out, hil_out) = (d.join("sim"), d.join("hil"));
+    let common = ["--duration", "2", "--trajectory", "2", "--no-plots", "--log-every", "3"];
+    let mut a = vec!["sim", "--out", sim_out.to_str().unwrap(), "--mcap", sim.to_str().unwrap()];
+    a.extend(common);
+    let o = companion(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut a = vec![
+        "hil",
+        "--lockstep",
+        "--name",
+        &name,
+        "--out",
+        hil_out.to_str().unwrap(),
+        "--mcap",
+        hil.to_str().unwrap(),
+    ];
+    a.extend(common);
+    let o = companion(&a);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (x, y) = (std::fs::read(&sim).unwrap(), std::fs::read(&hil).unwrap());
+    assert!(x.len() > 10_000, "{}", x.len());
+    assert!(x == y, "sim and hil --lockstep replays differ ({} and {} bytes)", x.len(), y.len());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_plant_whose_controller_is_killed_leaves_a_readable_replay() {
+    if !available() {
+        return;
+    }
+    let d = dir("killed");
+    let name = format!("rk{}", std::process::id());
+    let (out, file) = (d.join("out"), d.join("run.mcap"));
+    let run = |role: &str, extra: &[&str]| {
+        let mut a = vec![role, "--name", &name, "--duration", "30", "--no-plots", "--quiet"];
+        a.extend(extra);
+        Command::new(BIN)
+            .args(&a)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    let plant = run("plant", &["--out", out.to_str().unwrap(), "--mcap", file.to_str().unwrap()]);
+    let mut control = run("control", &[]);
+    std::thread::sleep(std::time::Duration::from_secs(2));
+    control.kill().unwrap();
+    let _ = control.wait();
+    let o = plant.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    let csv = out.join("timeseries.csv");
+    let got = check(&file, Some(&csv), "unicycle");
+    let frames = got["frames"].as_u64().unwrap();
+    assert!(frames > 10 && frames < 3_000, "{got}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -107,6 +107,8 @@ pub struct McapRecorder {
     writer: ::mcap::Writer<BufWriter<File>>,
     path: PathBuf,
     layout: ReplayLayout,
+    /// The folders made for the file (taken away by [`discard`](Self::discard)).
+    made: Option<OutputDir>,
     /// Channel ids, in the order of [`TOPICS`].
     channels: [u16; 5],
     /// One reusable buffer for a message's JSON.
@@ -175,11 +177,22 @@ impl McapRecorder {
         Ok(Self {
             writer,
             path: path.to_path_buf(),
+            made,
             layout,
             channels,
             buf: Vec::with_capacity(4096),
             frames: 0,
         })
+    }
+
+    /// The run never started: removes the file and the folders made for it.
+    pub fn discard(self) {
+        let Self { writer, path, made, .. } = self;
+        drop(writer);
+        let _ = std::fs::remove_file(&path);
+        if let Some(d) = made {
+            d.discard();
+        }
     }
 
     /// The file's path.

@@ -127,6 +127,11 @@ impl PlanarReplay {
         self.mcap.write(&frame)
     }
 
+    /// The run never started: removes the file (see [`McapRecorder::discard`]).
+    pub fn discard(self) {
+        self.mcap.discard();
+    }
+
     /// Finishes the file.
     ///
     /// # Errors
