@@ -17,8 +17,8 @@ pub use crate::plant_setup::build as build_plant;
 use crate::record::recorder::{summary_for, Log};
 use crate::record::verdict::rejection_failure;
 use crate::record::{
-    write_summary, Acceptance, CommandSource, PlantSample, RecordWriter, Row, RowSink, RunOutcome,
-    SummaryAccumulator,
+    write_summary, Acceptance, CommandSource, PlanarReplay, PlantSample, RecordWriter, ReplaySummary, Row,
+    RowSink, RunOutcome, SummaryAccumulator,
 };
 use crate::scenario::{Scenario, ScenarioBuilder, ScenarioError};
 
@@ -236,14 +236,35 @@ pub fn run_one_with(
     observer: &dyn Observer,
     acceptance: &Acceptance,
 ) -> Result<RunOutcome> {
+    run_one_replayed(s, dir, observer, acceptance, None).map(|(outcome, _)| outcome)
+}
+
+/// [`run_one_with`], writing the logged rows to `replay` too (`--mcap`). The replay file is
+/// finished whether the run succeeds or not: after an error part-way it holds the rows up to
+/// the error.
+///
+/// # Errors
+/// A bad scenario or an I/O failure.
+pub fn run_one_replayed(
+    s: &Scenario,
+    dir: &Path,
+    observer: &dyn Observer,
+    acceptance: &Acceptance,
+    replay: Option<PlanarReplay>,
+) -> Result<(RunOutcome, Option<ReplaySummary>)> {
     let mut plant = build_plant(s)?;
     let mut exchange = InProcess::new(s)?;
-    let log = RecordWriter::spawn(Log::for_scenario(s, dir)?, WRITER_RING, Duration::from_secs(1))?;
+    let log = Log::for_scenario(s, dir)?.with_replay(replay);
+    let log = RecordWriter::spawn(log, WRITER_RING, Duration::from_secs(1))?;
     let mut sink = Background { summary: summary_for(s), log };
     let start = Instant::now();
     let looped = run_loop(s, &mut plant, &mut exchange, &mut sink, observer);
-    let log = sink.log.finish()?;
+    let finished = sink.log.finish();
+    // The loop's error first: it says what went wrong (the writer's may only say that it
+    // stopped). A log dropped here finishes its replay file as it goes.
     let end = looped?;
+    let mut log = finished?;
+    let replayed = log.finish_replay()?;
     let mut summary = sink.summary.finish(start.elapsed().as_secs_f64());
     summary.ended_early = end != LoopEnd::Completed;
     summary.failures.extend(rejection_failure(
@@ -253,7 +274,7 @@ pub fn run_one_with(
         acceptance.max_rejected,
     ));
     write_summary(dir, s, &summary)?;
-    Ok(RunOutcome { scenario: s.clone(), summary, rows: log.rows })
+    Ok((RunOutcome { scenario: s.clone(), summary, rows: log.rows }, replayed))
 }
 
 /// The scenarios of `companion sim --all`: every paper run (trajectories 1 and 2 × a–d), b and

@@ -153,6 +153,31 @@ fn bad_flag_values_are_refused_by_name_and_rule_before_anything_starts() {
         &["--max-rejected must be a fraction in [0, 1], got -0.1"],
     );
     refused(&d, &["latency", "--cycles", "0"], &["--cycles must be at least 1"]);
+    // --mcap: a path that cannot be written is refused before the run starts; with a bad
+    // flag, no replay file is made either.
+    let here = d.to_str().unwrap();
+    refused(
+        &d,
+        &["sim", "--mcap", "/proc/companion-replay.mcap"],
+        &["--mcap: creating /proc/companion-replay.mcap"],
+    );
+    refused(&d, &["sim", "--mcap", here], &["--mcap: creating", "Is a directory"]);
+    let mcap = d.join("replay.mcap");
+    refused(&d, &["sim", "--dt", "0", "--mcap", mcap.to_str().unwrap()], &["dt must be a positive"]);
+    assert!(!mcap.exists(), "a refused run left {}", mcap.display());
+    refused(&d, &["sim", "--all", "--mcap", mcap.to_str().unwrap()], &["--mcap writes one run"]);
+    assert!(!mcap.exists(), "a refused run left {}", mcap.display());
+    // The plant records: `hil` (its child plant) and `plant` check the path; `control` has
+    // nothing to record.
+    for role in ["hil", "plant"] {
+        refused(
+            &d,
+            &[role, "--name", n, "--mcap", "/proc/companion-replay.mcap"],
+            &["--mcap: creating /proc/companion-replay.mcap"],
+        );
+    }
+    refused(&d, &["control", "--name", n, "--mcap", mcap.to_str().unwrap()], &["--mcap is for the plant"]);
+    assert!(!mcap.exists(), "a refused run left {}", mcap.display());
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -132,6 +132,11 @@ pub struct HilArgs {
     /// Output folder (the plant writes it).
     #[arg(long, default_value = "out/hil", value_name = "DIR")]
     pub out: PathBuf,
+    /// The plant also writes the run as an MCAP file for Foxglove (the robot in 3D: frame
+    /// transforms, a scene, joint states, command, tracking error), one frame per row of
+    /// timeseries.csv (--log-every decimates it too). For `hil` and `plant`.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
     /// Periods the plant holds the last command after a miss before it stops the robot
     /// (0–100000).
     #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000), allow_hyphen_values = true)]
@@ -304,6 +309,7 @@ impl HilArgs {
             acceptance,
             chaos,
             transport,
+            mcap: self.mcap.clone(),
         };
         Ok((cfg, s))
     }
@@ -622,6 +628,12 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     }
     print_failures("plant", &outcome.run.summary.failures);
     println!("wrote {}", cfg.out.display());
+    if let Some(p) = &cfg.mcap {
+        println!(
+            "wrote {}: open it in Foxglove (File > Open local file), 3D panel on /tf and /scene",
+            p.display()
+        );
+    }
     Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.run.summary.failures)))
 }
 
@@ -634,6 +646,9 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     let (cfg, s) = a.resolve()?;
     if cfg.chaos.is_some() {
         bail!("--chaos is for `companion hil`");
+    }
+    if cfg.mcap.is_some() {
+        bail!("--mcap is for the plant, which records the run (`companion hil` or `companion plant`)");
     }
     let inject = a.injections()?;
     let lock = match NameLock::acquire(&cfg.name, Role::Control) {

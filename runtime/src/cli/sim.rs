@@ -7,10 +7,10 @@ use anyhow::Result;
 use clap::Args;
 use companion_plant::PaperTrajectory;
 use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::record::{Failure, RunOutcome};
+use companion_runtime::record::{Failure, McapRecorder, PlanarReplay, ReplaySummary, RunOutcome};
 use companion_runtime::scenario::Target;
-use companion_runtime::sim::{all_scenarios, run_one_with};
-use companion_runtime::spatial::{run_spatial, SpatialScenario, SpatialTargetChoice};
+use companion_runtime::sim::{all_scenarios, run_one_replayed, run_one_with};
+use companion_runtime::spatial::{replay, run_spatial, SpatialScenario, SpatialTargetChoice};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -50,6 +50,12 @@ pub struct SimArgs {
     /// 6-DOF body twists (sim-plant/examples/target3d.toml); it writes top and side views.
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,
+    /// Also write the run as an MCAP file for Foxglove (the robot in 3D: frame transforms,
+    /// a scene, joint states, command, tracking error), one frame per row of timeseries.csv
+    /// (so --log-every decimates it too). Folders are created if missing; a path that cannot
+    /// be written is refused before the run starts.
+    #[arg(long, value_name = "FILE")]
+    pub mcap: Option<PathBuf>,
 }
 
 /// `sim`'s duration when `--duration` is not given (s).
@@ -88,6 +94,13 @@ fn run_scenarios(
     acceptance: &companion_runtime::record::Acceptance,
 ) -> Result<Vec<RunOutcome>> {
     if args.all {
+        if let Some(path) = &args.mcap {
+            anyhow::bail!(
+                "--mcap writes one run, not the runs of --all: give the run's --trajectory, --choice and \
+                 --platform without --all (--mcap {})",
+                path.display()
+            );
+        }
         // Each run's builder has every flag applied; `all_scenarios` sets target, variant,
         // platform, duration and the Ψ̇ term.
         let a = &args.scenario;
@@ -117,9 +130,14 @@ fn run_scenarios(
         let a = &args.scenario;
         let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
         let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
+        // Created before the run, so that a path that cannot be written stops it here.
+        let replay = args.mcap.as_deref().map(|p| PlanarReplay::create(p, &s)).transpose()?;
         let term = Terminal::bar(s.steps() + 1, false);
-        let outcome = run_one_with(&s, &args.out, &term, acceptance)?;
+        let (outcome, replayed) = run_one_replayed(&s, &args.out, &term, acceptance, replay)?;
         term.finish();
+        if let Some(r) = &replayed {
+            print_replay(r);
+        }
         if !args.no_plots {
             companion_runtime::plots::render_run(&args.out, &outcome)?;
         }
@@ -153,10 +171,23 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         .delay_compensation(!args.no_delay_compensation)
         .build()?;
     let s = SpatialScenario::new(base, arm, target)?;
+    // Created before the run, so that a path that cannot be written stops it here.
+    let mcap = args.mcap.as_deref().map(|p| McapRecorder::create(p, replay::layout(&s))).transpose()?;
     let term = Terminal::bar(s.steps() + 1, false);
     let outcome = run_spatial(&s, &args.out, &term, max_rejected);
     term.finish();
-    let outcome = outcome?;
+    let outcome = match outcome {
+        Ok(o) => o,
+        Err(e) => {
+            if let Some(m) = mcap {
+                m.discard();
+            }
+            return Err(e);
+        }
+    };
+    if let Some(m) = mcap {
+        print_replay(&replay::write(m, s.base.controller.platform, &outcome.records)?);
+    }
     if !args.no_plots {
         companion_runtime::plots::spatial::render(&args.out, &outcome)?;
     }
@@ -196,6 +227,17 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         code = EXIT_INTERRUPTED;
     }
     Ok(ExitCode::from(code))
+}
+
+/// Says where the replay is and how to open it.
+fn print_replay(r: &ReplaySummary) {
+    #[allow(clippy::cast_precision_loss)]
+    let mb = r.bytes as f64 / 1e6;
+    println!(
+        "wrote {} ({} frames, {mb:.1} MB): open it in Foxglove (File > Open local file), 3D panel on /tf and /scene",
+        r.path.display(),
+        r.frames
+    );
 }
 
 /// `x` in a column of `width` with `precision` decimals, or in scientific notation when it

@@ -125,6 +125,8 @@ pub struct HilConfig {
     pub chaos: Option<ChaosConfig>,
     /// The transport (iceoryx2 unless `--transport zenoh`).
     pub transport: crate::transport::Transport,
+    /// `--mcap FILE`: the plant also writes the run as an MCAP replay for Foxglove.
+    pub mcap: Option<PathBuf>,
 }
 
 /// A chaos run's seed and the time its faults count from.

@@ -19,7 +19,9 @@ use crate::link::Link as _;
 use crate::lock::NameLock;
 use crate::observe::Observer;
 use crate::record::verdict::{deadline_failures, rejection_failure, DeadlineFigures};
-use crate::record::{write_summary, LogItem, OutputDir, RecordWriter, Recorder, Row, RowSink, RunOutcome};
+use crate::record::{
+    write_summary, LogItem, OutputDir, PlanarReplay, RecordWriter, Recorder, Row, RowSink, RunOutcome,
+};
 use crate::scenario::Scenario;
 use crate::sim::{self, LoopEnd};
 use crate::transport::{self, PlantEndpoint};
@@ -108,6 +110,14 @@ pub fn run(
         hold_periods: timing.hold_periods,
     };
     let out = OutputDir::prepare(&cfg.out)?;
+    // `--mcap`: made now, so that a path that cannot be written stops the plant here.
+    let replay = match cfg.mcap.as_deref().map(|p| PlanarReplay::create(p, s)).transpose() {
+        Ok(r) => r,
+        Err(e) => {
+            out.discard();
+            return Err(e);
+        }
+    };
     let steps = s.steps();
     observer.note(&format!(
         "plant: demo '{}' waiting for its controller (companion control --name {}) over {}; scenario hash {:#018x}",
@@ -117,11 +127,15 @@ pub fn run(
         stamp.scenario_hash
     ));
     if let Err(e) = ep.wait_for_peer(cfg.startup_timeout, || None) {
+        if let Some(r) = replay {
+            r.discard();
+        }
         out.discard();
         return Err(e);
     }
     let dir = out.path();
     let mut recorder = Recorder::for_scenario(s, dir)?;
+    recorder.log = recorder.log.with_replay(replay);
     // `--chaos`: this process stops the controller (its parent) on the plan's schedule; the
     // thread starts before the loop takes a real-time priority.
     let agent = match (plan, cfg.chaos) {
@@ -187,6 +201,9 @@ pub fn run(
         recorder = writer.finish()?;
         r?
     };
+    if let Some(r) = recorder.log.finish_replay()? {
+        observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
+    }
     let chaos_stops = agent.map(Agent::finish).unwrap_or_default();
     if timing.lockstep {
         if let Some(r) = &rt_report {

@@ -477,6 +477,7 @@ mod tests {
             acceptance: crate::record::Acceptance::default(),
             chaos: None,
             transport: crate::transport::Transport::Iceoryx2,
+            mcap: None,
         };
         let mut st = PlantStats { cycles: 7, deadline_misses: 2, ..PlantStats::default() };
         st.round_trip.record(5_000);

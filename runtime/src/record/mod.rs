@@ -11,24 +11,31 @@
 //! - [`csv`]: the columns of `timeseries.csv`;
 //! - [`verdict`]: the law's rejections by reason, and whether a run did what a run must;
 //! - [`recorder`]: both, on the calling thread;
+//! - [`mcap`]: a run as an MCAP file for Foxglove, from arm-agnostic frames; [`replay`]: the
+//!   planar path's rows as such frames (`--mcap FILE`, written by the recording thread with
+//!   the CSV);
 //! - [`writer`]: a recorder on a thread of its own, fed through a lock-free ring (the HIL
 //!   plant's real-time loop never waits for the disk; the simulation formats its CSV in
 //!   parallel with the run).
 
 pub mod csv;
 pub mod digest;
+pub mod mcap;
 pub mod outcome;
 pub mod output;
 pub mod recorder;
+pub mod replay;
 pub mod row;
 pub mod summary;
 pub mod verdict;
 pub mod writer;
 
 pub use self::digest::TrajectoryDigest;
+pub use self::mcap::{McapRecorder, ReplayFrame, ReplayLayout, ReplaySummary};
 pub use self::outcome::{write_summary, RunOutcome};
 pub use self::output::OutputDir;
 pub use self::recorder::{Recorder, RowSink};
+pub use self::replay::PlanarReplay;
 pub use self::row::{CommandSource, PlantSample, Row};
 pub use self::summary::{Summary, SummaryAccumulator, MANEUVER_DISTANCE, SIGN_SPEED};
 pub use self::verdict::{Acceptance, Failure, Rejections};

@@ -1,5 +1,6 @@
-//! Recording on the calling thread: `timeseries.csv` and the logged rows kept for the plots
-//! ([`Log`]), and with them the summary over every step ([`Recorder`]).
+//! Recording on the calling thread: `timeseries.csv`, the logged rows kept for the plots and,
+//! with `--mcap`, the replay file ([`Log`]), and with them the summary over every step
+//! ([`Recorder`]).
 
 use std::fs::File;
 use std::path::Path;
@@ -8,6 +9,7 @@ use anyhow::{Context, Result};
 use companion_core::PlatformKind;
 
 use super::csv::CsvFile;
+use super::replay::PlanarReplay;
 use super::row::Row;
 use super::summary::SummaryAccumulator;
 use crate::scenario::Scenario;
@@ -40,13 +42,18 @@ pub trait RowSink {
     }
 }
 
-/// `timeseries.csv` and the logged rows (one every `log_every` steps, and the last).
+/// `timeseries.csv`, the logged rows (one every `log_every` steps, and the last) and, if
+/// asked for, the same rows as an MCAP replay.
 #[derive(Debug)]
 pub struct Log {
     csv: CsvFile<File>,
     log_every: u64,
     /// The logged rows (for plots).
     pub rows: Vec<Row>,
+    /// The replay file (`--mcap`). If the log is dropped without
+    /// [`finish_replay`](Self::finish_replay) (an error part-way), the MCAP writer finishes
+    /// the file as it is dropped: a failed run still leaves a readable file.
+    replay: Option<PlanarReplay>,
 }
 
 impl Log {
@@ -58,7 +65,22 @@ impl Log {
         let path = dir.join("timeseries.csv");
         let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
         let csv = CsvFile::new(file, kind).with_context(|| format!("writing {}", path.display()))?;
-        Ok(Self { csv, log_every, rows: Vec::with_capacity(expected_rows) })
+        Ok(Self { csv, log_every, rows: Vec::with_capacity(expected_rows), replay: None })
+    }
+
+    /// Writes every logged row to `replay` too.
+    #[must_use]
+    pub fn with_replay(mut self, replay: Option<PlanarReplay>) -> Self {
+        self.replay = replay;
+        self
+    }
+
+    /// Finishes the replay file, if there is one.
+    ///
+    /// # Errors
+    /// Writing the file failed.
+    pub fn finish_replay(&mut self) -> Result<Option<super::ReplaySummary>> {
+        self.replay.take().map(PlanarReplay::finish).transpose()
     }
 
     /// The log of scenario `s` in `dir` (created if missing).
@@ -82,6 +104,9 @@ impl RowSink for Log {
         if self.logs(n, last) {
             self.csv.write_row(row).context("writing timeseries.csv")?;
             self.rows.push(*row);
+            if let Some(r) = &mut self.replay {
+                r.write(row)?;
+            }
         }
         Ok(())
     }

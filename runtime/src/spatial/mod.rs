@@ -14,6 +14,7 @@
 //! the summary reports the joint margins and the rejected steps.
 
 pub mod record;
+pub mod replay;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
