@@ -79,7 +79,7 @@ impl Log {
     ///
     /// # Errors
     /// Writing the file failed.
-    pub fn finish_replay(&mut self) -> Result<Option<super::ReplaySummary>> {
+    pub fn finish_replay(&mut self) -> Result<Option<super::mcap::ReplaySummary>> {
         self.replay.take().map(PlanarReplay::finish).transpose()
     }
 
