@@ -119,7 +119,13 @@ struct Demo {
 
 impl Demo {
     fn start(args: &[&str]) -> Self {
-        let mut child = companion(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+        Self::spawn(companion(args))
+    }
+
+    /// Starts `cmd` (a `companion` however wrapped), its stderr on the channel.
+    fn spawn(mut cmd: Command) -> Self {
+        let mut child =
+            cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
         let err = child.stderr.take().unwrap();
         let (tx, lines) = channel();
         std::thread::spawn(move || {
