@@ -321,16 +321,11 @@ fn a_plant_of_another_scenario_over_zenoh_is_refused_and_both_sides_say_why() {
     let ep = free_endpoint();
     let out = d.to_str().unwrap();
     let plant = ["--transport", "zenoh", "--listen", &ep, "--lockstep", "--choice", "b", "--duration", "1"];
-    let ((ps, pe), (cs, ce)) = two_roles(
+    let (plant, control) = two_roles(
         &[&plant[..], &["--no-plots", "--name", &n, "--out", out]].concat(),
         &["--transport", "zenoh", "--connect", &ep, "--name", &n, "--choice", "a"],
     );
-    assert_eq!(cs.code(), Some(2), "{ce}");
-    assert_eq!(ps.code(), Some(2), "{pe}");
-    assert!(ce.contains("refused the plant: scenario mismatch"), "{ce}");
-    assert!(pe.contains("the controller refused this plant: scenario mismatch"), "{pe}");
-    let lat = json(&d.join("latency.json"));
-    assert!(lat["end"].as_str().unwrap().contains("scenario mismatch"), "{lat:#}");
+    scenario_refused(&d, plant, control);
 }
 
 /// A Zenoh peer of protocol version 4 on demo `n`, listening on `ep`: its token, as a later
