@@ -144,7 +144,8 @@ impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
     /// waiting whether to give up.
     ///
     /// # Errors
-    /// The timeout passed, a peer of another version waits (iceoryx2), or `abort` said so.
+    /// The timeout passed, a peer of another version waits, a second process of this role
+    /// is on the demo (Zenoh), or `abort` said so.
     pub fn wait_for_peer(&self, timeout: Duration, abort: impl FnMut() -> Option<String>) -> Result<()> {
         match self {
             Self::Iceoryx2(e) => e.wait_for_peer(timeout, abort),

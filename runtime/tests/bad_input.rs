@@ -106,6 +106,7 @@ fn bad_flag_values_are_refused_by_name_and_rule_before_anything_starts() {
         (&["--dt", "-inf"], &["dt must be a positive number of seconds, got -inf"]),
         (&["--seed", "-1"], &["invalid value '-1' for '--seed <SEED>'"]),
         (&["--hold-periods", "-1"], &["invalid value '-1' for '--hold-periods <K>'"]),
+        (&["--max-command-age", "9"], &["--max-command-age", "9 is not in 0..=8"]),
         (&["--dt", "0.5"], &["dt = 0.5 s is longer than the law's largest admitted period"]),
         (&["--duration", "0"], &["duration must be a positive number of seconds, got 0"]),
         (&["--duration", "-5"], &["duration must be a positive number of seconds, got -5"]),
@@ -239,6 +240,7 @@ fn no_flag_value_makes_the_program_panic_or_leave_files() {
         "--plant-cpu",
         "--trajectory",
         "--chaos",
+        "--max-command-age",
     ];
     let out = d.join("out");
     let o = out.to_str().unwrap();

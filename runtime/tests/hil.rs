@@ -119,7 +119,13 @@ struct Demo {
 
 impl Demo {
     fn start(args: &[&str]) -> Self {
-        let mut child = companion(args).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
+        Self::spawn(companion(args))
+    }
+
+    /// Starts `cmd` (a `companion` however wrapped), its stderr on the channel.
+    fn spawn(mut cmd: Command) -> Self {
+        let mut child =
+            cmd.stdin(Stdio::null()).stdout(Stdio::null()).stderr(Stdio::piped()).spawn().unwrap();
         let err = child.stderr.take().unwrap();
         let (tx, lines) = channel();
         std::thread::spawn(move || {
@@ -616,11 +622,16 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
         ],
         &["--name", &n, "--choice", "a"],
     );
+    scenario_refused(&d, (ps, pe), (cs, ce));
+}
+
+/// Both roles exited 2 and said that the controller refused the plant's scenario; the
+/// plant's files (in `d`) say so too.
+fn scenario_refused(d: &Path, (ps, pe): (ExitStatus, String), (cs, ce): (ExitStatus, String)) {
     assert_eq!(cs.code(), Some(2), "{ce}");
     assert_eq!(ps.code(), Some(2), "{pe}");
     assert!(ce.contains("refused the plant: scenario mismatch"), "{ce}");
     assert!(pe.contains("the controller refused this plant: scenario mismatch"), "{pe}");
-    // The plant's files say so too.
     let lat = json(&d.join("latency.json"));
     assert!(lat["end"].as_str().unwrap().contains("scenario mismatch"), "{lat:#}");
 }

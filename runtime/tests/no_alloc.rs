@@ -92,6 +92,7 @@ const TIMING: Timing = Timing {
     silence_ns: 20_000_000,
     peer_timeout_ns: 2_000_000_000,
     lockstep: false,
+    max_command_age: 0,
 };
 
 /// The HIL demo's scenario: trajectory 1, run (a), unicycle, `duration` s.

@@ -16,7 +16,9 @@ use companion_runtime::hil::fault::Corruption;
 use companion_runtime::hil::plant::PlantLock;
 use companion_runtime::hil::report::LatencyReport;
 use companion_runtime::hil::stats::LiveFigures;
-use companion_runtime::hil::{ChaosConfig, ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode};
+use companion_runtime::hil::{
+    ChaosConfig, ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+};
 use companion_runtime::histogram::fmt_ns;
 use companion_runtime::ipc::{self, NameInUse, Role};
 use companion_runtime::lock::NameLock;
@@ -141,6 +143,12 @@ pub struct HilArgs {
     /// (0–100000).
     #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000), allow_hyphen_values = true)]
     pub hold_periods: u32,
+    /// Real time: apply an answer to a measurement up to K periods old when the answer to the
+    /// current one has not come by the deadline (0–8; 0: only the current period's). For
+    /// links whose round trip is longer than the deadline, e.g. Zenoh across a network; the
+    /// plant measures and announces the delay, the controller predicts over it.
+    #[arg(long, default_value_t = 0, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=i64::from(MAX_COMMAND_AGE)), allow_hyphen_values = true)]
+    pub max_command_age: u32,
     /// A real-time run that misses more than this fraction of its deadlines fails (exit code
     /// 7, with a warning); so does one in which the robot was stopped.
     #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_hyphen_values = true)]
@@ -254,6 +262,7 @@ impl HilArgs {
             silence_ns: self.silence_ms * 1_000_000,
             peer_timeout_ns: secs_to_ns(peer_timeout),
             lockstep: self.lockstep,
+            max_command_age: if self.lockstep { 0 } else { self.max_command_age },
         })
     }
 

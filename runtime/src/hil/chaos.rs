@@ -323,6 +323,7 @@ mod tests {
             silence_ns: 20_000_000,
             peer_timeout_ns: 2_000_000_000,
             lockstep: false,
+            max_command_age: 0,
         }
     }
 

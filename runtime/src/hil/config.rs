@@ -77,7 +77,15 @@ pub struct Timing {
     pub peer_timeout_ns: u64,
     /// Lockstep.
     pub lockstep: bool,
+    /// The oldest answer the real-time plant applies, in periods: a command answering
+    /// measurement `n − k`, `k ≤ max_command_age`, is applied in period `n` when no answer to
+    /// `n` came and it is the newest answer yet (a network whose round trip is longer than the
+    /// deadline). 0: only the answer to `n` (iceoryx2 on one machine).
+    pub max_command_age: u32,
 }
+
+/// The largest `--max-command-age`: the law predicts over at most 8 periods.
+pub const MAX_COMMAND_AGE: u32 = 8;
 
 /// The real-time setup (`--rt`): priority and the CPU of each process.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -91,5 +91,5 @@ pub mod stats;
 pub mod wait;
 pub mod watch;
 
-pub use self::config::{ChaosConfig, HilConfig, RtPlan, Timing, WaitMode};
+pub use self::config::{ChaosConfig, HilConfig, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE};
 pub use self::end::{ControlEnd, PlantEnd};

@@ -11,6 +11,16 @@
 //! announces that delay, and the controller's law predicts over it. In lockstep the plant
 //! announces the scenario's simulated pure delay (0 unless `--delay`), which `sim::run_loop`
 //! applies — the same as `companion sim`.
+//!
+//! **Older answers** (`--max-command-age K`, for a link whose round trip is longer than the
+//! deadline): when no answer to measurement `n` came by the deadline, the newest answer to
+//! one of `n − K … n − 1` that is newer than the last applied command is applied instead, from
+//! when the plant took it (its arrival, or the start of the period if it came after the last
+//! deadline). Its delay is then measured from *its own* measurement's timestamp:
+//! `d = (t_taken − plant_time_ns(seq)) · dt / period`, which exceeds a period; the next
+//! measurement announces it, and the controller predicts over it. Such a period is not a
+//! deadline miss (counted as `aged_commands`). With `K = 0` (the default) an answer to an
+//! earlier period is late and dropped, as before.
 
 use std::sync::atomic::Ordering;
 
@@ -59,6 +69,34 @@ pub struct PlantSide<'a, C: Clock, L: PlantLink> {
 /// A fresh command and when it arrived (plant's clock, ns).
 type Fresh = (CommandMsg, u64);
 
+/// Publication times of the last measurements, by `seq` modulo its length (a power of two
+/// above [`super::config::MAX_COMMAND_AGE`]).
+const PUBLISHED: usize = 16;
+
+/// Which answers the plant takes in period `n`: the answer to `n`, or (real time with
+/// `--max-command-age`) an older one newer than the last applied.
+#[derive(Clone, Copy, Debug)]
+struct Wanted {
+    /// The period.
+    n: u64,
+    /// The oldest age accepted (periods).
+    max_age: u64,
+    /// The `seq` of the last applied command.
+    applied: Option<u64>,
+}
+
+impl Wanted {
+    /// Only the answer to `n`.
+    fn current(n: u64) -> Self {
+        Self { n, max_age: 0, applied: None }
+    }
+
+    /// Whether a late answer to `seq` may still be applied.
+    fn takes_older(&self, seq: u64) -> bool {
+        self.n - seq <= self.max_age && self.applied.is_none_or(|a| seq > a)
+    }
+}
+
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// Publishes measurement `n` now, announcing `delay`; returns the publication time.
     #[inline]
@@ -70,17 +108,33 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         Ok(t_pub)
     }
 
-    /// Takes every waiting command; returns the last one that answers measurement `n`, or
-    /// the controller's refusal of this plant.
+    /// Takes every waiting command; returns the last one that answers measurement `n` (or,
+    /// if none does, the newest older answer that `want` takes), or the controller's refusal
+    /// of this plant.
     #[inline]
-    fn drain(&mut self, n: u64, late_timed: bool) -> Result<Result<Option<Fresh>, Refusal>> {
-        let mut fresh = None;
+    fn drain(&mut self, want: Wanted, late_timed: bool) -> Result<Result<Option<Fresh>, Refusal>> {
+        let n = want.n;
+        let mut fresh: Option<Fresh> = None;
         while let Some(c) = self.link.try_receive()? {
             let now = self.clock.now_ns();
             match check_command::<JOINTS>(&c, self.stamp.session, n) {
                 Ok(()) => {
                     self.stats.timing(now, &c);
                     self.stats.controller_skipped += u64::from(c.skipped);
+                    fresh = Some((c, now));
+                }
+                // An older answer, itself valid, newer than what is applied and than what this
+                // drain found: taken (and the one it supersedes counted late).
+                Err(WireError::Stale(seq))
+                    if want.takes_older(seq)
+                        && check_command::<JOINTS>(&c, self.stamp.session, seq).is_ok()
+                        && fresh.is_none_or(|(f, _)| f.seq < seq) =>
+                {
+                    self.stats.timing(now, &c);
+                    self.stats.controller_skipped += u64::from(c.skipped);
+                    if fresh.is_some() {
+                        self.stats.late_commands += 1;
+                    }
                     fresh = Some((c, now));
                 }
                 Err(WireError::Refused(code)) => {
@@ -176,6 +230,8 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
     // The command acting at the end of the last period, and the last measured delay (s).
     let mut acting = Command::<f64, JOINTS>::zero();
     let mut delay = 0.0;
+    let mut published = [0_u64; PUBLISHED];
+    let mut applied = None;
     let mut n: u64 = 0;
     loop {
         let mut release = start + n * period;
@@ -201,6 +257,9 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
             st.longest_stall_ns = st.longest_stall_ns.max(behind);
         }
         let t_pub = side.publish(n, fl, delay, &meas)?;
+        #[allow(clippy::cast_possible_truncation)]
+        let slot = |seq: u64| (seq % PUBLISHED as u64) as usize;
+        published[slot(n)] = t_pub;
         // The handshake's answer (a cold first step) and, at the end of a completed run, the
         // last answer (the controller's confirmation) are awaited up to the peer timeout.
         let patient = n == 0 || (n == last_step && end == PlantEnd::Completed);
@@ -217,12 +276,21 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         idler.reset();
         let peer_lost = matches!(end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
         if !peer_lost {
+            let want = Wanted { n, max_age: u64::from(timing.max_command_age), applied };
             loop {
-                match side.drain(n, true)? {
-                    Ok(f) => fresh = f,
+                match side.drain(want, true)? {
+                    // The answer to `n`, or an older one newer than any found before.
+                    Ok(Some(f)) if fresh.is_none_or(|(c, _): Fresh| c.seq <= f.0.seq) => {
+                        if fresh.is_some_and(|(c, _)| c.seq < f.0.seq) {
+                            side.stats.late_commands += 1;
+                        }
+                        fresh = Some(f);
+                    }
+                    Ok(_) => {}
                     Err(why) => refused = Some(why),
                 }
-                if fresh.is_some() || refused.is_some() || side.clock.now_ns() >= deadline {
+                let current = fresh.is_some_and(|(c, _)| c.seq == n);
+                if current || refused.is_some() || side.clock.now_ns() >= deadline {
                     break;
                 }
                 let link = &mut *side.link;
@@ -261,10 +329,17 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
                 }
                 if n > 0 {
                     #[allow(clippy::cast_precision_loss)]
-                    let d = t_rx.saturating_sub(t_pub) as f64 * dt / period as f64;
-                    switch_at = d.min(dt * (1.0 - 1e-9));
-                    delay = switch_at;
+                    let scale = |ns: u64| ns as f64 * dt / period as f64;
+                    switch_at = scale(t_rx.saturating_sub(t_pub)).min(dt * (1.0 - 1e-9));
+                    delay = if c.seq == n {
+                        switch_at
+                    } else {
+                        // An older answer: its delay counts from its own measurement.
+                        stats.aged_commands += 1;
+                        scale(t_rx.saturating_sub(published[slot(c.seq)]))
+                    };
                 }
+                applied = Some(c.seq);
                 policy.fresh(report_of(&c))
             }
             (None, None) => {
@@ -378,7 +453,7 @@ impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
         let mut idler = Idler::new(wait, side.timing.spin_margin_ns);
         let mut watch = PeerWatch::new(side.timing.silence_ns, t_pub);
         loop {
-            match side.drain(n, false)? {
+            match side.drain(Wanted::current(n), false)? {
                 Ok(Some((c, _))) => {
                     side.stats.fresh += 1;
                     if wait == WaitMode::Event && !c.has(flags::NOTIFIES) {

@@ -72,6 +72,8 @@ pub struct LatencyReport {
     pub deadline_misses: u64,
     /// Commands that arrived after their deadline (dropped).
     pub late_commands: u64,
+    /// Answers to an earlier measurement applied as the newest answer (`--max-command-age`).
+    pub aged_commands: u64,
     /// Periods on a held command.
     pub held_periods: u64,
     /// Periods stopped (zero command).
@@ -166,6 +168,7 @@ impl LatencyReport {
             fresh_commands: st.fresh,
             deadline_misses: st.deadline_misses,
             late_commands: st.late_commands,
+            aged_commands: st.aged_commands,
             held_periods: st.held_periods,
             stopped_periods: st.stopped_periods,
             stop_events: st.stop_events,

@@ -68,6 +68,9 @@ pub struct PlantStats {
     pub deadline_misses: u64,
     /// Commands that arrived after their deadline (dropped).
     pub late_commands: u64,
+    /// Answers to an earlier period's measurement applied as the newest answer
+    /// (`--max-command-age`; counted in `fresh` too).
+    pub aged_commands: u64,
     /// Periods run on a held command.
     pub held_periods: u64,
     /// Periods run stopped (zero command).

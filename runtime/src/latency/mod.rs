@@ -10,7 +10,9 @@
 //!    service;
 //! 3. a Unix-domain datagram socket ping-pong with blocking receives — what a user would
 //!    otherwise pick — and, in a build with the `zenoh` feature, a Zenoh ping-pong over
-//!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's);
+//!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's) and,
+//!    where network namespaces are permitted (root), across a veth pair into a namespace
+//!    (skipped with a warning otherwise);
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
@@ -325,9 +327,22 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     #[cfg(feature = "zenoh")]
     let zenoh_p50 = {
         observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
-        let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, observer)?;
+        let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, observer)?;
         let p50 = z.percentiles().p50;
         push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
+        match zenoh::Veth::create() {
+            Ok(v) => {
+                observer.note(&format!(
+                    "(3) Zenoh ping-pong across a veth pair into network namespace {}, {} round trips",
+                    v.netns, a.cycles
+                ));
+                let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), observer)?;
+                push("3", "zenoh ping-pong, tcp across network namespaces, blocking".into(), z, &mut rows);
+            }
+            Err(e) => observer.warn(&format!(
+                "(3) Zenoh across network namespaces skipped: {e:#} (needs root and `ip netns`)"
+            )),
+        }
         p50
     };
     let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
@@ -466,6 +481,7 @@ mod tests {
             silence_ns: 1,
             peer_timeout_ns: 1,
             lockstep: false,
+            max_command_age: 0,
         };
         let cfg = HilConfig {
             name: "t".into(),

@@ -157,7 +157,21 @@ pub(super) fn peer_uds(dir: &Path) -> Result<()> {
 }
 
 pub(super) fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
-    let child = Process::new(exe)
+    spawn_peer_in(None, exe, args)
+}
+
+/// [`spawn_peer`] in network namespace `netns` (`ip netns exec`, which execs the program: the
+/// child is the peer itself).
+pub(super) fn spawn_peer_in(netns: Option<&str>, exe: &Path, args: &[String]) -> Result<ChildGuard> {
+    let mut cmd = match netns {
+        Some(ns) => {
+            let mut c = Process::new("ip");
+            c.args(["netns", "exec", ns]).arg(exe);
+            c
+        }
+        None => Process::new(exe),
+    };
+    let child = cmd
         .arg("latency-peer")
         .args(args)
         .stdin(Stdio::null())

@@ -1,14 +1,16 @@
 //! Zenoh ping-pong (cargo feature `zenoh`): the same messages as the other transports
 //! between two processes over a Zenoh TCP session on loopback, both sides sleeping until the
 //! message arrives ([`crate::zenoh_link`]'s wait) — the transport of two-machine HIL runs,
-//! measured next to iceoryx2 and the Unix socket.
+//! measured next to iceoryx2 and the Unix socket — and, where network namespaces are
+//! permitted (root), the same across a veth pair into a namespace of its own ([`Veth`]): the
+//! path of two machines without the wire.
 
 use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{bail, Result};
 
-use super::pingpong::{echo, ping, rt_cpus, spawn_peer, RtScope, Transport};
+use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Transport};
 use crate::histogram::LatencyHistogram;
 use crate::ipc::Role;
 use crate::link::PeerState;
@@ -47,8 +49,61 @@ pub fn peer(name: &str, endpoint: &str) -> Result<()> {
     }
 }
 
-/// Round trips over Zenoh on loopback TCP, `warmup` unrecorded first; both sides sleep until
-/// the message arrives.
+/// A network namespace of this process with a veth pair to the machine's own: this side
+/// `10.254.X.1/30`, the namespace's `10.254.X.2/30`. Deleting the namespace (on drop) removes
+/// the pair.
+#[derive(Debug)]
+pub struct Veth {
+    /// The namespace's name.
+    pub netns: String,
+    /// This side's address.
+    pub here: String,
+}
+
+fn ip(args: &[&str]) -> Result<()> {
+    let o = std::process::Command::new("ip")
+        .args(args)
+        .output()
+        .map_err(|e| anyhow::anyhow!("ip {}: {e}", args.join(" ")))?;
+    if !o.status.success() {
+        bail!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&o.stderr).trim());
+    }
+    Ok(())
+}
+
+impl Veth {
+    /// Creates it.
+    ///
+    /// # Errors
+    /// `ip` is missing or namespaces are not permitted (not root): the reason.
+    pub fn create() -> Result<Self> {
+        let pid = std::process::id();
+        let netns = format!("companion-lat-{pid}");
+        let (outer, inner) = (format!("clat{pid}a"), format!("clat{pid}b"));
+        let x = pid % 64 * 4;
+        let (here, there) =
+            (format!("10.254.{}.{}", pid / 64 % 250, x + 1), format!("10.254.{}.{}", pid / 64 % 250, x + 2));
+        ip(&["netns", "add", &netns])?;
+        let v = Self { netns, here };
+        ip(&["link", "add", &outer, "type", "veth", "peer", "name", &inner, "netns", &v.netns])?;
+        ip(&["addr", "add", &format!("{}/30", v.here), "dev", &outer])?;
+        ip(&["link", "set", &outer, "up"])?;
+        ip(&["-n", &v.netns, "addr", "add", &format!("{there}/30"), "dev", &inner])?;
+        ip(&["-n", &v.netns, "link", "set", &inner, "up"])?;
+        ip(&["-n", &v.netns, "link", "set", "lo", "up"])?;
+        Ok(v)
+    }
+}
+
+impl Drop for Veth {
+    fn drop(&mut self) {
+        let _ = ip(&["netns", "del", &self.netns]);
+    }
+}
+
+/// Round trips over Zenoh on TCP, `warmup` unrecorded first; both sides sleep until the
+/// message arrives. On loopback, or with `veth` the peer in its namespace, connecting across
+/// the pair.
 ///
 /// # Errors
 /// The peer could not be started or stopped answering.
@@ -57,10 +112,18 @@ pub fn round_trips(
     iterations: u64,
     warmup: u64,
     use_rt: bool,
+    veth: Option<&Veth>,
     observer: &dyn Observer,
 ) -> Result<LatencyHistogram> {
-    let endpoint = crate::transport::free_local_endpoint()?;
-    let name = format!("latency-{}-zenoh", std::process::id());
+    let endpoint = match veth {
+        None => crate::transport::free_local_endpoint()?,
+        Some(v) => {
+            let l = std::net::TcpListener::bind((v.here.as_str(), 0))
+                .map_err(|e| anyhow::anyhow!("a free port on {}: {e}", v.here))?;
+            format!("tcp/{}:{}", v.here, l.local_addr()?.port())
+        }
+    };
+    let name = format!("latency-{}-zenoh{}", std::process::id(), if veth.is_some() { "-netns" } else { "" });
     let mut ep = ZenohPlant::open(&name, Role::Plant, ZenohLink::Listen(TcpEndpoint::parse(&endpoint)?))?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
@@ -74,7 +137,7 @@ pub fn round_trips(
     if use_rt {
         args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
     }
-    let mut child = spawn_peer(exe, &args)?;
+    let mut child = spawn_peer_in(veth.map(|v| v.netns.as_str()), exe, &args)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
     let mut hist = LatencyHistogram::new();
