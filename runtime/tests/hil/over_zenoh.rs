@@ -328,10 +328,13 @@ fn a_plant_of_another_scenario_over_zenoh_is_refused_and_both_sides_say_why() {
     scenario_refused(&d, plant, control);
 }
 
-/// A Zenoh peer of protocol version 4 on demo `n`, listening on `ep`: its token, as a later
-/// version following this one's convention would declare it. Returns the session and the
-/// token keys it saw.
-fn version_4_peer(
+/// The protocol version of the fake peer: the next one after this program's.
+const OTHER_VERSION: u32 = companion_runtime::wire::PROTOCOL_VERSION + 1;
+
+/// A Zenoh peer of protocol version [`OTHER_VERSION`] on demo `n`, listening on `ep`: its
+/// token, as a later version following this one's convention would declare it. Returns the
+/// session and the token keys it saw.
+fn other_version_peer(
     ep: &str,
     n: &str,
 ) -> (zenoh::Session, zenoh::liveliness::LivelinessToken, Arc<Mutex<Vec<String>>>) {
@@ -355,7 +358,7 @@ fn version_4_peer(
         .background()
         .wait()
         .unwrap();
-    let token = s.liveliness().declare_token(format!("companion/{n}/v4/alive/plant/4242")).wait().unwrap();
+    let token = s.liveliness().declare_token(format!("companion/{n}/v{OTHER_VERSION}/alive/plant/4242")).wait().unwrap();
     (s, token, seen)
 }
 
@@ -364,22 +367,22 @@ fn a_peer_of_another_protocol_version_over_zenoh_is_named() {
     let _g = serial();
     let n = name("zversion");
     let ep = free_endpoint();
-    let (_session, _token, seen) = version_4_peer(&ep, &n);
+    let (_session, _token, seen) = other_version_peer(&ep, &n);
     let t0 = Instant::now();
     let (st, _, err) =
         run(&["control", "--transport", "zenoh", "--connect", &ep, "--name", &n, "--startup-timeout", "10"]);
     assert_eq!(st.code(), Some(2), "{err}");
     assert!(
         err.contains("protocol version mismatch")
-            && err.contains("with protocol version 4")
+            && err.contains(&format!("with protocol version {OTHER_VERSION}"))
             && err.contains("process 4242")
-            && err.contains("this program speaks version 3"),
+            && err.contains(&format!("this program speaks version {}", OTHER_VERSION - 1)),
         "{err}"
     );
     assert!(t0.elapsed() < Duration::from_secs(8), "named at once, not at the startup timeout");
     // The other side saw our version's token: a peer that checks as we do names us too.
     let seen = seen.lock().unwrap();
-    assert!(seen.iter().any(|k| k.starts_with(&format!("companion/{n}/v3/alive/control/"))), "{seen:?}");
+    assert!(seen.iter().any(|k| k.starts_with(&format!("companion/{n}/v{}/alive/control/", OTHER_VERSION - 1))), "{seen:?}");
 }
 
 #[test]
