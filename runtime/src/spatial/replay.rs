@@ -113,7 +113,7 @@ mod tests {
             effector: pose(9.0),
             target: pose(1.0),
             target_twist: Vector6::zeros(),
-            command: companion_core::PlatformCommand::zero(),
+            command: companion_core::Command::<f64, 1>::zero().platform,
             joint_rates: [0.0; MAX_JOINTS],
             e_p: Vector6::zeros(),
             ep_norm: 0.0,
@@ -121,15 +121,14 @@ mod tests {
             joint_scale: 1.0,
             error: None,
         };
-        for i in 0..7 {
-            r.links[i] = pose(1.0 + f64::from(u8::try_from(i).unwrap()));
+        for (k, l) in (1..=7u8).zip(r.links.iter_mut()) {
+            *l = pose(f64::from(k));
         }
         let (local, effector) = parent_frames(&r);
         let mut world = r.base;
-        for i in 0..7 {
-            world = world.compose(&local[i]);
-            let d = (world.translation - r.links[i].translation).amax()
-                + (world.rotation - r.links[i].rotation).amax();
+        for (i, (l, w)) in local.iter().zip(&r.links).take(7).enumerate() {
+            world = world.compose(l);
+            let d = (world.translation - w.translation).amax() + (world.rotation - w.rotation).amax();
             assert!(d < 1e-12, "link {i}: {d}");
         }
         let e = world.compose(&effector);

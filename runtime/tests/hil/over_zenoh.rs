@@ -358,7 +358,11 @@ fn other_version_peer(
         .background()
         .wait()
         .unwrap();
-    let token = s.liveliness().declare_token(format!("companion/{n}/v{OTHER_VERSION}/alive/plant/4242")).wait().unwrap();
+    let token = s
+        .liveliness()
+        .declare_token(format!("companion/{n}/v{OTHER_VERSION}/alive/plant/4242"))
+        .wait()
+        .unwrap();
     (s, token, seen)
 }
 
@@ -382,7 +386,10 @@ fn a_peer_of_another_protocol_version_over_zenoh_is_named() {
     assert!(t0.elapsed() < Duration::from_secs(8), "named at once, not at the startup timeout");
     // The other side saw our version's token: a peer that checks as we do names us too.
     let seen = seen.lock().unwrap();
-    assert!(seen.iter().any(|k| k.starts_with(&format!("companion/{n}/v{}/alive/control/", OTHER_VERSION - 1))), "{seen:?}");
+    assert!(
+        seen.iter().any(|k| k.starts_with(&format!("companion/{n}/v{}/alive/control/", OTHER_VERSION - 1))),
+        "{seen:?}"
+    );
 }
 
 #[test]
