@@ -196,14 +196,8 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
         "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"
     );
-    let (after, tracked) = if m.steps_after_20s > 0 {
-        (
-            format!("{:>10.2e}", m.max_ep_norm_after_20s),
-            format!("{:>7.1}%", 100.0 * m.fraction_ep_below_1e_3_after_20s),
-        )
-    } else {
-        (format!("{:>10}", "n/a"), format!("{:>8}", "n/a"))
-    };
+    let (after, tracked) =
+        after_20s_columns(m.steps_after_20s, m.max_ep_norm_after_20s, m.fraction_ep_below_1e_3_after_20s);
     println!(
         "{:<34} {:>10.2e} {after} {tracked} {:>11.4} ({}) {:>9} {}",
         m.scenario,
@@ -227,6 +221,16 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         code = EXIT_INTERRUPTED;
     }
     Ok(ExitCode::from(code))
+}
+
+/// The table's "max ‖e_p‖ after 20 s" and "tracked" columns; `n/a` for a run with no step
+/// after 20 s (its figures "after 20 s" say nothing).
+fn after_20s_columns(steps_after: u64, max_ep: f64, tracked: f64) -> (String, String) {
+    if steps_after > 0 {
+        (format!("{max_ep:>10.2e}"), format!("{:>7.1}%", 100.0 * tracked))
+    } else {
+        (format!("{:>10}", "n/a"), format!("{:>8}", "n/a"))
+    }
 }
 
 /// Says where the replay is and how to open it.
@@ -259,15 +263,8 @@ pub fn print_table(outcomes: &[RunOutcome]) {
     );
     for o in outcomes {
         let s = &o.summary;
-        // Figures "after 20 s" of a shorter run say nothing.
-        let (after, tracked) = if s.steps_after_20s > 0 {
-            (
-                format!("{:>10.2e}", s.max_ep_norm_after_20s),
-                format!("{:>7.1}%", 100.0 * s.fraction_ep_below_1e_3_after_20s),
-            )
-        } else {
-            (format!("{:>10}", "n/a"), format!("{:>8}", "n/a"))
-        };
+        let (after, tracked) =
+            after_20s_columns(s.steps_after_20s, s.max_ep_norm_after_20s, s.fraction_ep_below_1e_3_after_20s);
         println!(
             "{:<26} {:>10.2e} {after} {tracked} {} {:>7} {} {} {}",
             s.scenario,
