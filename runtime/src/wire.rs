@@ -125,10 +125,11 @@
 pub mod canonical;
 pub mod target;
 
+pub use canonical::fnv1a;
 use companion_core::nalgebra::SVector;
 use companion_core::{Command, Field, Measurement, Planar, PlatformCommand, Pose, StepError};
 use iceoryx2::prelude::ZeroCopySend;
-pub use target::{WireSpace, WireTarget};
+pub use target::{TargetError, WireSpace, WireTarget};
 use zerocopy::{FromBytes, Immutable, IntoBytes, KnownLayout};
 
 /// The protocol version both messages carry. Changed whenever the layout or meaning changes;
@@ -392,6 +393,15 @@ impl core::fmt::Display for WireError {
 }
 
 impl core::error::Error for WireError {}
+
+impl From<TargetError> for WireError {
+    fn from(e: TargetError) -> Self {
+        match e {
+            TargetError::NotPlanar => Self::NotPlanar,
+            TargetError::NotARotation => Self::NotARotation,
+        }
+    }
+}
 
 impl WireError {
     /// A short stable name (for counters in `latency.json`).
@@ -1062,16 +1072,6 @@ pub fn check_measurement(
         return Err(WireError::Stale(msg.seq));
     }
     Ok(())
-}
-
-/// FNV-1a, 64 bits (for the scenario hash and session ids).
-pub fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0100_0000_01b3);
-    }
-    h
 }
 
 #[cfg(test)]

@@ -51,8 +51,6 @@
 use companion_core::{Chain, JointKind, Pose3};
 use serde_json::{json, Value};
 
-use super::fnv1a;
-
 /// The canonical text of a JSON value (see the module docs).
 pub fn canonical_text(v: &Value) -> String {
     let mut lines = Vec::new();
@@ -138,6 +136,16 @@ pub fn describe_arm(hash: u64) -> String {
         (h, Some(name)) => format!("{name} ({h:#018x})"),
         (h, None) => format!("{h:#018x}"),
     }
+}
+
+/// FNV-1a, 64 bits (for the scenario hash and session ids).
+pub fn fnv1a(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in bytes {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(0x0100_0000_01b3);
+    }
+    h
 }
 
 #[cfg(test)]

@@ -28,13 +28,14 @@
 //!
 //! A spatial reading checks that `R` is a rotation (`max |RᵀR − I| ≤ 10⁻⁶`, `det R > 0`:
 //! [`ROTATION_TOLERANCE`]); a planar reading checks that the target is planar (`z`, `v_z`,
-//! `ω_x`, `ω_y` exactly 0; `R` is not read). A message that fails is malformed ([`WireError::NotARotation`],
-//! [`WireError::NotPlanar`]): dropped and counted like any malformed measurement.
+//! `ω_x`, `ω_y` exactly 0; `R` is not read). A message that fails is malformed
+//! ([`TargetError`], which the wire reports as
+//! [`WireError::NotARotation`](super::WireError::NotARotation) or
+//! [`WireError::NotPlanar`](super::WireError::NotPlanar)): dropped and counted like any
+//! malformed measurement.
 
 use companion_core::nalgebra::{Matrix3, Vector3, Vector6};
 use companion_core::{so3, Planar, Pose, Pose3, Space, Spatial};
-
-use super::WireError;
 
 /// The `space` codes of both messages: where the target lives.
 pub mod space {
@@ -72,6 +73,15 @@ pub struct WireTarget {
 }
 
 /// A target space as it goes on the wire (implemented for [`Planar`] and [`Spatial`]).
+/// Why a target on the wire is malformed (the wire counts it as a malformed measurement).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetError {
+    /// A planar target off the plane (`z`, `v_z`, `ω_x` or `ω_y` not 0).
+    NotPlanar,
+    /// A spatial target whose finite rotation is not orthonormal ([`ROTATION_TOLERANCE`]).
+    NotARotation,
+}
+
 pub trait WireSpace: Space<f64> {
     /// Its [`space`] code.
     const CODE: u32;
@@ -82,8 +92,8 @@ pub trait WireSpace: Space<f64> {
     /// The target pose and body velocity of the wire's fields.
     ///
     /// # Errors
-    /// [`WireError::NotPlanar`] or [`WireError::NotARotation`] (see the module docs).
-    fn from_wire(t: &WireTarget) -> Result<(Self::Pose, Self::Vector), WireError>;
+    /// [`TargetError`] (see the module docs).
+    fn from_wire(t: &WireTarget) -> Result<(Self::Pose, Self::Vector), TargetError>;
 }
 
 fn rows(r: &Matrix3<f64>) -> [f64; 9] {
@@ -104,11 +114,11 @@ impl WireSpace for Planar {
     }
 
     #[inline]
-    fn from_wire(t: &WireTarget) -> Result<(Pose<f64>, Vector3<f64>), WireError> {
+    fn from_wire(t: &WireTarget) -> Result<(Pose<f64>, Vector3<f64>), TargetError> {
         // Exactly zero, as a planar plant writes them.
         let off_plane = [t.position[2], t.twist[2], t.twist[3], t.twist[4]];
         if off_plane.iter().any(|x| *x != 0.0) {
-            return Err(WireError::NotPlanar);
+            return Err(TargetError::NotPlanar);
         }
         Ok((Pose::new(t.position[0], t.position[1], t.yaw), Vector3::new(t.twist[0], t.twist[1], t.twist[5])))
     }
@@ -129,12 +139,12 @@ impl WireSpace for Spatial {
     }
 
     #[inline]
-    fn from_wire(t: &WireTarget) -> Result<(Pose3<f64>, Vector6<f64>), WireError> {
+    fn from_wire(t: &WireTarget) -> Result<(Pose3<f64>, Vector6<f64>), TargetError> {
         let r = Matrix3::from_row_slice(&t.rotation);
         // Non-finite entries are the law's business (a non-finite target); a finite matrix
         // must be a rotation.
         if r.iter().all(|x| x.is_finite()) && so3::orthonormality(&r) > ROTATION_TOLERANCE {
-            return Err(WireError::NotARotation);
+            return Err(TargetError::NotARotation);
         }
         let p = Vector3::new(t.position[0], t.position[1], t.position[2]);
         Ok((Pose3::new(r, p), Vector6::from_row_slice(&t.twist)))
@@ -229,11 +239,11 @@ mod tests {
         for i in [2usize, 3, 4] {
             let mut bad = w;
             bad.twist[i] = 1e-12;
-            assert_eq!(Planar::from_wire(&bad), Err(WireError::NotPlanar), "twist {i}");
+            assert_eq!(Planar::from_wire(&bad), Err(TargetError::NotPlanar), "twist {i}");
         }
         assert_eq!(
             Planar::from_wire(&WireTarget { position: [1.0, 2.0, 0.5], ..w }),
-            Err(WireError::NotPlanar)
+            Err(TargetError::NotPlanar)
         );
         // The planar reading takes nothing from R.
         assert!(Planar::from_wire(&WireTarget { rotation: [0.0; 9], ..w }).is_ok());
@@ -243,7 +253,7 @@ mod tests {
         let mut scaled = w;
         scaled.rotation.iter_mut().for_each(|x| *x *= 1.001);
         for bad in [reflection, scaled, WireTarget { rotation: [0.0; 9], ..w }] {
-            assert_eq!(Spatial::from_wire(&bad), Err(WireError::NotARotation), "{bad:?}");
+            assert_eq!(Spatial::from_wire(&bad), Err(TargetError::NotARotation), "{bad:?}");
         }
         // Within the tolerance: accepted (a rotation from a f32 quaternion).
         let mut close = w;
@@ -255,6 +265,6 @@ mod tests {
         nan.position[2] = f64::NAN;
         assert!(Spatial::from_wire(&nan).is_ok_and(|(p, _)| !p.is_finite()));
         // ... but a planar target's z is exactly 0.
-        assert_eq!(Planar::from_wire(&nan), Err(WireError::NotPlanar));
+        assert_eq!(Planar::from_wire(&nan), Err(TargetError::NotPlanar));
     }
 }
