@@ -127,15 +127,8 @@ pub fn header(knobs: &[Knob]) -> String {
     cols.join(",")
 }
 
-/// FNV-1a, 64 bits.
-pub fn fnv1a(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in bytes {
-        h ^= u64::from(*b);
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
-}
+/// FNV-1a, 64 bits (the wire's: one implementation for every hash of the runtime).
+pub use crate::wire::fnv1a;
 
 /// The line of a sample (without a line break).
 pub fn line(sample: u64, inputs: &[f64], class: Class, trial: Option<&Trial>) -> String {
