@@ -192,6 +192,18 @@ fn render_figures(dir: &Path, run: &RunOutcome) -> Result<()> {
     Ok(())
 }
 
+/// Square ranges around the finite `xs` and `ys`: equal scales on both axes (a map view).
+fn equal_scale(
+    xs: impl Iterator<Item = f64>,
+    ys: impl Iterator<Item = f64>,
+) -> (std::ops::Range<f64>, std::ops::Range<f64>) {
+    let (x0, x1) = bounds(xs);
+    let (y0, y1) = bounds(ys);
+    let span = (x1 - x0).max(y1 - y0);
+    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    (cx - span / 2.0..cx + span / 2.0, cy - span / 2.0..cy + span / 2.0)
+}
+
 fn bounds(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for v in values.filter(|v| v.is_finite()) {
@@ -215,17 +227,13 @@ fn path_plot(file: &Path, name: &str, rows: &[Row]) -> Result<(), Box<dyn std::e
     root.fill(&WHITE)?;
     let xs = rows.iter().flat_map(|r| [r.plant.base.x, r.plant.end_effector.x, r.plant.target.x]);
     let ys = rows.iter().flat_map(|r| [r.plant.base.y, r.plant.end_effector.y, r.plant.target.y]);
-    let (x0, x1) = bounds(xs);
-    let (y0, y1) = bounds(ys);
-    // Equal scales on both axes.
-    let span = (x1 - x0).max(y1 - y0);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (xr, yr) = equal_scale(xs, ys);
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{name}: paths"), ("sans-serif", 18))
         .margin(10)
         .x_label_area_size(36)
         .y_label_area_size(48)
-        .build_cartesian_2d(cx - span / 2.0..cx + span / 2.0, cy - span / 2.0..cy + span / 2.0)?;
+        .build_cartesian_2d(xr, yr)?;
     chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").draw()?;
     // The robot at intervals: platform as an oriented triangle, arm as links.
     let every = (rows.len() / 12).max(1);

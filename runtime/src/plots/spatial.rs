@@ -10,7 +10,9 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use plotters::prelude::*;
 
-use super::{bounds, err, log_lines, page_head, Area, ARM, BASE, EFFECTOR, H, SECOND, TARGET, W};
+use super::{
+    bounds, equal_scale, err, log_lines, page_head, Area, ARM, BASE, EFFECTOR, H, SECOND, TARGET, W,
+};
 use crate::spatial::record::SpatialRecord;
 use crate::spatial::SpatialOutcome;
 
@@ -110,16 +112,13 @@ fn top_view(file: &Path, name: &str, rows: &[SpatialRecord]) -> Plot {
         rows.iter().flat_map(|r| [r.base.translation[0], r.effector.translation[0], r.target.translation[0]]);
     let ys =
         rows.iter().flat_map(|r| [r.base.translation[1], r.effector.translation[1], r.target.translation[1]]);
-    let (x0, x1) = bounds(xs);
-    let (y0, y1) = bounds(ys);
-    let span = (x1 - x0).max(y1 - y0);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
+    let (xr, yr) = equal_scale(xs, ys);
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{name}: top view"), ("sans-serif", 18))
         .margin(10)
         .x_label_area_size(36)
         .y_label_area_size(48)
-        .build_cartesian_2d(cx - span / 2.0..cx + span / 2.0, cy - span / 2.0..cy + span / 2.0)?;
+        .build_cartesian_2d(xr, yr)?;
     chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").draw()?;
     for r in instants(rows) {
         let (x, y, th) = (r.base.translation[0], r.base.translation[1], r.heading);
