@@ -412,6 +412,14 @@ mod tests {
         }
         // And in f32.
         assert_eq!(d.chain::<f32, 6>().unwrap().home(), Chain::<f32, 6>::ur5().home());
+        // So the HIL handshake takes one for the other: the same arm hash, though the file's
+        // rotations (from rpy) carry −0.0 where the preset's carry 0.0.
+        let hash = crate::wire::canonical::arm_hash;
+        assert_eq!(hash(&file), hash(&preset));
+        assert_eq!(crate::wire::canonical::arm_name(hash(&file)), Some("ur5"));
+        let mut narrower = file;
+        narrower.joints[0].upper = 3.0;
+        assert_ne!(hash(&narrower), hash(&preset), "a limit is part of the arm");
     }
 
     #[test]

@@ -729,3 +729,7 @@ fn two_demos_with_one_name_started_at_once_never_cross() {
 #[cfg(feature = "zenoh")]
 #[path = "hil/over_zenoh.rs"]
 mod over_zenoh;
+
+/// The same demo with a spatial arm (§5, `--arm`).
+#[path = "hil/spatial.rs"]
+mod spatial;

@@ -17,7 +17,8 @@ use companion_runtime::clock::{Clock, FakeClock, MonotonicClock};
 use companion_runtime::controller::AnyController;
 use companion_runtime::hil::messages::{answer, Stamp};
 use companion_runtime::hil::plant_loop::{run_real_time, PlantSide};
-use companion_runtime::hil::serve::{serve, ServeOptions};
+use companion_runtime::hil::robot::{PlanarRobot, SpatialRobot};
+use companion_runtime::hil::serve::{serve, serve_law, ServeOptions};
 use companion_runtime::hil::stats::{ControlStats, LiveFigures, PlantStats};
 use companion_runtime::hil::{ControlEnd, Timing, WaitMode};
 use companion_runtime::ipc::{ControlEndpoint, PlantEndpoint};
@@ -233,10 +234,11 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
                     stamp,
                     stats: &mut stats,
                     live: &live,
-                    target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
                     last_sent: None,
                 };
-                run_real_time(&mut side, &mut plant, steps, &mut sink)
+                let star = companion_core::Pose::new(0.5, 0.0, 0.0);
+                let mut robot = PlanarRobot { plant: &mut plant, target_in_effector: star };
+                run_real_time(&mut side, &mut robot, steps, &mut sink)
             });
             (n, end.unwrap(), stats.cycles, stats.fresh, link.transport)
         })
@@ -425,10 +427,11 @@ fn the_plant_loop_allocates_nothing() {
             stamp,
             stats: &mut stats,
             live: &live,
-            target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0),
             last_sent: None,
         };
-        run_real_time(&mut side, &mut plant, steps, &mut sink)
+        let mut robot =
+            PlanarRobot { plant: &mut plant, target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0) };
+        run_real_time(&mut side, &mut robot, steps, &mut sink)
     });
     assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
     assert!(end.is_ok());
@@ -513,4 +516,167 @@ fn the_controller_loop_allocates_nothing() {
         long - handshake
     );
     assert!(handshake > 0, "the law is built at the handshake");
+}
+
+/// A spatial scenario: the UR5 on the unicycle, lifted trajectory 1.
+fn ur5_scenario(duration: f64) -> companion_runtime::spatial::SpatialScenario {
+    use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
+    use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
+    let arm = SpatialArmSpec::from_choice(&ArmChoice::parse("ur5")).unwrap().unwrap();
+    SpatialScenario::new(scenario(duration), arm, SpatialTargetChoice::Lifted(PaperTrajectory::One)).unwrap()
+}
+
+/// A link whose spatial controller answers at once, in process.
+struct InstantSpatial {
+    ctrl: Box<dyn companion_runtime::controller::SpatialStep<6> + Send>,
+    pending: Option<CommandMsg>,
+    clock: std::rc::Rc<FakeClock>,
+}
+
+impl Link for InstantSpatial {
+    type Tx = MeasurementMsg;
+    type Rx = CommandMsg;
+    fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
+        let meas = m.read::<6, companion_core::Spatial>().unwrap();
+        let r = self.ctrl.step(&meas, m.dt, m.delay);
+        let mut c = answer(m, &command_header(), &r);
+        c.compute_ns = 3_000;
+        self.clock.advance(10_000);
+        self.pending = Some(c);
+        Ok(())
+    }
+    fn try_receive(&mut self) -> Result<Option<CommandMsg>> {
+        Ok(self.pending.take())
+    }
+    fn wait_event(&mut self, _: Duration) -> Result<()> {
+        Ok(())
+    }
+    fn peer_state(&mut self) -> Result<PeerState> {
+        Ok(PeerState::Alive(1))
+    }
+}
+
+/// The real-time loop with a spatial arm (§5): the UR5's plant, its rows the spatial records.
+#[test]
+fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
+    use companion_runtime::spatial::record::SpatialRecord;
+    let ss = ur5_scenario(3.0);
+    let star = companion_runtime::spatial::target_in_effector::<6>(&ss).unwrap();
+    let chain = ss.arm.chain::<f64, 6>().unwrap();
+    let mut plant = companion_runtime::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
+    let ctrl =
+        companion_runtime::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm).unwrap();
+    let mut link = InstantSpatial { ctrl, pending: None, clock: clock.clone() };
+    let mut stats = PlantStats::default();
+    let live = LiveFigures::default();
+    let mut rows: Vec<SpatialRecord> = Vec::with_capacity(3_100);
+    let mut sink = |_: u64, r: &SpatialRecord, _: bool| {
+        rows.push(*r);
+        true
+    };
+    let stamp = Stamp {
+        session: 1,
+        scenario_hash: 0,
+        arm_hash: 0,
+        period_ns: TIMING.period_ns,
+        dt: ss.base.dt,
+        flags: 0,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+    };
+    let steps = ss.steps();
+    let (n, end) = allocations_in(|| {
+        let mut side = PlantSide {
+            clock: clock.as_ref(),
+            link: &mut link,
+            timing: TIMING,
+            stamp,
+            stats: &mut stats,
+            live: &live,
+            last_sent: None,
+        };
+        let mut robot = SpatialRobot { plant: &mut plant, target_in_effector: star };
+        run_real_time(&mut side, &mut robot, steps, &mut sink)
+    });
+    assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
+    assert_eq!(end.unwrap(), companion_runtime::hil::PlantEnd::Completed);
+    assert_eq!((stats.cycles, stats.fresh, stats.deadline_misses), (3_001, 3_001, 0));
+    assert_eq!(rows.len(), 3_001);
+    // The arm followed the commands: the tracking error fell from the start.
+    assert!(
+        rows[3_000].ep_norm < 0.5 * rows[0].ep_norm.max(1e-3),
+        "{} → {}",
+        rows[0].ep_norm,
+        rows[3_000].ep_norm
+    );
+}
+
+/// The controller's loop serving a spatial arm allocates nothing after the handshake.
+#[test]
+fn the_controller_loop_of_a_spatial_arm_allocates_nothing() {
+    use companion_runtime::hil::law::SpatialLaw;
+    let ss = ur5_scenario(30.0);
+    let chain = ss.arm.chain::<f64, 6>().unwrap();
+    let arm_hash = companion_runtime::wire::canonical::arm_hash(&chain);
+    let star = companion_runtime::spatial::target_in_effector::<6>(&ss).unwrap();
+    let plant = companion_runtime::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let header = MeasurementHeader {
+        session: 9,
+        arm_hash,
+        scenario_hash: companion_runtime::hil::handshake::controller_hash(&ss.base.controller),
+        dt: 1e-3,
+        platform: platform::UNICYCLE,
+        hold_periods: TIMING.hold_periods,
+        period_ns: TIMING.period_ns,
+        ..MeasurementHeader::default()
+    };
+    let m = MeasurementMsg::new(header, &plant.measure());
+    let law = SpatialLaw { spec: &ss.base.controller, arm: &ss.arm, arm_hash };
+    let (handshake, long) =
+        (spatial_serve_allocations(&m, &law, 1), spatial_serve_allocations(&m, &law, 5_000));
+    assert_eq!(
+        long,
+        handshake,
+        "{} allocations in 4 999 controller cycles after the handshake",
+        long - handshake
+    );
+    assert!(handshake > 0, "the law is built at the handshake");
+}
+
+/// Allocations of one `serve_law` of `law` over copies of `m` numbered `0..=last`.
+fn spatial_serve_allocations(
+    m: &MeasurementMsg,
+    law: &companion_runtime::hil::law::SpatialLaw<'_>,
+    last: u64,
+) -> u64 {
+    let mut inbox = VecDeque::with_capacity(5_001);
+    for seq in 0..=last {
+        let mut x = *m;
+        x.seq = seq;
+        x.plant_time_ns = seq * 1_000_000;
+        if seq == last {
+            x.flags = flags::END_OF_RUN;
+        }
+        inbox.push_back(x);
+    }
+    let mut link = Script { inbox, sent: Vec::with_capacity(5_001), ready: true };
+    let opt = ServeOptions {
+        wait: WaitMode::Spin,
+        spin_margin_ns: 0,
+        silence_ns: 20_000_000,
+        peer_timeout_ns: 2_000_000_000,
+        startup_timeout_ns: 2_000_000_000,
+        forward_interrupt: false,
+        delay_compensation: true,
+    };
+    let clock = FakeClock::new(0, 100);
+    let mut stats = ControlStats::default();
+    let silent = companion_runtime::observe::Silent;
+    let (n, end) =
+        allocations_in(|| serve_law::<_, _, 6, _>(&clock, &mut link, law, &opt, &mut stats, &silent));
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(link.sent.len() as u64, last + 1);
+    assert_eq!(stats.rejected, 0, "every step accepted");
+    n
 }

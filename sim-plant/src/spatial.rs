@@ -235,6 +235,23 @@ impl<const N: usize> SpatialPlant<N> {
     /// A time step that is not finite and `> 0` or differs from the first, or a non-finite
     /// command; the state is left as it was.
     pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        self.try_advance_delayed(command, command, 0.0, dt)
+    }
+
+    /// One step of `dt` seconds in which `previous` acts for the first `delay` seconds and
+    /// `command` for the rest (the real-time HIL plant: a command takes effect when it
+    /// arrives); `delay = 0` is [`try_advance`](Self::try_advance) exactly.
+    ///
+    /// # Errors
+    /// As [`try_advance`](Self::try_advance), and a delay that is not in `[0, dt)`; the state
+    /// is left as it was.
+    pub fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
         if !(dt.is_finite() && dt > 0.0) {
             return Err(AdvanceError::BadTimeStep { dt });
         }
@@ -243,8 +260,11 @@ impl<const N: usize> SpatialPlant<N> {
                 return Err(AdvanceError::TimeStepChanged { fixed, dt });
             }
         }
-        if !command.is_finite() {
+        if !command.is_finite() || !previous.is_finite() {
             return Err(AdvanceError::NonFiniteCommand);
+        }
+        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
+            return Err(AdvanceError::BadDelay { delay });
         }
         self.dt = Some(dt);
         let model = Model {
@@ -257,7 +277,13 @@ impl<const N: usize> SpatialPlant<N> {
         let n = self.state.step;
         #[allow(clippy::cast_precision_loss)]
         let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
-        self.x = model.rk4(t0, t1, dt, &self.x, command, &mut self.trig);
+        self.x = if delay > 0.0 {
+            let t_switch = t0 + delay;
+            let x = model.rk4(t0, t_switch, delay, &self.x, previous, &mut self.trig);
+            model.rk4(t_switch, t1, t1 - t_switch, &x, command, &mut self.trig)
+        } else {
+            model.rk4(t0, t1, dt, &self.x, command, &mut self.trig)
+        };
         let target = self.target_pose(t1, &self.x.target);
         let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
         self.state = SpatialState {
@@ -354,6 +380,40 @@ mod tests {
                     assert_eq!(s.joints[0], p.joints[0]);
                 }
             }
+        }
+    }
+
+    /// A step in which the previous command acts first (the real-time HIL's delay) is the
+    /// planar plant's delayed step, bit for bit; a delay outside `[0, dt)` is refused and
+    /// leaves the state as it was.
+    #[test]
+    fn the_delayed_step_is_the_planar_plants_bit_for_bit() {
+        for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
+            let traj = PaperTrajectory::One;
+            let mut planar = Plant::new(
+                PlantConfig::new(kind),
+                companion_core::Rpr::paper(),
+                paper_initial(traj),
+                Trajectory::from(traj),
+            )
+            .unwrap();
+            let mut spatial = ur5_plant(kind, traj);
+            for k in 1..3000 {
+                let ((p3, p6), (c3, c6)) = (command(k - 1), command(k));
+                #[allow(clippy::cast_precision_loss)]
+                let delay = 1e-3 * (k % 10) as f64 / 10.0;
+                planar.try_advance_delayed(&p3, &c3, delay, 1e-3).unwrap();
+                spatial.try_advance_delayed(&p6, &c6, delay, 1e-3).unwrap();
+                let (p, s) = (planar.truth(), spatial.truth());
+                assert_eq!(p.base, s.base, "{kind:?} step {k}");
+                assert_eq!(p.steering, s.steering);
+                assert_eq!(s.joints[0], p.joints[0]);
+            }
+            let before = *spatial.truth();
+            let c = command(0).1;
+            assert!(spatial.try_advance_delayed(&c, &c, 1e-3, 1e-3).is_err());
+            assert!(spatial.try_advance_delayed(&c, &c, -1e-9, 1e-3).is_err());
+            assert_eq!(*spatial.truth(), before);
         }
     }
 

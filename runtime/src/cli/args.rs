@@ -7,12 +7,14 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
+use companion_runtime::arm::SpatialArmSpec;
 use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
 use companion_runtime::record::verdict::DEFAULT_MAX_REJECTED;
 use companion_runtime::record::Acceptance;
 use companion_runtime::scenario::{
     ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
 };
+use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
 
 /// The wheeled platform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -266,6 +268,37 @@ impl ScenarioArgs {
         let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
         let s = more(b).build()?;
         companion_runtime::plant_setup::build(&s)?;
+        Ok(s)
+    }
+
+    /// The spatial run these flags describe with `arm` (§5): the paper's trajectory
+    /// (`--trajectory`) lifted, or a spatial `--target-file` of 6-DOF body twists; every
+    /// other flag as for a planar run, `more` applied to the builder. The target's height is
+    /// checked against the arm's reach and the plant built once, before anything runs.
+    ///
+    /// # Errors
+    /// A bad flag value, config, arm or target file, with a message saying which and why.
+    pub fn spatial_scenario(
+        &self,
+        arm: SpatialArmSpec,
+        default_duration: f64,
+        more: impl FnOnce(ScenarioBuilder) -> ScenarioBuilder,
+    ) -> Result<SpatialScenario> {
+        let target = match &self.target_file {
+            Some(p) => SpatialTargetChoice::File(p.clone()),
+            None if self.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
+            None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
+        };
+        // The planar scenario carries every other flag; its own target is not used.
+        let b = self.builder(
+            self.config_file()?,
+            Target::Paper(PaperTrajectory::One),
+            self.choice.into(),
+            self.platform.into(),
+            default_duration,
+        );
+        let s = SpatialScenario::new(more(b).build()?, arm, target)?;
+        companion_runtime::spatial::check(&s)?;
         Ok(s)
     }
 

@@ -10,14 +10,16 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
+use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::hil::chaos::{self, Plan};
 use companion_runtime::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
 use companion_runtime::hil::fault::Corruption;
 use companion_runtime::hil::plant::PlantLock;
+use companion_runtime::hil::plant::PlantRun;
 use companion_runtime::hil::report::LatencyReport;
 use companion_runtime::hil::stats::LiveFigures;
 use companion_runtime::hil::{
-    ChaosConfig, ControlEnd, HilConfig, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+    ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
 };
 use companion_runtime::histogram::fmt_ns;
 use companion_runtime::ipc::{self, NameInUse, Role};
@@ -25,7 +27,7 @@ use companion_runtime::lock::NameLock;
 use companion_runtime::process::ChildGuard;
 use companion_runtime::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRACTION};
 use companion_runtime::record::Failure;
-use companion_runtime::scenario::{short, Scenario};
+use companion_runtime::scenario::{short, Scenario, ScenarioBuilder};
 use companion_runtime::signals::termination_requested;
 use companion_runtime::transport::{self, Transport};
 
@@ -34,7 +36,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
-use super::sim::print_table;
+use super::sim::{print_spatial_table, print_table};
 use super::terminal::Terminal;
 
 /// The default simulated duration of a HIL run when `--duration` is not given (s).
@@ -194,6 +196,13 @@ pub struct HilArgs {
     /// delay does uncompensated.
     #[arg(long)]
     pub no_delay_compensation: bool,
+    /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
+    /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml) — the
+    /// spatial law of §5 on the paper's trajectory lifted (--trajectory 1|2) or a spatial
+    /// --target-file, as `companion sim --arm`. Give both roles the same arm: the handshake
+    /// compares the arms' hashes.
+    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    pub arm: String,
     /// No live progress line.
     #[arg(long)]
     pub quiet: bool,
@@ -272,7 +281,7 @@ impl HilArgs {
     ///
     /// # Errors
     /// A bad flag value or file, naming the flag or parameter and the rule.
-    pub fn resolve(&self) -> Result<(HilConfig, Scenario)> {
+    pub fn resolve(&self) -> Result<(HilConfig, HilScenario)> {
         ipc::validate_name(&self.name)?;
         if self.delay != 0.0 && !self.lockstep {
             bail!(
@@ -280,10 +289,21 @@ impl HilArgs {
                  delay of every command itself"
             );
         }
-        let s = self.scenario.scenario_with(DEFAULT_DURATION, |b| {
-            b.delay(self.delay).delay_compensation(!self.no_delay_compensation)
-        })?;
-        let timing = self.timing(&s)?;
+        let more = |b: ScenarioBuilder| b.delay(self.delay).delay_compensation(!self.no_delay_compensation);
+        let hs = match SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm))? {
+            None => HilScenario::Planar(self.scenario.scenario_with(DEFAULT_DURATION, more)?),
+            Some(arm) => {
+                if self.chaos.is_some() {
+                    bail!(
+                        "--chaos runs the paper's planar arm; it cannot be combined with --arm {}",
+                        self.arm
+                    );
+                }
+                HilScenario::Spatial(Box::new(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?))
+            }
+        };
+        let s = hs.base();
+        let timing = self.timing(s)?;
         let startup = seconds("--startup-timeout", self.startup_timeout, MAX_STARTUP_TIMEOUT_S, true)?;
         let startup_timeout = Duration::from_secs_f64(startup);
         let acceptance = self.scenario.acceptance(self.max_miss_fraction)?;
@@ -320,7 +340,7 @@ impl HilArgs {
             transport,
             mcap: self.mcap.clone(),
         };
-        Ok((cfg, s))
+        Ok((cfg, hs))
     }
 
     /// `--inject`, parsed.
@@ -611,14 +631,15 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     let live = Arc::new(LiveFigures::default());
     // Lockstep: a bar; real time: a line drawn from the live figures. Helper threads start
     // before the loop raises its priority, so that they do not inherit it.
+    let steps = s.base().steps();
     let term = match (cfg.timing.lockstep, a.child) {
-        (true, false) => Terminal::bar(s.steps() + 1, !show_progress),
-        (true, true) => Terminal::bar(s.steps() + 1, !show_progress).without_notes(),
+        (true, false) => Terminal::bar(steps + 1, !show_progress),
+        (true, true) => Terminal::bar(steps + 1, !show_progress).without_notes(),
         (false, false) => Terminal::lines(),
         (false, true) => Terminal::warnings_only(),
     };
     let progress = (!cfg.timing.lockstep && show_progress)
-        .then(|| spawn_progress(Arc::clone(&live), s.steps(), s.dt))
+        .then(|| spawn_progress(Arc::clone(&live), steps, s.base().dt))
         .flatten();
     let result = companion_runtime::hil::plant::run(&cfg, &s, &live, &term, &lock);
     live.finish();
@@ -630,12 +651,15 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
         Ok(o) => o,
         Err(e) => return name_in_use_or(e),
     };
-    print_table(std::slice::from_ref(&outcome.run));
+    match &outcome.run {
+        PlantRun::Planar(r) => print_table(std::slice::from_ref(r)),
+        PlantRun::Spatial(r) => print_spatial_table(&r.summary),
+    }
     print_latency(&outcome.latency);
     if outcome.end != PlantEnd::Completed {
         eprintln!("plant: {}", outcome.end.describe());
     }
-    print_failures("plant", &outcome.run.summary.failures);
+    print_failures("plant", outcome.run.failures());
     println!("wrote {}", cfg.out.display());
     if let Some(p) = &cfg.mcap {
         println!(
@@ -643,7 +667,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
             p.display()
         );
     }
-    Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.run.summary.failures)))
+    Ok(ExitCode::from(plant_exit_code(&outcome.end, outcome.run.failures())))
 }
 
 /// `companion control`.
@@ -672,8 +696,8 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         cfg.transport.describe(),
         companion_runtime::wire::PROTOCOL_VERSION,
         ipc::service_name(&cfg.name, "{measurement,command}"),
-        companion_runtime::hil::handshake::controller_hash(&s.controller),
-        companion_runtime::wire::canonical::describe_arm(companion_runtime::hil::handshake::arm_hash())
+        companion_runtime::hil::handshake::controller_hash(&s.base().controller),
+        companion_runtime::wire::canonical::describe_arm(arm_hash(&s)?)
     );
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {
@@ -696,6 +720,19 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::from(code))
+}
+
+/// The hash of the scenario's arm (the paper's, or the spatial arm's chain).
+fn arm_hash(s: &HilScenario) -> Result<u64> {
+    use companion_runtime::wire::canonical;
+    Ok(match s.spatial() {
+        None => companion_runtime::hil::handshake::arm_hash(),
+        Some(ss) => match ss.arm.joints() {
+            6 => canonical::arm_hash(&ss.arm.chain::<f64, 6>()?),
+            7 => canonical::arm_hash(&ss.arm.chain::<f64, 7>()?),
+            _ => canonical::arm_hash(&ss.arm.chain::<f64, 8>()?),
+        },
+    })
 }
 
 /// Prints the latency table of a HIL run.
@@ -792,7 +829,7 @@ mod tests {
     fn defaults_give_30_s_at_1_khz_with_a_500_us_deadline() {
         let t = T::parse_from(["x"]);
         let (cfg, s) = t.a.resolve().unwrap();
-        assert_eq!(s.duration, 30.0);
+        assert_eq!(s.base().duration, 30.0);
         let tm = cfg.timing;
         assert_eq!(tm.period_ns, 1_000_000);
         assert_eq!(tm.deadline_ns, 500_000);
@@ -802,11 +839,11 @@ mod tests {
         assert_eq!(cfg.acceptance, companion_runtime::record::Acceptance::default());
         // The scenario is the one the flags describe (the joint guard is the plant's business,
         // announced on the wire: see hil::handshake).
-        assert_eq!(s.controller.overrides.joint_step_fraction, None);
+        assert_eq!(s.base().controller.overrides.joint_step_fraction, None);
         let t = T::parse_from(["x", "--rt"]);
-        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Adaptive);
+        assert_eq!(t.a.timing(s.base()).unwrap().wait, WaitMode::Adaptive);
         let t = T::parse_from(["x", "--rt", "--wait", "spin"]);
-        assert_eq!(t.a.timing(&s).unwrap().wait, WaitMode::Spin);
+        assert_eq!(t.a.timing(s.base()).unwrap().wait, WaitMode::Spin);
     }
 
     #[test]

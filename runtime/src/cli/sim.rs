@@ -5,12 +5,11 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use companion_plant::PaperTrajectory;
 use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::record::{Failure, McapRecorder, PlanarReplay, ReplaySummary, RunOutcome};
 use companion_runtime::scenario::Target;
 use companion_runtime::sim::{all_scenarios, run_one_replayed, run_one_with};
-use companion_runtime::spatial::{replay, run_spatial, SpatialScenario, SpatialTargetChoice};
+use companion_runtime::spatial::{replay, run_spatial};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -152,25 +151,9 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
     if args.all {
         anyhow::bail!("--all runs the paper's planar arm; it cannot be combined with --arm {}", args.arm);
     }
-    let a = &args.scenario;
-    let target = match &a.target_file {
-        Some(p) => SpatialTargetChoice::File(p.clone()),
-        None if a.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
-        None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
-    };
-    // The planar scenario carries every other flag; its own target is not used.
-    let base = a
-        .builder(
-            a.config_file()?,
-            Target::Paper(PaperTrajectory::One),
-            a.choice.into(),
-            a.platform.into(),
-            DEFAULT_DURATION,
-        )
-        .delay(args.delay)
-        .delay_compensation(!args.no_delay_compensation)
-        .build()?;
-    let s = SpatialScenario::new(base, arm, target)?;
+    let s = args.scenario.spatial_scenario(arm, DEFAULT_DURATION, |b| {
+        b.delay(args.delay).delay_compensation(!args.no_delay_compensation)
+    })?;
     // Created before the run, so that a path that cannot be written stops it here.
     let mcap = args.mcap.as_deref().map(|p| McapRecorder::create(p, replay::layout(&s))).transpose()?;
     let term = Terminal::bar(s.steps() + 1, false);
@@ -191,7 +174,23 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
     if !args.no_plots {
         companion_runtime::plots::spatial::render(&args.out, &outcome)?;
     }
+    print_spatial_table(&outcome.summary);
     let m = &outcome.summary;
+    println!("wrote {}", args.out.display());
+    let mut code = 0;
+    for f in &m.failures {
+        eprintln!("warning: {}: RUN FAILED: {}", m.scenario, f.describe());
+        code = EXIT_REJECTED;
+    }
+    if m.ended_early {
+        eprintln!("interrupted: the run's files are written up to the step at which the signal came");
+        code = EXIT_INTERRUPTED;
+    }
+    Ok(ExitCode::from(code))
+}
+
+/// Prints the spatial run's line: its main figures, and its rejections.
+pub fn print_spatial_table(m: &companion_runtime::spatial::record::SpatialSummary) {
     println!(
         "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
         "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"
@@ -210,17 +209,6 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
     if m.rejected_steps > 0 {
         println!("  {} steps rejected by the law: {}", m.rejected_steps, m.rejections.describe());
     }
-    println!("wrote {}", args.out.display());
-    let mut code = 0;
-    for f in &m.failures {
-        eprintln!("warning: {}: RUN FAILED: {}", m.scenario, f.describe());
-        code = EXIT_REJECTED;
-    }
-    if m.ended_early {
-        eprintln!("interrupted: the run's files are written up to the step at which the signal came");
-        code = EXIT_INTERRUPTED;
-    }
-    Ok(ExitCode::from(code))
 }
 
 /// The table's "max ‖e_p‖ after 20 s" and "tracked" columns; `n/a` for a run with no step

@@ -8,7 +8,7 @@ mod spatial;
 mod spec;
 
 pub use spatial::{
-    command_f64, planar_only_keys, spatial_controller, spatial_params, SpatialReport, SpatialStep,
+    boxed_spatial_controller, command_f64, planar_only_keys, spatial_controller, spatial_params, SpatialStep,
     TARGET_DISTANCE,
 };
 pub use spec::{
@@ -29,10 +29,13 @@ pub const JOINTS: usize = 3;
 
 /// What one controller step gives the plant and the log: the command (zero when the step was
 /// rejected) and the diagnostics that are logged.
+///
+/// `N` is the arm's joint count: the paper's arm ([`JOINTS`]) by default; a spatial arm's
+/// report ([`SpatialStep`]) has `N` of 6 to 8 and `‖e_p‖` of the six components.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StepReport {
+pub struct StepReport<const N: usize = JOINTS> {
     /// The command to apply (the safe zero command when `error` is set).
-    pub command: Command<f64, JOINTS>,
+    pub command: Command<f64, N>,
     /// `‖e_p‖` (NaN when rejected).
     pub ep_norm: f64,
     /// `h_s` (NaN when rejected).
@@ -50,7 +53,7 @@ pub struct StepReport {
     pub error: Option<StepError>,
 }
 
-impl StepReport {
+impl<const N: usize> StepReport<N> {
     /// The zero command with no diagnostics (NaN), rejected for `error` if given.
     pub fn zero(error: Option<StepError>) -> Self {
         Self {

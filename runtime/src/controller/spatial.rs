@@ -5,39 +5,24 @@
 //! `--discretisation` act as on planar runs), and one step on an `f64` measurement for a
 //! controller in `f64` or `f32`.
 
-use companion_core::nalgebra::Vector6;
 use companion_core::{
-    Chain, Command, Controller, Manipulator, Measurement, ParamError, Params, Platform, PlatformCommand,
-    Pose, Pose3, Real, Rule, Spatial, SpatialArm, StepError,
+    Chain, Command, Controller, Manipulator, Measurement, Omnidirectional, ParamError, Params, Platform,
+    PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm,
 };
 
-use super::spec::{ArmConfig, ControllerSpec};
+use super::spec::{ArmConfig, ControllerSpec, Scalar};
+use super::StepReport;
+use crate::arm::SpatialArmSpec;
 
 /// Where the spatial law puts the target: `r*_ed` this far along the flange's approach axis
 /// (`z`), level at home (m). The same as core's closed-loop tests.
 pub const TARGET_DISTANCE: f64 = 0.2;
 
-/// What one spatial step gives the plant and the record.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialReport<const N: usize> {
-    /// The command (zero when rejected), in `f64`.
-    pub command: Command<f64, N>,
-    /// The law's `e_p` (at the point where it was evaluated; NaN when rejected).
-    pub e_p: Vector6<f64>,
-    /// `h_s` (NaN when rejected).
-    pub h_s: f64,
-    /// The platform's saturation factor (NaN when rejected).
-    pub saturation: f64,
-    /// The joint guard's factor (NaN when rejected).
-    pub joint_scale: f64,
-    /// Why the step was rejected, if it was.
-    pub error: Option<StepError>,
-}
-
 /// A controller that steps on `f64` spatial measurements.
 pub trait SpatialStep<const N: usize> {
-    /// One step: the command to hold for `period` seconds.
-    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64) -> SpatialReport<N>;
+    /// One step: the command to hold for `period` seconds, taking effect `delay` seconds
+    /// after the measurement (0 in `companion sim`; the plant's announced delay in HIL).
+    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64, delay: f64) -> StepReport<N>;
     /// `r*_ed` in `f64` (exactly the controller's).
     fn target_in_effector(&self) -> Pose3<f64>;
 }
@@ -47,7 +32,7 @@ where
     SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
 {
     #[inline]
-    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64) -> SpatialReport<N> {
+    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64, delay: f64) -> StepReport<N> {
         let m = Measurement::<T, N, Spatial> {
             t: T::of(meas.t),
             base: Pose::new(T::of(meas.base.x), T::of(meas.base.y), T::of(meas.base.theta)),
@@ -56,26 +41,21 @@ where
             target: pose_in(&meas.target),
             target_velocity: meas.target_velocity.map(T::of),
         };
-        match self.step_delayed(&m, T::of(period), T::zero()) {
+        match self.step_delayed(&m, T::of(period), T::of(delay)) {
             Ok(out) => {
                 let d = &out.diagnostics;
-                SpatialReport {
+                StepReport {
                     command: command_f64(&out.command),
-                    e_p: d.e_p.map(Real::as_f64),
+                    ep_norm: d.e_p.map(Real::as_f64).norm(),
                     h_s: d.h_s.as_f64(),
+                    psi: d.psi.as_f64(),
                     saturation: d.saturation.as_f64(),
+                    alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
                     joint_scale: d.joint_scale.as_f64(),
                     error: None,
                 }
             }
-            Err(r) => SpatialReport {
-                command: Command::zero(),
-                e_p: Vector6::repeat(f64::NAN),
-                h_s: f64::NAN,
-                saturation: f64::NAN,
-                joint_scale: f64::NAN,
-                error: Some(r.error),
-            },
+            Err(r) => StepReport::rejected(r.error),
         }
     }
 
@@ -183,4 +163,42 @@ where
     c.state.alpha =
         companion_core::nalgebra::Vector2::new(T::of(spec.initial_alpha[0]), T::of(spec.initial_alpha[1]));
     Ok(c)
+}
+
+/// The spatial controller of `spec` for `arm` with `N` joints, in the spec's scalar type on
+/// its platform, behind one type (built once, before a run: the box is the only allocation).
+///
+/// # Errors
+/// A chain that does not have `N` joints or is invalid, or an invalid parameter.
+pub fn boxed_spatial_controller<const N: usize>(
+    spec: &ControllerSpec,
+    arm: &SpatialArmSpec,
+) -> anyhow::Result<Box<dyn SpatialStep<N> + Send>>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    use anyhow::Context as _;
+    let law = "the spatial law's parameters";
+    let (c64, c32) = (|| arm.chain::<f64, N>(), || arm.chain::<f32, N>());
+    Ok(match (spec.platform, spec.scalar) {
+        (PlatformKind::Unicycle, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, spec.unicycle::<f64>()).context(law)?)
+        }
+        (PlatformKind::Unicycle, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, spec.unicycle::<f32>()).context(law)?)
+        }
+        (PlatformKind::Car, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, spec.car::<f64>()).context(law)?)
+        }
+        (PlatformKind::Car, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, spec.car::<f32>()).context(law)?)
+        }
+        (PlatformKind::Omni, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, Omnidirectional).context(law)?)
+        }
+        (PlatformKind::Omni, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, Omnidirectional).context(law)?)
+        }
+    })
 }

@@ -9,6 +9,8 @@ use serde::{Deserialize, Serialize};
 use crate::ipc::Role;
 use crate::record::Acceptance;
 use crate::rt::RtConfig;
+use crate::scenario::Scenario;
+use crate::spatial::SpatialScenario;
 
 /// How a process waits for its peer's message.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -165,5 +167,34 @@ impl HilConfig {
     /// The real-time setup of `role`, if any.
     pub fn rt_config(&self, role: Role) -> Option<RtConfig> {
         self.rt.map(|r| r.for_role(role))
+    }
+}
+
+/// The run both roles are given: the paper's planar arm, or a spatial arm (`--arm
+/// ur5|panda|FILE`, §5). Both roles must be given the same one: the handshake compares the
+/// scenario's and the arm's hashes, and the target's space and joint count.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HilScenario {
+    /// The paper's RPR arm (§4).
+    Planar(Scenario),
+    /// A 6- to 8-joint arm in SE(3) (§5).
+    Spatial(Box<SpatialScenario>),
+}
+
+impl HilScenario {
+    /// The planar scenario: the whole run, or everything but the arm and the target.
+    pub fn base(&self) -> &Scenario {
+        match self {
+            Self::Planar(s) => s,
+            Self::Spatial(s) => &s.base,
+        }
+    }
+
+    /// The spatial scenario, if the arm is spatial.
+    pub fn spatial(&self) -> Option<&SpatialScenario> {
+        match self {
+            Self::Planar(_) => None,
+            Self::Spatial(s) => Some(s),
+        }
     }
 }

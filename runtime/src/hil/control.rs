@@ -12,10 +12,10 @@ use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 
 use super::chaos::{self, Agent, Observed, Plan};
-use super::config::HilConfig;
+use super::config::{HilConfig, HilScenario};
 use super::end::ControlEnd;
 use super::fault::{Corruption, Injected, Injecting};
-use super::serve::{serve, ServeOptions};
+use super::serve::{serve_scenario, ServeOptions};
 use super::stats::ControlStats;
 use crate::clock::MonotonicClock;
 use crate::histogram::fmt_ns;
@@ -30,7 +30,7 @@ use crate::transport::{self, ControlEndpoint};
 /// How long the controller waits for the plant to read its last message.
 const LINGER: Duration = Duration::from_secs(1);
 
-/// The options of [`serve`] for a configuration and scenario.
+/// The options of [`serve_scenario`] for a configuration and scenario.
 pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
     let t = &cfg.timing;
     #[allow(clippy::cast_possible_truncation)]
@@ -75,14 +75,14 @@ pub struct Session {
 /// ([`super::serve::Refused`]).
 pub fn session(
     cfg: &HilConfig,
-    s: &Scenario,
+    s: &HilScenario,
     faults: &Faults,
     observer: &dyn Observer,
     abort: impl FnMut() -> Option<String>,
     lock: &NameLock,
 ) -> Result<Session> {
     debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
-    let opt = serve_options(cfg, s);
+    let opt = serve_options(cfg, s.base());
     let ep: ControlEndpoint =
         transport::open(&cfg.transport, &cfg.name, Role::Control, cfg.timing.wait.uses_events())?;
     ep.wait_for_peer(cfg.startup_timeout, abort)?;
@@ -94,11 +94,11 @@ pub fn session(
     let mut injected = Injected::default();
     let (r, ep) = if *faults == Faults::default() {
         let mut ep = ep;
-        (serve(&MonotonicClock, &mut ep, &s.controller, &opt, &mut stats, observer), ep)
+        (serve_scenario(&MonotonicClock, &mut ep, s, &opt, &mut stats, observer), ep)
     } else {
         // Testing: corrupted commands go out before the real ones, some answers late.
         let mut link = Injecting::new(ep, faults.corruptions.clone()).with_delays(faults.delays.clone());
-        let r = serve(&MonotonicClock, &mut link, &s.controller, &opt, &mut stats, observer);
+        let r = serve_scenario(&MonotonicClock, &mut link, s, &opt, &mut stats, observer);
         injected = link.injected();
         (r, link.into_inner())
     };
@@ -224,7 +224,7 @@ fn ms(ns: u64) -> f64 {
 /// made.
 pub fn run_as_parent(
     cfg: &HilConfig,
-    s: &Scenario,
+    s: &HilScenario,
     faults: &Faults,
     mut child: ChildGuard,
     observer: &dyn Observer,
@@ -235,7 +235,7 @@ pub fn run_as_parent(
     let mut faults = faults.clone();
     let mut agent = None;
     if let Some(c) = cfg.chaos {
-        let plan = Plan::new(c.seed, s.steps(), &cfg.timing)?;
+        let plan = Plan::new(c.seed, s.base().steps(), &cfg.timing)?;
         faults.corruptions.extend(plan.corruptions.iter().copied());
         faults.delays.extend(plan.delays.iter().copied());
         agent = Some(Agent::spawn(plan.stops_by(Role::Control), pid_i32, c.epoch_ns)?);
@@ -284,7 +284,7 @@ pub fn run_as_parent(
             let plant = child.finish(Duration::from_secs(600))?;
             observer.note(&stats.line());
             let chaos = match cfg.chaos {
-                Some(c) => Some(Box::new(chaos_report(cfg, s, c.seed, injected, &stops)?)),
+                Some(c) => Some(Box::new(chaos_report(cfg, s.base(), c.seed, injected, &stops)?)),
                 None => None,
             };
             let failure = stats.failure();

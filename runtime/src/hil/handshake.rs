@@ -32,7 +32,7 @@ pub fn arm_hash() -> u64 {
     canonical::arm_hash(&Chain::<f64, JOINTS>::rpr())
 }
 
-/// The controller's identity for a specification.
+/// The controller's identity for a specification (the paper's arm).
 pub fn identity(spec: &ControllerSpec) -> ControllerIdentity {
     #[allow(clippy::cast_possible_truncation)]
     ControllerIdentity {
@@ -42,6 +42,18 @@ pub fn identity(spec: &ControllerSpec) -> ControllerIdentity {
         arm_hash: arm_hash(),
         scenario_hash: controller_hash(spec),
         max_dt: spec.params::<f64>().max_time_step,
+    }
+}
+
+/// The controller's identity for a specification with a spatial arm of `joints` joints whose
+/// hash is `arm_hash` (§5; the platform law's `max_time_step` is the spec's, as on planar
+/// runs).
+pub fn spatial_identity(spec: &ControllerSpec, joints: usize, arm_hash: u64) -> ControllerIdentity {
+    ControllerIdentity {
+        joint_count: u32::try_from(joints).unwrap_or(u32::MAX),
+        space: space::SPATIAL,
+        arm_hash,
+        ..identity(spec)
     }
 }
 

@@ -2,23 +2,24 @@
 //! `--hold-periods` periods, then stop the robot (every velocity zero) until fresh commands
 //! arrive again.
 
-use crate::controller::StepReport;
+use crate::controller::{StepReport, JOINTS};
 use crate::record::CommandSource;
 
 /// The hold-then-stop policy for missing commands.
+/// `N`: the arm's joints (the paper's arm by default).
 #[derive(Clone, Copy, Debug)]
-pub struct HoldPolicy {
+pub struct HoldPolicy<const N: usize = JOINTS> {
     hold_periods: u32,
     consecutive: u32,
-    last: Option<StepReport>,
+    last: Option<StepReport<N>>,
 }
 
 /// The report applied while stopped: every velocity zero, no diagnostics.
-pub fn stop_report() -> StepReport {
+pub fn stop_report<const N: usize>() -> StepReport<N> {
     StepReport::zero(None)
 }
 
-impl HoldPolicy {
+impl<const N: usize> HoldPolicy<N> {
     /// Hold for at most `hold_periods` periods.
     pub fn new(hold_periods: u32) -> Self {
         Self { hold_periods, consecutive: 0, last: None }
@@ -26,7 +27,7 @@ impl HoldPolicy {
 
     /// A fresh command arrived in time.
     #[inline]
-    pub fn fresh(&mut self, r: StepReport) -> (StepReport, CommandSource) {
+    pub fn fresh(&mut self, r: StepReport<N>) -> (StepReport<N>, CommandSource) {
         self.consecutive = 0;
         self.last = Some(r);
         (r, CommandSource::Fresh)
@@ -35,7 +36,7 @@ impl HoldPolicy {
     /// The period's command is missing: hold the last fresh one for `hold_periods` periods,
     /// then stop (also when there never was a fresh one).
     #[inline]
-    pub fn missed(&mut self) -> (StepReport, CommandSource) {
+    pub fn missed(&mut self) -> (StepReport<N>, CommandSource) {
         self.consecutive = self.consecutive.saturating_add(1);
         match self.last {
             Some(r) if self.consecutive <= self.hold_periods => (r, CommandSource::Held),
@@ -93,7 +94,7 @@ mod tests {
 
     #[test]
     fn no_fresh_command_yet_means_stopped() {
-        let mut p = HoldPolicy::new(5);
+        let mut p = HoldPolicy::<3>::new(5);
         assert_eq!(p.missed().1, CommandSource::Stopped);
         assert!(p.stopped());
         let mut p = HoldPolicy::new(0);

@@ -4,7 +4,10 @@
 
 use companion_core::{Command, Measurement};
 
-use crate::controller::{StepReport, JOINTS};
+use crate::controller::StepReport;
+#[cfg(test)]
+use crate::controller::JOINTS;
+use crate::wire::target::WireSpace;
 use crate::wire::{
     decode_status, CommandHeader, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg,
 };
@@ -34,13 +37,13 @@ impl Stamp {
     /// Measurement `seq` with the announced flags and `flags`, measured at `plant_time_ns`,
     /// its answer expected to take effect `delay` seconds later.
     #[inline]
-    pub fn message(
+    pub fn message<const N: usize, S: WireSpace>(
         &self,
         seq: u64,
         flags: u32,
         plant_time_ns: u64,
         delay: f64,
-        meas: &Measurement<f64, JOINTS>,
+        meas: &Measurement<f64, N, S>,
     ) -> MeasurementMsg {
         let header = MeasurementHeader {
             seq,
@@ -61,9 +64,9 @@ impl Stamp {
 
 /// The report a validated command carries (the zero command when the law rejected the step,
 /// whatever the message's velocities).
-pub fn report_of(c: &CommandMsg) -> StepReport {
+pub fn report_of<const N: usize>(c: &CommandMsg) -> StepReport<N> {
     let error = decode_status(c.status).ok().flatten();
-    let command = if error.is_some() { Command::zero() } else { c.command::<JOINTS>() };
+    let command = if error.is_some() { Command::zero() } else { c.command::<N>() };
     StepReport {
         command,
         ep_norm: c.ep_norm,
@@ -77,7 +80,11 @@ pub fn report_of(c: &CommandMsg) -> StepReport {
 }
 
 /// The controller's answer to `m`: the step's command, status and logged diagnostics.
-pub fn answer(m: &MeasurementMsg, header: &CommandHeader, report: &StepReport) -> CommandMsg {
+pub fn answer<const N: usize>(
+    m: &MeasurementMsg,
+    header: &CommandHeader,
+    report: &StepReport<N>,
+) -> CommandMsg {
     let diag = LoggedDiagnostics {
         ep_norm: report.ep_norm,
         h_s: report.h_s,
@@ -119,7 +126,7 @@ mod tests {
                 target_velocity: companion_core::nalgebra::Vector3::zeros(),
             },
         );
-        let mut r = StepReport::rejected(companion_core::StepError::SingularArm);
+        let mut r = StepReport::<JOINTS>::rejected(companion_core::StepError::SingularArm);
         r.command.platform.v = 3.0;
         let id = crate::wire::ControllerIdentity {
             platform: 1,
@@ -132,7 +139,7 @@ mod tests {
         let header = CommandHeader { identity: id, flags: 0, received_ns: 0, skipped: 0, delay: 0.0 };
         let c = answer(&m, &header, &r);
         assert_eq!((c.seq, c.session), (3, 5));
-        let back = report_of(&c);
+        let back = report_of::<JOINTS>(&c);
         assert_eq!(back.command, Command::zero());
         assert_eq!(back.error, Some(companion_core::StepError::SingularArm));
     }

@@ -82,14 +82,16 @@ pub mod end;
 pub mod fault;
 pub mod handshake;
 pub mod hold;
+pub mod law;
 pub mod messages;
 pub mod plant;
 pub mod plant_loop;
 pub mod report;
+pub mod robot;
 pub mod serve;
 pub mod stats;
 pub mod wait;
 pub mod watch;
 
-pub use self::config::{ChaosConfig, HilConfig, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE};
+pub use self::config::{ChaosConfig, HilConfig, HilScenario, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE};
 pub use self::end::{ControlEnd, PlantEnd};

@@ -25,27 +25,30 @@
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
-use companion_core::{Command, Measurement, Pose, Rpr};
-use companion_plant::Plant;
+use companion_core::{Command, Measurement, Pose, Spatial};
 
 use super::config::Timing;
 use super::config::WaitMode;
 use super::end::PlantEnd;
 use super::hold::HoldPolicy;
 use super::messages::{report_of, Stamp};
+use super::robot::Robot;
 use super::stats::{LiveFigures, PlantStats};
 use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::clock::Clock;
 use crate::controller::{StepReport, JOINTS};
 use crate::link::PlantLink;
-use crate::record::{CommandSource, Row};
+use crate::record::CommandSource;
 use crate::signals::termination_requested;
-use crate::sim::{self, Exchange};
+use crate::sim::Exchange;
+use crate::spatial::SpatialExchange;
+use crate::wire::target::WireSpace;
 use crate::wire::{check_command, flags, CommandMsg, MeasurementMsg, Refusal, WireError};
 
 /// The plant's side of an exchange: clock, transport, timing, the stamp of its measurements,
-/// and what it counts.
+/// and what it counts. The robot (and with it the number of joints and the target's space)
+/// is the loop's ([`Robot`]).
 #[derive(Debug)]
 pub struct PlantSide<'a, C: Clock, L: PlantLink> {
     /// The clock.
@@ -60,8 +63,6 @@ pub struct PlantSide<'a, C: Clock, L: PlantLink> {
     pub stats: &'a mut PlantStats,
     /// Live figures.
     pub live: &'a LiveFigures,
-    /// `r*_ed`, for the true tracking error recorded with each row.
-    pub target_in_effector: Pose<f64>,
     /// The last measurement published.
     pub last_sent: Option<MeasurementMsg>,
 }
@@ -100,7 +101,13 @@ impl Wanted {
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// Publishes measurement `n` now, announcing `delay`; returns the publication time.
     #[inline]
-    fn publish(&mut self, n: u64, fl: u32, delay: f64, meas: &Measurement<f64, JOINTS>) -> Result<u64> {
+    fn publish<const N: usize, S: WireSpace>(
+        &mut self,
+        n: u64,
+        fl: u32,
+        delay: f64,
+        meas: &Measurement<f64, N, S>,
+    ) -> Result<u64> {
         let t_pub = self.clock.now_ns();
         let m = self.stamp.message(n, fl, t_pub, delay, meas);
         self.link.publish(&m)?;
@@ -112,12 +119,16 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// if none does, the newest older answer that `want` takes), or the controller's refusal
     /// of this plant.
     #[inline]
-    fn drain(&mut self, want: Wanted, late_timed: bool) -> Result<Result<Option<Fresh>, Refusal>> {
+    fn drain<const N: usize>(
+        &mut self,
+        want: Wanted,
+        late_timed: bool,
+    ) -> Result<Result<Option<Fresh>, Refusal>> {
         let n = want.n;
         let mut fresh: Option<Fresh> = None;
         while let Some(c) = self.link.try_receive()? {
             let now = self.clock.now_ns();
-            match check_command::<JOINTS>(&c, self.stamp.session, n) {
+            match check_command::<N>(&c, self.stamp.session, n) {
                 Ok(()) => {
                     self.stats.timing(now, &c);
                     self.stats.controller_skipped += u64::from(c.skipped);
@@ -127,7 +138,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                 // drain found: taken (and the one it supersedes counted late).
                 Err(WireError::Stale(seq))
                     if want.takes_older(seq)
-                        && check_command::<JOINTS>(&c, self.stamp.session, seq).is_ok()
+                        && check_command::<N>(&c, self.stamp.session, seq).is_ok()
                         && fresh.is_none_or(|(f, _)| f.seq < seq) =>
                 {
                     self.stats.timing(now, &c);
@@ -147,7 +158,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                     }
                 }
                 // A command for an earlier period that is also malformed counts as malformed.
-                Err(WireError::Stale(_)) if !finite_command(&c) => {
+                Err(WireError::Stale(_)) if !finite_command::<N>(&c) => {
                     self.stats.invalid.count(WireError::NonFinite)
                 }
                 Err(WireError::Stale(_)) => {
@@ -178,8 +189,8 @@ fn zero_measurement() -> Measurement<f64, JOINTS> {
 }
 
 /// Whether every velocity of `c` is finite.
-fn finite_command(c: &CommandMsg) -> bool {
-    let cmd = c.command::<JOINTS>();
+fn finite_command<const N: usize>(c: &CommandMsg) -> bool {
+    let cmd = c.command::<N>();
     let p = &cmd.platform;
     [p.v, p.v_lat, p.omega, p.v_xi].iter().chain(cmd.joints.iter()).all(|x| x.is_finite())
 }
@@ -211,11 +222,11 @@ fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
 ///
 /// # Errors
 /// A transport failure.
-pub fn run_real_time<C: Clock, L: PlantLink>(
+pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
     side: &mut PlantSide<'_, C, L>,
-    plant: &mut Plant<Rpr<f64>, JOINTS>,
+    plant: &mut R,
     steps: u64,
-    sink: &mut impl FnMut(u64, &Row, bool) -> bool,
+    sink: &mut impl FnMut(u64, &R::Row, bool) -> bool,
 ) -> Result<PlantEnd> {
     let timing = side.timing;
     let period = timing.period_ns;
@@ -228,7 +239,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
     let mut end = PlantEnd::Completed;
     let mut answered_last;
     // The command acting at the end of the last period, and the last measured delay (s).
-    let mut acting = Command::<f64, JOINTS>::zero();
+    let mut acting = Command::<f64, N>::zero();
     let mut delay = 0.0;
     let mut published = [0_u64; PUBLISHED];
     let mut applied = None;
@@ -278,7 +289,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         if !peer_lost {
             let want = Wanted { n, max_age: u64::from(timing.max_command_age), applied };
             loop {
-                match side.drain(want, true)? {
+                match side.drain::<N>(want, true)? {
                     // The answer to `n`, or an older one newer than any found before.
                     Ok(Some(f)) if fresh.is_none_or(|(c, _): Fresh| c.seq <= f.0.seq) => {
                         if fresh.is_some_and(|(c, _)| c.seq < f.0.seq) {
@@ -340,7 +351,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
                     };
                 }
                 applied = Some(c.seq);
-                policy.fresh(report_of(&c))
+                policy.fresh(report_of::<N>(&c))
             }
             (None, None) => {
                 stats.deadline_misses += 1;
@@ -362,7 +373,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
             CommandSource::Stopped => stats.stopped_periods += 1,
             CommandSource::Fresh => {}
         }
-        let row = Row { plant: sim::sample(plant, &side.target_in_effector), report, source };
+        let row = plant.row(&report, source);
         let last = n == last_step;
         if !sink(n, &row, last) {
             stats.log_rows_dropped += 1;
@@ -375,7 +386,7 @@ pub fn run_real_time<C: Clock, L: PlantLink>(
         if last {
             break;
         }
-        plant.try_advance_delayed(&acting, &report.command, switch_at, dt)?;
+        plant.advance(&acting, &report.command, switch_at, dt)?;
         acting = report.command;
         if n % 256 == 255 {
             // A bucket scan (tens of µs) in the slack before the next release.
@@ -442,8 +453,13 @@ pub struct Lockstep<'a, C: Clock, L: PlantLink> {
     pub delay: f64,
 }
 
-impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
+impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
+    /// Publishes measurement `n` and waits for its answer (see [`Lockstep`]).
+    fn exchange_any<const N: usize, S: WireSpace>(
+        &mut self,
+        n: u64,
+        meas: &Measurement<f64, N, S>,
+    ) -> Result<StepReport<N>> {
         let fl = if n == self.steps { flags::END_OF_RUN } else { 0 };
         let side = &mut self.side;
         let t_pub = side.publish(n, fl, self.delay, meas)?;
@@ -453,14 +469,14 @@ impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
         let mut idler = Idler::new(wait, side.timing.spin_margin_ns);
         let mut watch = PeerWatch::new(side.timing.silence_ns, t_pub);
         loop {
-            match side.drain(Wanted::current(n), false)? {
+            match side.drain::<N>(Wanted::current(n), false)? {
                 Ok(Some((c, _))) => {
                     side.stats.fresh += 1;
                     if wait == WaitMode::Event && !c.has(flags::NOTIFIES) {
                         // The controller does not notify: poll instead of sleeping on its event.
                         side.stats.event_fallback = true;
                     }
-                    return Ok(report_of(&c));
+                    return Ok(report_of::<N>(&c));
                 }
                 Ok(None) => {}
                 Err(why) => return Err(Lost(PlantEnd::Refused(why)).into()),
@@ -475,5 +491,17 @@ impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
             let link = &mut *side.link;
             idler.idle(side.clock, None, u64::MAX, |d| link.wait_event(d))?;
         }
+    }
+}
+
+impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
+    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
+        self.exchange_any(n, meas)
+    }
+}
+
+impl<C: Clock, L: PlantLink, const N: usize> SpatialExchange<N> for Lockstep<'_, C, L> {
+    fn exchange(&mut self, n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>> {
+        self.exchange_any(n, meas)
     }
 }

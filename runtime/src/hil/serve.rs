@@ -8,21 +8,23 @@
 //! it with the safe command and status `0x700`).
 
 use anyhow::Result;
-use companion_core::HISTORY;
+use companion_core::{Manipulator, Spatial, SpatialArm};
 
+use super::config::HilScenario;
 use super::config::WaitMode;
 use super::end::ControlEnd;
-use super::handshake;
+use super::law::{Law as _, PlanarLaw, Served, SpatialLaw};
 use super::messages::answer;
 use super::stats::ControlStats;
 use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::clock::Clock;
-use crate::controller::{AnyController, ControllerSpec, JOINTS};
+use crate::controller::ControllerSpec;
 use crate::link::{ControlLink, PeerState};
 use crate::observe::Observer;
-use crate::scenario::ScenarioError;
 use crate::signals::termination_requested;
+use crate::spatial::SpatialScenario;
+use crate::wire::canonical;
 use crate::wire::{
     check_measurement, flags, Announcement, CommandHeader, CommandMsg, ControllerIdentity, MeasurementMsg,
     Refusal,
@@ -57,18 +59,17 @@ pub struct Refused(pub Refusal);
 const INTERRUPT_GRACE_NS: u64 = 1_000_000_000;
 
 /// The session being served.
-#[derive(Debug)]
-struct Served {
+struct Session<L> {
     session: u64,
     announced: Announcement,
-    ctrl: AnyController,
+    ctrl: L,
     /// The largest delay the law admits (s).
     max_delay: f64,
     /// The plant's STOPPED flag in its last measurement.
     stopped: bool,
 }
 
-impl Served {
+impl<L> Session<L> {
     /// The delay to predict over for `m`.
     #[inline]
     fn delay(&self, m: &MeasurementMsg, compensate: bool, stats: &mut ControlStats) -> f64 {
@@ -104,10 +105,65 @@ pub fn serve<C: Clock, L: ControlLink>(
     stats: &mut ControlStats,
     observer: &dyn Observer,
 ) -> Result<ControlEnd> {
-    let identity = handshake::identity(spec);
+    serve_law(clock, link, &PlanarLaw(spec), opt, stats, observer)
+}
+
+/// [`serve`] for the scenario's arm: the paper's, or a spatial one of 6 to 8 joints.
+///
+/// # Errors
+/// As [`serve`], and an arm that cannot be built.
+pub fn serve_scenario<C: Clock, L: ControlLink>(
+    clock: &C,
+    link: &mut L,
+    s: &HilScenario,
+    opt: &ServeOptions,
+    stats: &mut ControlStats,
+    observer: &dyn Observer,
+) -> Result<ControlEnd> {
+    fn spatial<C: Clock, L: ControlLink, const N: usize>(
+        clock: &C,
+        link: &mut L,
+        ss: &SpatialScenario,
+        opt: &ServeOptions,
+        stats: &mut ControlStats,
+        observer: &dyn Observer,
+    ) -> Result<ControlEnd>
+    where
+        SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+        SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+    {
+        let arm_hash = canonical::arm_hash(&ss.arm.chain::<f64, N>()?);
+        let law = SpatialLaw { spec: &ss.base.controller, arm: &ss.arm, arm_hash };
+        serve_law::<C, L, N, _>(clock, link, &law, opt, stats, observer)
+    }
+    match s {
+        HilScenario::Planar(p) => serve(clock, link, &p.controller, opt, stats, observer),
+        HilScenario::Spatial(ss) => match ss.arm.joints() {
+            6 => spatial::<C, L, 6>(clock, link, ss, opt, stats, observer),
+            7 => spatial::<C, L, 7>(clock, link, ss, opt, stats, observer),
+            8 => spatial::<C, L, 8>(clock, link, ss, opt, stats, observer),
+            n => Err(crate::arm::ArmError::JointCount { found: n }.into()),
+        },
+    }
+}
+
+/// [`serve`] for any law: the paper's planar one ([`PlanarLaw`]) or a spatial arm's
+/// ([`super::law::SpatialLaw`]).
+///
+/// # Errors
+/// As [`serve`].
+pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
+    clock: &C,
+    link: &mut L,
+    law: &F,
+    opt: &ServeOptions,
+    stats: &mut ControlStats,
+    observer: &dyn Observer,
+) -> Result<ControlEnd> {
+    let identity = law.identity();
     let notify = if link.notifies() { flags::NOTIFIES } else { 0 };
     let mut idler = Idler::new(opt.wait, opt.spin_margin_ns);
-    let mut served: Option<Served> = None;
+    let mut served: Option<Session<F::Law>> = None;
     let mut last_seq: Option<u64> = None;
     let mut watch = PeerWatch::new(opt.silence_ns, clock.now_ns());
     let mut expected = None;
@@ -119,7 +175,7 @@ pub fn serve<C: Clock, L: ControlLink>(
         let mut newest: Option<MeasurementMsg> = None;
         while let Some(m) = link.try_receive()? {
             let Some(s) = &served else {
-                let s = admit(link, spec, &identity, &m, notify, clock.now_ns())?;
+                let s = admit::<L, N, F>(link, law, &identity, &m, notify, clock.now_ns())?;
                 if opt.wait.uses_events() && !s.announced.notifies() {
                     idler = Idler::new(WaitMode::Hybrid, opt.spin_margin_ns);
                     stats.event_fallback = true;
@@ -148,7 +204,7 @@ pub fn serve<C: Clock, L: ControlLink>(
             let t_rx = clock.now_ns();
             idler.reset();
             watch.heard(t_rx);
-            let Some(meas) = m.measurement::<JOINTS>() else {
+            let Ok(meas) = m.read::<N, F::Space>() else {
                 stats.invalid += 1;
                 continue;
             };
@@ -216,14 +272,14 @@ pub fn serve<C: Clock, L: ControlLink>(
 /// The handshake: checks the session's first measurement `m` and builds the law for the plant
 /// it announces, or refuses the plant (the refusal is sent, answering `m`).
 #[cold]
-fn admit<L: ControlLink>(
+fn admit<L: ControlLink, const N: usize, F: Served<N>>(
     link: &mut L,
-    spec: &ControllerSpec,
+    law: &F,
     identity: &ControllerIdentity,
     m: &MeasurementMsg,
     notify: u32,
     now: u64,
-) -> Result<Served> {
+) -> Result<Session<F::Law>> {
     let announced = match identity.admit(m) {
         Ok(a) => a,
         Err(why) => {
@@ -234,16 +290,12 @@ fn admit<L: ControlLink>(
                 skipped: 0,
                 delay: 0.0,
             };
-            link.publish(&CommandMsg::refusal::<JOINTS>(m, &header, &why))?;
+            link.publish(&CommandMsg::refusal::<N>(m, &header, &why))?;
             return Err(Refused(why).into());
         }
     };
-    let run = handshake::for_plant(spec, &announced);
-    let ctrl = AnyController::new(&run).map_err(ScenarioError::Param)?;
-    let p = run.params::<f64>();
-    #[allow(clippy::cast_precision_loss)]
-    let max_delay = p.max_delay.min(announced.dt * HISTORY as f64);
-    Ok(Served { session: m.session, announced, ctrl, max_delay, stopped: false })
+    let (ctrl, max_delay) = law.build(&announced)?;
+    Ok(Session { session: m.session, announced, ctrl, max_delay, stopped: false })
 }
 
 #[cfg(test)]

@@ -21,7 +21,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
-use companion_core::{Chain, Omnidirectional, PlatformKind, Pose, Pose3};
+use companion_core::{Chain, Manipulator, Measurement, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::{
     vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PlantConfig, SpatialInitial,
     SpatialPiecewise, SpatialPlant, SpatialTarget,
@@ -29,7 +29,9 @@ use companion_plant::{
 
 use self::record::{write_csv, SpatialAccumulator, SpatialRecord, SpatialSummary};
 use crate::arm::{SpatialArmSpec, MAX_JOINTS};
-use crate::controller::{planar_only_keys, spatial_controller, Scalar, SpatialStep, TARGET_DISTANCE};
+use crate::controller::{
+    boxed_spatial_controller, planar_only_keys, SpatialStep, StepReport, TARGET_DISTANCE,
+};
 use crate::observe::Observer;
 use crate::plant_setup::matched_steering;
 use crate::scenario::Scenario;
@@ -185,32 +187,80 @@ fn run_n<const N: usize>(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome> {
+) -> Result<SpatialOutcome>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
     let chain = s.arm.chain::<f64, N>()?;
-    let spec = &s.base.controller;
-    let go = |c: &mut dyn SpatialStep<N>| execute(s, &chain, c, dir, observer, max_rejected);
-    let law = "the spatial law's parameters";
-    match (spec.platform, spec.scalar) {
-        (PlatformKind::Unicycle, Scalar::F64) => {
-            go(&mut spatial_controller(spec, &chain, spec.unicycle::<f64>()).context(law)?)
-        }
-        (PlatformKind::Unicycle, Scalar::F32) => {
-            go(&mut spatial_controller(spec, &s.arm.chain::<f32, N>()?, spec.unicycle::<f32>())
-                .context(law)?)
-        }
-        (PlatformKind::Car, Scalar::F64) => {
-            go(&mut spatial_controller(spec, &chain, spec.car::<f64>()).context(law)?)
-        }
-        (PlatformKind::Car, Scalar::F32) => {
-            go(&mut spatial_controller(spec, &s.arm.chain::<f32, N>()?, spec.car::<f32>()).context(law)?)
-        }
-        (PlatformKind::Omni, Scalar::F64) => {
-            go(&mut spatial_controller(spec, &chain, Omnidirectional).context(law)?)
-        }
-        (PlatformKind::Omni, Scalar::F32) => {
-            go(&mut spatial_controller(spec, &s.arm.chain::<f32, N>()?, Omnidirectional).context(law)?)
-        }
+    let mut controller = boxed_spatial_controller::<N>(&s.base.controller, &s.arm)?;
+    let star = controller.target_in_effector();
+    let mut exchange = InProcess { controller: controller.as_mut(), dt: s.base.dt };
+    let mut plant = build_plant(s, &chain, &star)?;
+    let (outcome, failed) = execute(s, &mut plant, &star, &mut exchange, dir, observer, max_rejected)?;
+    match failed {
+        None => Ok(outcome),
+        Some(e) => Err(e),
     }
+}
+
+/// Checks that `s` can run: the arm, the law's parameters, the target (its file, its height
+/// against the arm's reach) and the plant — what [`run_spatial`] and the HIL plant check
+/// before they write anything.
+///
+/// # Errors
+/// [`SpatialError`], a bad arm, target file or parameter.
+pub fn check(s: &SpatialScenario) -> Result<()> {
+    fn n<const N: usize>(s: &SpatialScenario) -> Result<()>
+    where
+        SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+        SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+    {
+        let star = target_in_effector::<N>(s)?;
+        build_plant(s, &s.arm.chain::<f64, N>()?, &star).map(|_| ())
+    }
+    match s.arm.joints() {
+        6 => n::<6>(s),
+        7 => n::<7>(s),
+        8 => n::<8>(s),
+        j => Err(crate::arm::ArmError::JointCount { found: j }.into()),
+    }
+}
+
+/// Turns a spatial measurement into the controller's report: in this process, or over the
+/// wire (the HIL plant's lockstep exchange), so that both write the same bytes.
+pub trait SpatialExchange<const N: usize> {
+    /// The report for the measurement of step `n`.
+    ///
+    /// # Errors
+    /// The controller could not be reached (HIL).
+    fn exchange(&mut self, n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>>;
+}
+
+/// The controller in this process.
+struct InProcess<'c, const N: usize> {
+    controller: &'c mut (dyn SpatialStep<N> + Send),
+    dt: f64,
+}
+
+impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
+    #[inline]
+    fn exchange(&mut self, _n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>> {
+        Ok(self.controller.step(meas, self.dt, 0.0))
+    }
+}
+
+/// `r*_ed` of the spatial law for `s` exactly as its controller holds it (in the scenario's
+/// scalar type, in `f64`): what the plant measures the true error against.
+///
+/// # Errors
+/// A bad arm or parameter.
+pub fn target_in_effector<const N: usize>(s: &SpatialScenario) -> Result<Pose3<f64>>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    Ok(boxed_spatial_controller::<N>(&s.base.controller, &s.arm)?.target_in_effector())
 }
 
 /// The plant of `s` for the arm `chain` and a controller aiming at `star` (`r*_ed`): the
@@ -278,10 +328,10 @@ const PROGRESS_EVERY: u64 = 4096;
 
 /// The record of the plant's current step and the controller's report; the frames only when
 /// `frames` (logged steps).
-fn record_of<const N: usize>(
+pub(crate) fn record_of<const N: usize>(
     plant: &SpatialPlant<N>,
     star: &Pose3<f64>,
-    report: &crate::controller::SpatialReport<N>,
+    report: &StepReport<N>,
     frames: bool,
 ) -> SpatialRecord {
     let st = plant.truth();
@@ -314,39 +364,52 @@ fn record_of<const N: usize>(
         ep_norm: e_p.norm(),
         h_s: report.h_s,
         joint_scale: report.joint_scale,
+        saturation: report.saturation,
         error: report.error,
     }
 }
 
-/// Runs steps `0..=steps`: measure, step, record, advance (the planar loop's order).
-fn execute<const N: usize>(
+/// Runs steps `0..=steps` of `plant` (built by [`build_plant`] for `r*_ed` = `star`):
+/// measure, exchange, record, advance (the planar loop's order), and writes the run's files
+/// into `dir`. The loop of `companion sim --arm` and of the lockstep HIL plant.
+///
+/// A failed exchange (the HIL controller lost) or a step the plant refused ends the loop
+/// early: the files are written up to that step, and the error comes back beside the
+/// outcome (whose summary says the run ended early).
+///
+/// # Errors
+/// An I/O failure.
+pub fn execute<const N: usize>(
     s: &SpatialScenario,
-    chain: &Chain<f64, N>,
-    controller: &mut dyn SpatialStep<N>,
+    plant: &mut SpatialPlant<N>,
+    star: &Pose3<f64>,
+    exchange: &mut dyn SpatialExchange<N>,
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome> {
-    let star = controller.target_in_effector();
-    let mut plant = build_plant(s, chain, &star)?;
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    let lower: Vec<f64> = chain.joints.iter().map(|j| j.lower).collect();
-    let upper: Vec<f64> = chain.joints.iter().map(|j| j.upper).collect();
+) -> Result<(SpatialOutcome, Option<anyhow::Error>)> {
+    let (lower, upper) = limits(plant.chain());
     let mut acc = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
     let steps = s.steps();
     let every = s.base.log_every.max(1);
     let mut records = Vec::new();
     let start = Instant::now();
     let mut ended_early = false;
+    let mut failed = None;
     for n in 0..=steps {
         let meas = plant.measure();
-        let report = controller.step(&meas, s.base.dt);
+        let report = match exchange.exchange(n, &meas) {
+            Ok(r) => r,
+            Err(e) => {
+                failed = Some(e);
+                break;
+            }
+        };
         let interrupted = n % PROGRESS_EVERY == 0 && n < steps && crate::signals::termination_requested();
         let last = n == steps || interrupted;
         let logged = n % every == 0 || last;
-        let rec = record_of(&plant, &star, &report, logged);
+        let rec = record_of(plant, star, &report, logged);
         acc.add(&rec);
-        acc.saturation(report.saturation);
         if logged {
             records.push(rec);
         }
@@ -355,25 +418,51 @@ fn execute<const N: usize>(
             break;
         }
         if n < steps {
-            plant.try_advance(&report.command, s.base.dt)?;
+            if let Err(e) = plant.try_advance(&report.command, s.base.dt) {
+                failed = Some(e.into());
+                break;
+            }
         }
         if n % PROGRESS_EVERY == 0 {
             observer.advance(PROGRESS_EVERY.min(steps + 1 - n));
         }
     }
-    let summary = acc.finish(start.elapsed().as_secs_f64(), ended_early, max_rejected);
+    let summary = acc.finish(start.elapsed().as_secs_f64(), ended_early || failed.is_some(), max_rejected);
+    let outcome = SpatialOutcome {
+        scenario: s.clone(),
+        summary,
+        records,
+        limits: lower.into_iter().zip(upper).collect(),
+    };
+    write_files(&outcome, star, dir)?;
+    Ok((outcome, failed))
+}
+
+/// The joints' lower and upper limits.
+pub fn limits<const N: usize>(chain: &Chain<f64, N>) -> (Vec<f64>, Vec<f64>) {
+    (chain.joints.iter().map(|j| j.lower).collect(), chain.joints.iter().map(|j| j.upper).collect())
+}
+
+/// Writes a spatial run's `timeseries.csv`, `summary.json` and `scenario.json` into `dir`
+/// (created if missing); `star` is the controller's `r*_ed`.
+///
+/// # Errors
+/// An I/O failure.
+pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<()> {
+    let s = &o.scenario;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let csv = dir.join("timeseries.csv");
     let file = std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?;
-    write_csv(std::io::BufWriter::new(file), &records)
+    write_csv(std::io::BufWriter::new(file), &o.records)
         .with_context(|| format!("writing {}", csv.display()))?;
     let path = dir.join("summary.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&summary)? + "\n")
+    std::fs::write(&path, serde_json::to_string_pretty(&o.summary)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
     let path = dir.join("scenario.json");
     let described = serde_json::json!({
         "name": s.name,
         "arm": s.arm.name(),
-        "joints": N,
+        "joints": o.limits.len(),
         "target": match &s.target {
             SpatialTargetChoice::Lifted(t) => format!("lifted trajectory {}", crate::scenario::trajectory_number(*t)),
             SpatialTargetChoice::File(p) => p.display().to_string(),
@@ -383,6 +472,5 @@ fn execute<const N: usize>(
     });
     std::fs::write(&path, serde_json::to_string_pretty(&described)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;
-    let limits = lower.into_iter().zip(upper).collect();
-    Ok(SpatialOutcome { scenario: s.clone(), summary, records, limits })
+    Ok(())
 }

@@ -53,6 +53,8 @@ pub struct SpatialRecord {
     pub h_s: f64,
     /// The joint guard's factor (NaN when rejected).
     pub joint_scale: f64,
+    /// The platform's saturation factor (NaN when rejected; in the summary, not the CSV).
+    pub saturation: f64,
     /// Why the law rejected the step, if it did (the command is then zero).
     pub error: Option<StepError>,
 }
@@ -272,12 +274,8 @@ impl SpatialAccumulator {
         if r.joint_scale.is_finite() {
             s.max_joint_scale = s.max_joint_scale.max(r.joint_scale);
         }
-    }
-
-    /// Records the platform saturation factor of a step (not part of the record).
-    pub fn saturation(&mut self, sat: f64) {
-        if sat.is_finite() {
-            self.s.max_saturation = self.s.max_saturation.max(sat);
+        if r.saturation.is_finite() {
+            s.max_saturation = s.max_saturation.max(r.saturation);
         }
     }
 
@@ -315,6 +313,14 @@ impl SpatialAccumulator {
         }
         s.verdict = if s.failures.is_empty() && !ended_early { "ok" } else { "failed" }.to_string();
         s
+    }
+}
+
+impl SpatialSummary {
+    /// Adds a reason the run failed (e.g. the HIL plant's missed deadlines).
+    pub fn fail(&mut self, f: Failure) {
+        self.failures.push(f);
+        self.verdict = "failed".to_string();
     }
 }
 

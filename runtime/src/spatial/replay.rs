@@ -119,6 +119,7 @@ mod tests {
             ep_norm: 0.0,
             h_s: 0.0,
             joint_scale: 1.0,
+            saturation: 1.0,
             error: None,
         };
         for (k, l) in (1..=7u8).zip(r.links.iter_mut()) {

@@ -44,6 +44,10 @@
 //!  "tool":   {"rotation": [9], "translation": [3]}}
 //! ```
 //!
+//! Every number as in the scenario hash, but a negative zero is written as zero (`−0.0` and
+//! `0.0` are the same arm: a rotation computed from `rpy` gives the one, a matrix written by
+//! hand the other).
+//!
 //! What the controller prefers (home position, velocity limits, gains) is not part of it: the
 //! scenario hash covers that. A plant simulating a UR5 and a controller built for a Panda, or
 //! for a UR5 mounted elsewhere, refuse each other by name ([`arm_hash`], [`arm_name`]).
@@ -89,10 +93,18 @@ pub fn scenario_hash(v: &Value) -> u64 {
     fnv1a(canonical_text(v).as_bytes()).max(1)
 }
 
+/// `x` with a negative zero written as zero: an arm's description is the same arm whichever
+/// sign its zeros came out with (a rotation computed from `rpy` has `−0.0` where a matrix
+/// written by hand has `0.0`).
+fn num(x: f64) -> f64 {
+    x + 0.0
+}
+
 fn frame(p: &Pose3<f64>) -> Value {
     let r = &p.rotation;
-    let rows: Vec<f64> = (0..3).flat_map(|i| (0..3).map(move |j| r[(i, j)])).collect();
-    json!({"rotation": rows, "translation": [p.translation[0], p.translation[1], p.translation[2]]})
+    let rows: Vec<f64> = (0..3).flat_map(|i| (0..3).map(move |j| num(r[(i, j)]))).collect();
+    let t = &p.translation;
+    json!({"rotation": rows, "translation": [num(t[0]), num(t[1]), num(t[2])]})
 }
 
 /// The JSON value an arm is hashed from (module docs).
@@ -104,9 +116,9 @@ pub fn arm_description<const N: usize>(chain: &Chain<f64, N>) -> Value {
             json!({
                 "kind": match j.kind { JointKind::Revolute => "revolute", JointKind::Prismatic => "prismatic" },
                 "origin": frame(&j.origin),
-                "axis": [j.axis[0], j.axis[1], j.axis[2]],
-                "lower": j.lower,
-                "upper": j.upper,
+                "axis": [num(j.axis[0]), num(j.axis[1]), num(j.axis[2])],
+                "lower": num(j.lower),
+                "upper": num(j.upper),
             })
         })
         .collect();

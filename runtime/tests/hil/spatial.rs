@@ -1,0 +1,150 @@
+//! The HIL demo with a spatial arm (`--arm ur5|panda|FILE`, §5): lockstep runs byte-identical
+//! to `companion sim --arm`, a real-time run that tracks, and arms that do not match refused
+//! by both sides with the reason.
+
+use super::*;
+
+/// The workspace's `examples/arms/NAME`.
+fn arm_file(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/arms").join(name).display().to_string()
+}
+
+#[test]
+fn a_spatial_arm_in_lockstep_is_byte_identical_to_sim() {
+    let _g = serial();
+    let panda = arm_file("panda.toml");
+    let runs: [&[&str]; 3] = [
+        &["--arm", "ur5"],
+        &["--arm", "ur5", "--platform", "omni", "--trajectory", "2"],
+        &["--arm", &panda, "--platform", "car", "--scalar", "f32", "--choice", "c"],
+    ];
+    for extra in runs {
+        let d = dir("spatial-lockstep");
+        let (hil_dir, sim_dir) = (d.join("hil"), d.join("sim"));
+        let (hm, sm) = (d.join("hil.mcap"), d.join("sim.mcap"));
+        let n = name("spatial-lockstep");
+        let mut args = vec!["hil", "--lockstep", "--duration", "2", "--no-plots", "--name", &n];
+        args.extend(["--out", hil_dir.to_str().unwrap(), "--mcap", hm.to_str().unwrap()]);
+        args.extend(extra);
+        let (st, out, err) = run(&args);
+        assert!(st.success(), "{extra:?}\n{out}\n{err}");
+        let mut args = vec!["sim", "--duration", "2", "--no-plots"];
+        args.extend(["--out", sim_dir.to_str().unwrap(), "--mcap", sm.to_str().unwrap()]);
+        args.extend(extra);
+        let (st, _, err) = run(&args);
+        assert!(st.success(), "{err}");
+        let a = std::fs::read(hil_dir.join("timeseries.csv")).unwrap();
+        let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
+        assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
+        assert!(a == b, "hil --lockstep {extra:?} and sim --arm differ");
+        assert!(
+            std::fs::read(&hm).unwrap() == std::fs::read(&sm).unwrap(),
+            "{extra:?}: the MCAP files differ"
+        );
+        let (hs, ss) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
+        assert_eq!(hs["trajectory_digest"], ss["trajectory_digest"], "{extra:?}");
+        assert_eq!(hs["verdict"], "ok");
+        assert_eq!(json(&hil_dir.join("scenario.json"))["joints"], ss["joints"]);
+        let lat = json(&hil_dir.join("latency.json"));
+        assert_eq!(lat["mode"], "lockstep");
+        assert_eq!(lat["cycles"], 2001);
+        assert_eq!(lat["invalid_total"], 0);
+    }
+}
+
+#[test]
+fn a_spatial_arm_in_real_time_tracks_its_target() {
+    let _g = serial();
+    let d = dir("spatial-rt");
+    let n = name("spatial-rt");
+    let args =
+        relaxed(&["hil", "--arm", "ur5", "--duration", "4", "--name", &n, "--out", d.to_str().unwrap()]);
+    let (st, out, err) = run(&args);
+    assert!(st.success(), "{out}\n{err}");
+    let lat = json(&d.join("latency.json"));
+    assert_eq!(lat["mode"], "real-time");
+    assert_eq!(lat["cycles"], 4001);
+    assert_eq!(lat["stop_events"], 0);
+    let s = json(&d.join("summary.json"));
+    assert_eq!(s["verdict"], "ok", "{s:#}");
+    assert_eq!(s["arm"], "ur5");
+    assert_eq!(s["steps"], 4001);
+    // The commands reached the arm: ‖e_p‖ (six components, from the plant's exact state) fell
+    // to a fraction of where it started, and no joint came near a limit.
+    let text = std::fs::read_to_string(d.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|c| *c == "ep_norm").unwrap();
+    let ep: Vec<f64> = lines.map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
+    assert_eq!(ep.len(), 401, "every 10th step and the last");
+    let (first, last) = (ep[0], ep[ep.len() - 1]);
+    assert!(last < 0.25 * first, "‖e_p‖ {first} → {last}");
+    assert!(s["smallest_joint_margin"].as_f64().unwrap() > 0.1, "{s:#}");
+    for f in ["top.svg", "side.svg", "latency.svg", "index.html"] {
+        assert!(d.join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
+    let _g = serial();
+    // The file form of the UR5 is the preset, field for field: the same arm hash.
+    let d = dir("arm-file");
+    let n = name("arm-file");
+    let ur5 = arm_file("ur5.toml");
+    let ((ps, pe), (cs, ce)) = two_roles(
+        &[
+            "--arm",
+            "ur5",
+            "--lockstep",
+            "--duration",
+            "1",
+            "--no-plots",
+            "--name",
+            &n,
+            "--out",
+            d.to_str().unwrap(),
+        ],
+        &["--arm", &ur5, "--name", &n],
+    );
+    assert!(ps.success() && cs.success(), "plant:\n{pe}\ncontroller:\n{ce}");
+    // The same joints, another limit: refused for the arm, both sides naming both arms.
+    let other = d.join("ur5-other.toml");
+    let text = std::fs::read_to_string(&ur5).unwrap();
+    let changed = text.replacen("name = \"ur5-file\"", "name = \"ur5-narrow\"", 1).replacen(
+        "limits = [-6.283185307179586, 6.283185307179586]",
+        "limits = [-3.0, 3.0]",
+        1,
+    );
+    assert_ne!(changed, text.replacen("name = \"ur5-file\"", "name = \"ur5-narrow\"", 1), "a limit changed");
+    std::fs::write(&other, changed).unwrap();
+    let refused = |plant: &[&str], control: &[&str], why: &str| {
+        let d = dir("arm-refused");
+        let n = name("arm-refused");
+        let mut p =
+            vec!["--lockstep", "--duration", "1", "--no-plots", "--name", &n, "--out", d.to_str().unwrap()];
+        p.extend(plant);
+        let mut c = vec!["--name", n.as_str()];
+        c.extend(control);
+        let ((ps, pe), (cs, ce)) = two_roles(&p, &c);
+        assert_eq!(cs.code(), Some(2), "{ce}");
+        assert_eq!(ps.code(), Some(2), "{pe}");
+        assert!(ce.contains(&format!("refused the plant: {why}")), "{ce}");
+        assert!(pe.contains(&format!("the controller refused this plant: {why}")), "{pe}");
+        let lat = json(&d.join("latency.json"));
+        assert!(lat["end"].as_str().unwrap().contains(why), "{lat:#}");
+        (pe, ce)
+    };
+    let (_, ce) = refused(&["--arm", "ur5"], &["--arm", other.to_str().unwrap()], "arm mismatch");
+    assert!(ce.contains("the plant's arm is ur5"), "{ce}");
+    refused(
+        &["--arm", "ur5"],
+        &["--arm", "panda"],
+        "joint count mismatch: the plant has 6 joints, the controller is built for 7",
+    );
+    refused(
+        &["--arm", "ur5"],
+        &[],
+        "joint count mismatch: the plant has 6 joints, the controller is built for 3",
+    );
+}
