@@ -299,7 +299,7 @@ impl HilArgs {
                         self.arm
                     );
                 }
-                HilScenario::Spatial(Box::new(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?))
+                HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?)
             }
         };
         let s = hs.base();
@@ -888,9 +888,32 @@ mod tests {
         assert!(e.contains("--delay") && e.contains("--lockstep"), "{e}");
         let t = T::parse_from(["x", "--lockstep", "--delay", "0.002", "--no-delay-compensation"]);
         let (_, s) = t.a.resolve().unwrap();
-        assert_eq!((s.delay, s.delay_compensation), (0.002, false));
+        assert_eq!((s.base().delay, s.base().delay_compensation), (0.002, false));
         let t = T::parse_from(["x", "--lockstep", "--delay", "0.5"]);
         assert!(t.a.resolve().is_err());
+    }
+
+    #[test]
+    fn an_arm_makes_the_run_spatial_and_what_it_cannot_do_is_refused_by_name() {
+        let t = T::parse_from(["x", "--arm", "ur5", "--platform", "car", "--trajectory", "2"]);
+        let (_, s) = t.a.resolve().unwrap();
+        let ss = s.spatial().expect("a spatial run");
+        assert_eq!((ss.arm.name(), ss.arm.joints()), ("ur5", 6));
+        assert_eq!(ss.name, "ur5-traj2-a-car");
+        assert_eq!(s.base().controller.platform, companion_core::PlatformKind::Car);
+        let (_, s) = T::parse_from(["x", "--arm", "rpr"]).a.resolve().unwrap();
+        assert!(s.spatial().is_none(), "rpr is the paper's planar arm");
+        for (args, why) in [
+            (&["x", "--arm", "ur5", "--chaos", "3"][..], "--chaos runs the paper's planar arm"),
+            (
+                &["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"][..],
+                "--delay is not available with a spatial arm",
+            ),
+            (&["x", "--arm", "nosuch"][..], "nosuch"),
+        ] {
+            let e = format!("{:#}", T::parse_from(args).a.resolve().unwrap_err());
+            assert!(e.contains(why), "{args:?}: {e}");
+        }
     }
 
     #[test]

@@ -10,8 +10,8 @@ use companion_core::{
     PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm,
 };
 
+use super::report::StepReport;
 use super::spec::{ArmConfig, ControllerSpec, Scalar};
-use super::StepReport;
 use crate::arm::SpatialArmSpec;
 
 /// Where the spatial law puts the target: `r*_ed` this far along the flange's approach axis

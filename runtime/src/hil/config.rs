@@ -178,7 +178,7 @@ pub enum HilScenario {
     /// The paper's RPR arm (§4).
     Planar(Scenario),
     /// A 6- to 8-joint arm in SE(3) (§5).
-    Spatial(Box<SpatialScenario>),
+    Spatial(SpatialScenario),
 }
 
 impl HilScenario {

@@ -29,12 +29,16 @@ use crate::record::{
 use crate::scenario::Scenario;
 use crate::sim::{self, LoopEnd};
 use crate::spatial::record::{SpatialAccumulator, SpatialRecord};
+use crate::spatial::stream::SpatialStream;
 use crate::spatial::{self, SpatialOutcome, SpatialScenario};
 use crate::transport::{self, PlantEndpoint};
 use crate::wire::{canonical, flags, platform};
 
 /// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
 const LOG_RING: usize = 1 << 15;
+/// The ring of a spatial run's logged rows (1.3 kB each), allocated once; the writer thread
+/// empties it every few milliseconds.
+const SPATIAL_RING: usize = 1 << 12;
 /// How often the writer thread flushes `timeseries.csv`.
 const FLUSH_EVERY: Duration = Duration::from_millis(50);
 
@@ -56,7 +60,7 @@ pub enum PlantRun {
     /// The planar run (as `companion sim`'s).
     Planar(RunOutcome),
     /// The spatial run (as `companion sim --arm`'s).
-    Spatial(Box<SpatialOutcome>),
+    Spatial(SpatialOutcome),
 }
 
 impl PlantRun {
@@ -381,8 +385,8 @@ fn lost_or(e: anyhow::Error) -> Result<PlantEnd> {
 }
 
 /// The plant of a spatial arm of `N` joints (§5): the spatial plant of `companion sim --arm`,
-/// its rows the [`SpatialRecord`]s (kept in memory, written at the end of the run; a
-/// real-time run logs every `--log-every`-th step).
+/// its rows the [`SpatialRecord`]s of every `--log-every`-th step (in real time written as
+/// the run goes by a thread of its own, [`SpatialStream`]).
 fn run_spatial<const N: usize>(
     cfg: &HilConfig,
     ss: &SpatialScenario,
@@ -450,15 +454,13 @@ where
         let (lower, upper) = spatial::limits(&chain);
         let mut acc = SpatialAccumulator::new(&ss.name, ss.arm.name(), &lower, &upper);
         let every = s.log_every.max(1);
-        // Allocated once: the loop only writes into it.
-        let mut records = Vec::with_capacity(usize::try_from(steps / every + 2).unwrap_or(0));
+        let expected = usize::try_from(steps / every + 2).unwrap_or(0);
+        // The writer thread first, so that it does not inherit the real-time CPU and priority.
+        let mut stream = SpatialStream::spawn(dir, N, SPATIAL_RING, expected)?;
         rt_report = apply_rt(cfg, observer);
         let mut sink = |n: u64, row: &SpatialRecord, last: bool| {
             acc.add(row);
-            if (n % every == 0 || last) && records.len() < records.capacity() {
-                records.push(*row);
-            }
-            true
+            !(n % every == 0 || last) || stream.try_push(row)
         };
         let mut side = PlantSide {
             clock: &clock,
@@ -473,6 +475,7 @@ where
         let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
         crate::rt::reset_thread();
         live.finish();
+        let records = stream.finish()?;
         let end = r?;
         let summary = acc.finish(wall.elapsed().as_secs_f64(), end != PlantEnd::Completed, max_rejected);
         let outcome = SpatialOutcome {
@@ -494,7 +497,11 @@ where
         outcome.summary.ended_early = true;
         outcome.summary.verdict = "failed".to_string();
     }
-    spatial::write_files(&outcome, &star, dir)?;
+    if timing.lockstep {
+        spatial::write_files(&outcome, &star, dir)?;
+    } else {
+        spatial::write_summary_files(&outcome, &star, dir)?;
+    }
     if let Some(m) = mcap {
         let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
         observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
@@ -516,5 +523,5 @@ where
             observer.warn(&format!("plots: {e:#}"));
         }
     }
-    Ok(PlantOutcome { end, run: PlantRun::Spatial(Box::new(outcome)), latency })
+    Ok(PlantOutcome { end, run: PlantRun::Spatial(outcome), latency })
 }

@@ -15,6 +15,7 @@
 
 pub mod record;
 pub mod replay;
+pub mod stream;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -449,12 +450,21 @@ pub fn limits<const N: usize>(chain: &Chain<f64, N>) -> (Vec<f64>, Vec<f64>) {
 /// # Errors
 /// An I/O failure.
 pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<()> {
-    let s = &o.scenario;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let csv = dir.join("timeseries.csv");
     let file = std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?;
     write_csv(std::io::BufWriter::new(file), &o.records)
         .with_context(|| format!("writing {}", csv.display()))?;
+    write_summary_files(o, star, dir)
+}
+
+/// Writes a spatial run's `summary.json` and `scenario.json` into `dir` (its
+/// `timeseries.csv` written as the run went: [`stream`]).
+///
+/// # Errors
+/// An I/O failure.
+pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<()> {
+    let s = &o.scenario;
     let path = dir.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&o.summary)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;

@@ -347,11 +347,40 @@ pub fn columns(n: usize) -> Vec<String> {
 /// # Errors
 /// Writing failed.
 pub fn write_csv<W: Write>(w: W, records: &[SpatialRecord]) -> csv::Result<()> {
-    let n = records.first().map_or(0, |r| r.joints);
-    let mut out = csv::Writer::from_writer(w);
-    out.write_record(columns(n))?;
-    let mut row: Vec<String> = Vec::new();
+    let mut out = SpatialCsv::new(w, records.first().map_or(0, |r| r.joints))?;
     for r in records {
+        out.write(r)?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// A spatial `timeseries.csv` written row by row (the HIL plant's writer thread).
+#[derive(Debug)]
+pub struct SpatialCsv<W: Write> {
+    out: csv::Writer<W>,
+    joints: usize,
+    row: Vec<String>,
+}
+
+impl<W: Write> SpatialCsv<W> {
+    /// Writes the header of an arm of `joints` joints.
+    ///
+    /// # Errors
+    /// The writer failed.
+    pub fn new(w: W, joints: usize) -> csv::Result<Self> {
+        let mut out = csv::Writer::from_writer(w);
+        out.write_record(columns(joints))?;
+        Ok(Self { out, joints, row: Vec::new() })
+    }
+
+    /// Writes one row.
+    ///
+    /// # Errors
+    /// The writer failed.
+    pub fn write(&mut self, r: &SpatialRecord) -> csv::Result<()> {
+        let n = self.joints;
+        let row = &mut self.row;
         row.clear();
         let mut num = |x: f64| row.push(x.to_string());
         for x in [r.t, r.base.translation[0], r.base.translation[1], r.heading, r.steering] {
@@ -380,8 +409,14 @@ pub fn write_csv<W: Write>(w: W, records: &[SpatialRecord]) -> csv::Result<()> {
         }
         num(r.joint_scale);
         row.push(r.error.map_or_else(|| "ok".to_string(), |e| e.to_string()));
-        out.write_record(&row)?;
+        self.out.write_record(&*row)
     }
-    out.flush()?;
-    Ok(())
+
+    /// Flushes what is written to the underlying writer.
+    ///
+    /// # Errors
+    /// The writer failed.
+    pub fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
 }

@@ -148,3 +148,42 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
         "joint count mismatch: the plant has 6 joints, the controller is built for 3",
     );
 }
+
+#[test]
+fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
+    let _g = serial();
+    let d = dir("spatial-kill");
+    let n = name("spatial-kill");
+    let mut demo = Demo::start(&[
+        "hil",
+        "--arm",
+        "ur5",
+        "--duration",
+        "20",
+        "--log-every",
+        "1",
+        "--no-plots",
+        "--quiet",
+        "--name",
+        &n,
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    let pid = demo.plant_pid();
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(pid, "KILL");
+    let (st, seen) = demo.wait(Duration::from_secs(20));
+    assert_eq!(st.code(), Some(3), "{seen:#?}");
+    // The rows written as the run went (every 50 ms) are there, every line complete.
+    let text = std::fs::read_to_string(d.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let cols = lines.next().expect("a header").split(',').count();
+    let rows: Vec<&str> = lines.collect();
+    assert!(rows.len() > 500, "{} rows", rows.len());
+    for l in &rows {
+        assert_eq!(l.split(',').count(), cols, "malformed line {l:?}");
+    }
+    let fault = json(&d.join("fault.json"));
+    assert_eq!(fault["plant_exit"], "killed by signal 9");
+    assert_eq!(fault["rows_on_disk"].as_u64(), Some(rows.len() as u64));
+}
