@@ -117,7 +117,7 @@ impl<const N: usize> Robot<N> for SpatialRobot<'_, N> {
     }
 
     #[inline]
-    fn row(&self, report: &StepReport<N>, _source: CommandSource) -> SpatialRecord {
-        crate::spatial::record_of(self.plant, &self.target_in_effector, report, true)
+    fn row(&self, report: &StepReport<N>, source: CommandSource) -> SpatialRecord {
+        crate::spatial::record_of(self.plant, &self.target_in_effector, report, source, true)
     }
 }

@@ -35,6 +35,7 @@ use crate::controller::{
 };
 use crate::observe::Observer;
 use crate::plant_setup::matched_steering;
+use crate::record::CommandSource;
 use crate::scenario::Scenario;
 
 /// The target of a spatial run.
@@ -333,6 +334,7 @@ pub(crate) fn record_of<const N: usize>(
     plant: &SpatialPlant<N>,
     star: &Pose3<f64>,
     report: &StepReport<N>,
+    source: CommandSource,
     frames: bool,
 ) -> SpatialRecord {
     let st = plant.truth();
@@ -367,6 +369,7 @@ pub(crate) fn record_of<const N: usize>(
         joint_scale: report.joint_scale,
         saturation: report.saturation,
         error: report.error,
+        source,
     }
 }
 
@@ -409,7 +412,7 @@ pub fn execute<const N: usize>(
         let interrupted = n % PROGRESS_EVERY == 0 && n < steps && crate::signals::termination_requested();
         let last = n == steps || interrupted;
         let logged = n % every == 0 || last;
-        let rec = record_of(plant, star, &report, logged);
+        let rec = record_of(plant, star, &report, CommandSource::Fresh, logged);
         acc.add(&rec);
         if logged {
             records.push(rec);

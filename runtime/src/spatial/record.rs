@@ -10,7 +10,7 @@ use serde::Serialize;
 
 use crate::arm::MAX_JOINTS;
 use crate::record::verdict::{reasons_in_words, Failure};
-use crate::record::TrajectoryDigest;
+use crate::record::{CommandSource, TrajectoryDigest};
 
 /// One step of a spatial run, everything in the world frame (`z` up, the platform's plane at
 /// `z = 0`): the seam for a 3D replay. A replay (e.g. MCAP with Foxglove's
@@ -57,6 +57,25 @@ pub struct SpatialRecord {
     pub saturation: f64,
     /// Why the law rejected the step, if it did (the command is then zero).
     pub error: Option<StepError>,
+    /// Where the applied command came from: the answer to this step (always in `companion
+    /// sim`), or (real-time HIL) the last one held, or the robot stopped.
+    pub source: CommandSource,
+}
+
+impl SpatialRecord {
+    /// The step's status as `timeseries.csv` and the replay write it: `ok`, the law's reason
+    /// for a rejected step, or (real-time HIL) `held` / `stopped`.
+    pub fn write_status(&self, out: &mut String) {
+        use std::fmt::Write as _;
+        match (self.source, self.error) {
+            (CommandSource::Held, _) => out.push_str("held"),
+            (CommandSource::Stopped, _) => out.push_str("stopped"),
+            (CommandSource::Fresh, None) => out.push_str("ok"),
+            (CommandSource::Fresh, Some(e)) => {
+                let _ = write!(out, "{e}");
+            }
+        }
+    }
 }
 
 /// The rejected steps by reason, for an arm of up to [`MAX_JOINTS`] joints.
@@ -408,7 +427,9 @@ impl<W: Write> SpatialCsv<W> {
             num(*x);
         }
         num(r.joint_scale);
-        row.push(r.error.map_or_else(|| "ok".to_string(), |e| e.to_string()));
+        let mut status = String::new();
+        r.write_status(&mut status);
+        row.push(status);
         self.out.write_record(&*row)
     }
 

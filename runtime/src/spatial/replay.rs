@@ -64,13 +64,7 @@ pub fn write(mut mcap: McapRecorder, kind: PlatformKind, records: &[SpatialRecor
         let k = platform_command(kind, &r.command, &mut platform);
         status.clear();
         // As timeseries.csv's `status` column of a spatial run.
-        match r.error {
-            None => status.push_str("ok"),
-            Some(e) => {
-                use std::fmt::Write as _;
-                let _ = write!(status, "{e}");
-            }
-        }
+        r.write_status(&mut status);
         let e_p: [f64; 6] = r.e_p.into();
         let frame = ReplayFrame {
             t: r.t,
@@ -121,6 +115,7 @@ mod tests {
             joint_scale: 1.0,
             saturation: 1.0,
             error: None,
+            source: crate::record::CommandSource::Fresh,
         };
         for (k, l) in (1..=7u8).zip(r.links.iter_mut()) {
             *l = pose(f64::from(k));

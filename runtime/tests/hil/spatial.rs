@@ -57,8 +57,9 @@ fn a_spatial_arm_in_real_time_tracks_its_target() {
     let _g = serial();
     let d = dir("spatial-rt");
     let n = name("spatial-rt");
+    let out = d.to_str().unwrap();
     let args =
-        relaxed(&["hil", "--arm", "ur5", "--duration", "4", "--name", &n, "--out", d.to_str().unwrap()]);
+        relaxed(&["hil", "--arm", "ur5", "--duration", "4", "--log-every", "1", "--name", &n, "--out", out]);
     let (st, out, err) = run(&args);
     assert!(st.success(), "{out}\n{err}");
     let lat = json(&d.join("latency.json"));
@@ -75,9 +76,17 @@ fn a_spatial_arm_in_real_time_tracks_its_target() {
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     let col = header.iter().position(|c| *c == "ep_norm").unwrap();
-    let ep: Vec<f64> = lines.map(|l| l.split(',').nth(col).unwrap().parse().unwrap()).collect();
-    assert_eq!(ep.len(), 401, "every 10th step and the last");
+    assert_eq!(header.last(), Some(&"status"));
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    let ep: Vec<f64> = rows.iter().map(|r| r[col].parse().unwrap()).collect();
+    assert_eq!(ep.len(), 4001, "every step");
+    // Each period's command is the fresh answer or, after a missed deadline, the held one: the
+    // rows say which, as many as the plant counted.
+    let held = rows.iter().filter(|r| *r.last().unwrap() == "held").count();
+    assert!(rows.iter().all(|r| matches!(*r.last().unwrap(), "ok" | "held")), "only fresh and held commands");
+    assert_eq!(held as u64, lat["held_periods"].as_u64().unwrap());
     let (first, last) = (ep[0], ep[ep.len() - 1]);
+    println!("‖e_p‖ {first:.3e} → {last:.3e}; {held} periods held");
     assert!(last < 0.25 * first, "‖e_p‖ {first} → {last}");
     assert!(s["smallest_joint_margin"].as_f64().unwrap() > 0.1, "{s:#}");
     for f in ["top.svg", "side.svg", "latency.svg", "index.html"] {
