@@ -16,6 +16,18 @@
 //! writes a file only when the plant dies under it: `fault.json` (what happened, when), and it
 //! trims `timeseries.csv` to its last complete line.
 //!
+//! ## Arms
+//!
+//! `--arm rpr` (the default) is the paper's planar arm (§4); `--arm ur5|panda|FILE` a spatial
+//! arm of 6 to 8 joints (§5), the same run as `companion sim --arm` ([`HilScenario`]). The
+//! loops are the same for every arm: the plant's loop drives a [`robot::Robot`] (the planar
+//! plant and its rows, or the spatial plant and its [`crate::spatial::record::SpatialRecord`]s),
+//! the controller serves a [`law::Served`] (the planar law, or the spatial law for `N`
+//! joints). Both roles announce the arm's joint count, target space and hash; a plant and a
+//! controller with different arms refuse each other by name. Lockstep runs of a spatial arm
+//! go through `companion sim --arm`'s own loop ([`crate::spatial::execute`]) and are
+//! byte-identical to it. `--chaos` and `--delay` are for the planar arm.
+//!
 //! ## Modes
 //!
 //! *Real time* (default): after a handshake (measurement 0, whose command is awaited up to
@@ -68,9 +80,10 @@
 //! ## Modules
 //!
 //! Domain first, then the loops, then the processes:
-//! [`config`] (typed options), [`end`] (how a run ended), [`stats`] (what is counted),
-//! [`hold`] (hold, then stop), [`messages`] (the one header builder, command ↔ report),
-//! [`watch`] (the one peer-liveness check), [`wait`] (the three wait modes);
+//! [`config`] (typed options and the run's scenario), [`end`] (how a run ended), [`stats`]
+//! (what is counted), [`hold`] (hold, then stop), [`messages`] (the one header builder,
+//! command ↔ report), [`watch`] (the one peer-liveness check), [`wait`] (the three wait
+//! modes), [`robot`] (what the plant's loop drives), [`law`] (what the controller serves);
 //! [`plant_loop`] (real time and lockstep), [`serve`] (the controller's loop), [`fault`]
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
 //! and [`control`] (the two processes).
