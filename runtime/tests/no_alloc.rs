@@ -362,19 +362,19 @@ fn the_zenoh_exchange_allocates_only_in_zenoh() {
     assert_eq!(plant.malformed() + control.malformed(), 0);
 }
 
-/// A link whose controller answers at once, in process.
-struct InstantController {
-    ctrl: AnyController,
+/// A link whose controller answers at once, in process: `answer` turns a measurement into the
+/// command.
+struct InstantController<F> {
+    answer: F,
     pending: Option<CommandMsg>,
     clock: std::rc::Rc<FakeClock>,
 }
 
-impl Link for InstantController {
+impl<F: FnMut(&MeasurementMsg) -> CommandMsg> Link for InstantController<F> {
     type Tx = MeasurementMsg;
     type Rx = CommandMsg;
     fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
-        let r = self.ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
-        let mut c = answer(m, &command_header(), &r);
+        let mut c = (self.answer)(m);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
         self.pending = Some(c);
@@ -396,11 +396,12 @@ fn the_plant_loop_allocates_nothing() {
     let s = scenario(5.0);
     let mut plant = companion_runtime::sim::build_plant(&s).unwrap();
     let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
-    let mut link = InstantController {
-        ctrl: AnyController::new(&s.controller).unwrap(),
-        pending: None,
-        clock: clock.clone(),
+    let mut ctrl = AnyController::new(&s.controller).unwrap();
+    let answer_of = |m: &MeasurementMsg| {
+        let r = ctrl.step(&m.measurement::<3>().unwrap(), m.dt, 0.0);
+        answer(m, &command_header(), &r)
     };
+    let mut link = InstantController { answer: answer_of, pending: None, clock: clock.clone() };
     let mut stats = PlantStats::default();
     let live = LiveFigures::default();
     let mut rows: Vec<Row> = Vec::with_capacity(6_000);
@@ -526,36 +527,6 @@ fn ur5_scenario(duration: f64) -> companion_runtime::spatial::SpatialScenario {
     SpatialScenario::new(scenario(duration), arm, SpatialTargetChoice::Lifted(PaperTrajectory::One)).unwrap()
 }
 
-/// A link whose spatial controller answers at once, in process.
-struct InstantSpatial {
-    ctrl: Box<dyn companion_runtime::controller::SpatialStep<6> + Send>,
-    pending: Option<CommandMsg>,
-    clock: std::rc::Rc<FakeClock>,
-}
-
-impl Link for InstantSpatial {
-    type Tx = MeasurementMsg;
-    type Rx = CommandMsg;
-    fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
-        let meas = m.read::<6, companion_core::Spatial>().unwrap();
-        let r = self.ctrl.step(&meas, m.dt, m.delay);
-        let mut c = answer(m, &command_header(), &r);
-        c.compute_ns = 3_000;
-        self.clock.advance(10_000);
-        self.pending = Some(c);
-        Ok(())
-    }
-    fn try_receive(&mut self) -> Result<Option<CommandMsg>> {
-        Ok(self.pending.take())
-    }
-    fn wait_event(&mut self, _: Duration) -> Result<()> {
-        Ok(())
-    }
-    fn peer_state(&mut self) -> Result<PeerState> {
-        Ok(PeerState::Alive(1))
-    }
-}
-
 /// The real-time loop with a spatial arm (§5): the UR5's plant, its rows the spatial records.
 #[test]
 fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
@@ -565,9 +536,13 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
     let chain = ss.arm.chain::<f64, 6>().unwrap();
     let mut plant = companion_runtime::spatial::build_plant(&ss, &chain, &star).unwrap();
     let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
-    let ctrl =
+    let mut ctrl =
         companion_runtime::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm).unwrap();
-    let mut link = InstantSpatial { ctrl, pending: None, clock: clock.clone() };
+    let answer_of = |m: &MeasurementMsg| {
+        let r = ctrl.step(&m.read::<6, companion_core::Spatial>().unwrap(), m.dt, m.delay);
+        answer(m, &command_header(), &r)
+    };
+    let mut link = InstantController { answer: answer_of, pending: None, clock: clock.clone() };
     let mut stats = PlantStats::default();
     let live = LiveFigures::default();
     let mut rows: Vec<SpatialRecord> = Vec::with_capacity(3_100);

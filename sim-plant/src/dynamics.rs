@@ -185,6 +185,30 @@ impl Model<'_> {
         }
     }
 
+    /// One step of `h` from `t0` to `t1` in which `previous` acts until `t0 + delay` and
+    /// `command` after it: two RK4 steps split at the switch, or one ([`rk4`](Self::rk4)
+    /// with `h`, to the bit) when `delay` is 0.
+    #[allow(clippy::too_many_arguments)]
+    pub fn rk4_switched<const N: usize>(
+        &self,
+        t0: f64,
+        t1: f64,
+        h: f64,
+        delay: f64,
+        x: &Continuous<N>,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        trig: &mut Trig,
+    ) -> Continuous<N> {
+        if delay > 0.0 {
+            let t_switch = t0 + delay;
+            let x = self.rk4(t0, t_switch, delay, x, previous, trig);
+            self.rk4(t_switch, t1, t1 - t_switch, &x, command, trig)
+        } else {
+            self.rk4(t0, t1, h, x, command, trig)
+        }
+    }
+
     /// One classical RK4 step from `t0` to `t1 = t0 + h` with the command held. The target
     /// velocity is evaluated at `t0`, `t0 + h/2` and `t1`, on the smooth piece of `u_d`
     /// that contains the step's midpoint (so a jump of `u_d` on a step's edge is taken

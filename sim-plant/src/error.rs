@@ -110,3 +110,35 @@ pub enum AdvanceError {
         delay: f64,
     },
 }
+
+impl AdvanceError {
+    /// Checks one step of `dt` seconds in which `previous` acts for `delay` seconds and
+    /// `command` for the rest, on a plant whose fixed step is `fixed` (`None` before the
+    /// first step): the checks of every plant's `try_advance_delayed`.
+    ///
+    /// # Errors
+    /// The first check that fails.
+    pub(crate) fn check<const N: usize>(
+        fixed: Option<f64>,
+        previous: &companion_core::Command<f64, N>,
+        command: &companion_core::Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), Self> {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(Self::BadTimeStep { dt });
+        }
+        if let Some(fixed) = fixed {
+            if fixed.to_bits() != dt.to_bits() {
+                return Err(Self::TimeStepChanged { fixed, dt });
+            }
+        }
+        if !command.is_finite() || !previous.is_finite() {
+            return Err(Self::NonFiniteCommand);
+        }
+        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
+            return Err(Self::BadDelay { delay });
+        }
+        Ok(())
+    }
+}

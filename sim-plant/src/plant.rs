@@ -270,33 +270,14 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(AdvanceError::BadTimeStep { dt });
-        }
-        if let Some(fixed) = self.dt {
-            if fixed.to_bits() != dt.to_bits() {
-                return Err(AdvanceError::TimeStepChanged { fixed, dt });
-            }
-        }
-        if !command.is_finite() || !previous.is_finite() {
-            return Err(AdvanceError::NonFiniteCommand);
-        }
-        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
-            return Err(AdvanceError::BadDelay { delay });
-        }
+        AdvanceError::check(self.dt, previous, command, delay, dt)?;
         self.dt = Some(dt);
         let model = Self::model(&self.config, &self.trajectory);
         let n = self.state.step;
         let t0 = n as f64 * dt;
         let t1 = (n + 1) as f64 * dt;
         let trig = &mut self.trig;
-        let x = if delay > 0.0 {
-            let t_switch = t0 + delay;
-            let x = model.rk4(t0, t_switch, delay, &self.x, previous, trig);
-            model.rk4(t_switch, t1, t1 - t_switch, &x, command, trig)
-        } else {
-            model.rk4(t0, t1, dt, &self.x, command, trig)
-        };
+        let x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, trig);
         let applied = model.applied(&x, command);
         // u_d(t₁⁺): the piece the target follows over the next step.
         let target_velocity =

@@ -252,20 +252,7 @@ impl<const N: usize> SpatialPlant<N> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        if !(dt.is_finite() && dt > 0.0) {
-            return Err(AdvanceError::BadTimeStep { dt });
-        }
-        if let Some(fixed) = self.dt {
-            if fixed.to_bits() != dt.to_bits() {
-                return Err(AdvanceError::TimeStepChanged { fixed, dt });
-            }
-        }
-        if !command.is_finite() || !previous.is_finite() {
-            return Err(AdvanceError::NonFiniteCommand);
-        }
-        if !(delay.is_finite() && delay >= 0.0 && delay < dt) {
-            return Err(AdvanceError::BadDelay { delay });
-        }
+        AdvanceError::check(self.dt, previous, command, delay, dt)?;
         self.dt = Some(dt);
         let model = Model {
             kind: self.config.platform,
@@ -277,13 +264,7 @@ impl<const N: usize> SpatialPlant<N> {
         let n = self.state.step;
         #[allow(clippy::cast_precision_loss)]
         let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
-        self.x = if delay > 0.0 {
-            let t_switch = t0 + delay;
-            let x = model.rk4(t0, t_switch, delay, &self.x, previous, &mut self.trig);
-            model.rk4(t_switch, t1, t1 - t_switch, &x, command, &mut self.trig)
-        } else {
-            model.rk4(t0, t1, dt, &self.x, command, &mut self.trig)
-        };
+        self.x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, &mut self.trig);
         let target = self.target_pose(t1, &self.x.target);
         let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
         self.state = SpatialState {

@@ -161,6 +161,33 @@ fn open(cfg: &HilConfig, s: &Scenario, arm_hash: u64) -> Result<Opened> {
 }
 
 impl Opened {
+    /// Makes the `--mcap` replay file (with `create`: a path that cannot be written stops the
+    /// plant here), then waits for the controller to join; if either fails, takes away what
+    /// was made (`discard` for the replay) and returns the error.
+    fn join<R>(
+        self,
+        cfg: &HilConfig,
+        observer: &dyn Observer,
+        create: impl FnOnce(&std::path::Path) -> Result<R>,
+        discard: impl FnOnce(R),
+    ) -> Result<(Self, Option<R>)> {
+        let replay = match cfg.mcap.as_deref().map(create).transpose() {
+            Ok(r) => r,
+            Err(e) => {
+                self.out.discard();
+                return Err(e);
+            }
+        };
+        if let Err(e) = self.wait_for_controller(cfg, observer) {
+            if let Some(r) = replay {
+                discard(r);
+            }
+            self.out.discard();
+            return Err(e);
+        }
+        Ok((self, replay))
+    }
+
     /// Waits for the controller to join.
     fn wait_for_controller(&self, cfg: &HilConfig, observer: &dyn Observer) -> Result<()> {
         observer.note(&format!(
@@ -261,22 +288,9 @@ fn run_planar(
     let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
     let opened = open(cfg, s, super::handshake::arm_hash())?;
-    // `--mcap`: made now, so that a path that cannot be written stops the plant here.
-    let replay = match cfg.mcap.as_deref().map(|p| PlanarReplay::create(p, s)).transpose() {
-        Ok(r) => r,
-        Err(e) => {
-            opened.out.discard();
-            return Err(e);
-        }
-    };
+    let (opened, replay) =
+        opened.join(cfg, observer, |p| PlanarReplay::create(p, s), PlanarReplay::discard)?;
     let steps = s.steps();
-    if let Err(e) = opened.wait_for_controller(cfg, observer) {
-        if let Some(r) = replay {
-            r.discard();
-        }
-        opened.out.discard();
-        return Err(e);
-    }
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
     let mut recorder = Recorder::for_scenario(s, dir)?;
@@ -406,21 +420,9 @@ where
     let star = spatial::target_in_effector::<N>(ss)?;
     let mut plant = spatial::build_plant(ss, &chain, &star)?;
     let opened = open(cfg, s, canonical::arm_hash(&chain))?;
-    let mcap =
-        match cfg.mcap.as_deref().map(|p| McapRecorder::create(p, spatial::replay::layout(ss))).transpose() {
-            Ok(m) => m,
-            Err(e) => {
-                opened.out.discard();
-                return Err(e);
-            }
-        };
-    if let Err(e) = opened.wait_for_controller(cfg, observer) {
-        if let Some(m) = mcap {
-            m.discard();
-        }
-        opened.out.discard();
-        return Err(e);
-    }
+    let layout = spatial::replay::layout(ss);
+    let (opened, mcap) =
+        opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
     let steps = s.steps();
