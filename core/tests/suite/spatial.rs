@@ -267,7 +267,13 @@ proptest! {
         let ang = rd * Vector3::new(0.0, 0.0, base[2]);
         let u_bd = V6::from(u_d) - V6::new(lin[0], lin[1], lin[2], ang[0], ang[1], ang[2]);
         let demand = -tm.e_p * 3.0 - tm.de_p_du * u_bd;
-        check_close("J u_q = demand", &(tm.de_p_dq * a.command.joints), &demand, 1e-9, 1.0)?;
+        // Exact up to the rounding of the solve: the law solves the normal equations
+        // (J W Jᵀ) x = d, whose error grows as ε·κ(J)² (over 12 000 sampled cases the residual
+        // stayed below 5.7·ε·κ² while it reached 3 300·ε·κ; a fixed 1e-9 failed at κ ≈ 6 700).
+        let sv = tm.de_p_dq.singular_values();
+        let kappa = sv.max() / sv.min();
+        let tol = 1e-13 + 32.0 * f64::EPSILON * kappa * kappa;
+        check_close("J u_q = demand", &(tm.de_p_dq * a.command.joints), &demand, tol, 1.0)?;
         // The null space's share lowers h_ℓ: ∇h_ℓ · (u_on − u_off) ≤ 0 (the platform's command
         // is the same: the arm does not feed back into it).
         prop_assert_eq!(a.command.platform, b.command.platform);

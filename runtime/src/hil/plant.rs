@@ -499,11 +499,9 @@ where
         outcome.summary.ended_early = true;
         outcome.summary.verdict = "failed".to_string();
     }
-    if timing.lockstep {
-        spatial::write_files(&outcome, &star, dir)?;
-    } else {
-        spatial::write_summary_files(&outcome, &star, dir)?;
-    }
+    // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
+    // summary again, with the wall time and the real-time verdict.
+    spatial::write_summary_files(&outcome, &star, dir)?;
     if let Some(m) = mcap {
         let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
         observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
