@@ -61,7 +61,8 @@ impl From<LoadArg> for Load {
 /// `companion latency`.
 ///
 /// # Errors
-/// A child process or a file failed.
+/// A child process or a file failed, or the second clock disagreed with the samples (the
+/// figures are then not to be trusted; the files are written).
 pub fn run(a: &LatencyArgs) -> Result<()> {
     companion_runtime::ipc::quiet_logs();
     let opts = LatencyOptions {
@@ -79,6 +80,11 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         a.out.join("latency-benchmark.json").display(),
         a.out.join("latency-benchmark.svg").display()
     );
+    let off: Vec<&str> =
+        bench.second_clock.iter().filter(|(_, c)| !c.agrees()).map(|(n, _)| n.as_str()).collect();
+    if !off.is_empty() {
+        anyhow::bail!("the second clock disagrees with the samples of: {}", off.join(", "));
+    }
     Ok(())
 }
 
@@ -190,5 +196,11 @@ fn print_table(b: &Benchmark) {
     println!("ratios of medians:");
     for (name, r) in &b.ratios {
         println!("  {name:<54} {r:>6.2}");
+    }
+    println!(
+        "second clock (back-to-back ping-pongs: the samples' sum against the batch by CLOCK_MONOTONIC_RAW):"
+    );
+    for (name, c) in &b.second_clock {
+        println!("  {name:<52} {:>6.1} %{}", 100.0 * c.share(), if c.agrees() { "" } else { "  DISAGREE" });
     }
 }

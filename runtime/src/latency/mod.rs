@@ -36,7 +36,7 @@ use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use serde::{Deserialize, Serialize};
 
-use self::pingpong::{PeerOptions, RtScope, Transport};
+use self::pingpong::{PeerOptions, RtScope, SecondClock, Transport};
 use crate::clock::{Clock, MonotonicClock};
 use crate::controller::{platform_name, AnyController, Scalar};
 use crate::hil::WaitMode;
@@ -265,6 +265,8 @@ pub struct Benchmark {
     pub load_threads: usize,
     /// Ratios of medians.
     pub ratios: Vec<(String, f64)>,
+    /// The back-to-back ping-pongs against a second clock ([`SecondClock`]).
+    pub second_clock: Vec<(String, SecondClock)>,
 }
 
 #[allow(clippy::cast_precision_loss)]
@@ -311,23 +313,46 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         }
     }
     observer.note(&format!("(2) iceoryx2 ping-pong, {} round trips", a.cycles));
-    let iox = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
+    let mut second_clock: Vec<(String, SecondClock)> = Vec::new();
+    let mut checked = |name: &str, c: SecondClock| {
+        observer.note(&format!(
+            "  second clock: the {} samples sum to {:.1} ms, the batch took {:.1} ms by CLOCK_MONOTONIC_RAW ({:.1} %)",
+            c.samples,
+            c.samples_sum_ns as f64 / 1e6,
+            c.batch_raw_ns as f64 / 1e6,
+            100.0 * c.share()
+        ));
+        if !c.agrees() {
+            observer.warn(&format!(
+                "{name}: the samples ({:.1} % of the batch) and the second clock disagree",
+                100.0 * c.share()
+            ));
+        }
+        second_clock.push((name.to_string(), c));
+    };
+    let (iox, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
+    checked("iceoryx2 ping-pong, busy-poll", c);
     let iox_p50 = iox.percentiles().p50;
     push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
-    let paced = pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
+    // Paced, the batch is mostly waiting: the second clock says nothing of the samples there.
+    let (paced, _) =
+        pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
     let paced_p50 = paced.percentiles().p50;
     push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
-    let iox_ev = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
+    let (iox_ev, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
+    checked("iceoryx2 ping-pong, events", c);
     let iox_ev_p50 = iox_ev.percentiles().p50;
     push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
     observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
-    let uds = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
+    let (uds, c) = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
+    checked("unix datagram socket ping-pong", c);
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
     #[cfg(feature = "zenoh")]
     let zenoh_p50 = {
         observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
-        let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, observer)?;
+        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, observer)?;
+        checked("zenoh ping-pong, tcp loopback", c);
         let p50 = z.percentiles().p50;
         push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
         match zenoh::Veth::create() {
@@ -336,7 +361,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                     "(3) Zenoh ping-pong across a veth pair into network namespace {}, {} round trips",
                     v.netns, a.cycles
                 ));
-                let z = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), observer)?;
+                let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), observer)?;
+                checked("zenoh ping-pong, tcp across network namespaces", c);
                 push("3", "zenoh ping-pong, tcp across network namespaces, blocking".into(), z, &mut rows);
             }
             Err(e) => observer.warn(&format!(
@@ -413,6 +439,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         hil,
         load_threads,
         ratios,
+        second_clock,
     };
     let path = a.out.join("latency-benchmark.json");
     std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")

@@ -17,6 +17,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Context, Result};
 use companion_core::Command;
+use serde::Serialize;
 
 use crate::histogram::LatencyHistogram;
 use crate::ipc::{ControlEndpoint, PlantEndpoint};
@@ -203,7 +204,7 @@ pub fn iceoryx(
     use_rt: bool,
     pace_ns: Option<u64>,
     observer: &dyn Observer,
-) -> Result<LatencyHistogram> {
+) -> Result<(LatencyHistogram, SecondClock)> {
     let name = format!(
         "latency-{}-{}{}",
         std::process::id(),
@@ -224,7 +225,7 @@ pub fn iceoryx(
     let mut ep = PlantEndpoint::plant(&name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
-    let mut hist = LatencyHistogram::new();
+    let mut samples = Samples::new(warmup);
     let total = warmup + iterations;
     let start = rt::monotonic_ns();
     for i in 0..total {
@@ -234,6 +235,7 @@ pub fn iceoryx(
                 core::hint::spin_loop();
             }
         }
+        samples.begin(i);
         let msg = ping(i, i + 1 == total);
         let t0 = msg.plant_time_ns;
         ep.send(&msg)?;
@@ -255,14 +257,11 @@ pub fn iceoryx(
                 bail!("the iceoryx2 ping-pong peer stopped answering at iteration {i}");
             }
         }
-        let t1 = rt::monotonic_ns();
-        if i >= warmup {
-            hist.record(t1 - t0);
-        }
+        samples.record(i, rt::monotonic_ns() - t0);
     }
     drop(_rt);
     child.finish(Duration::from_secs(5))?;
-    Ok(hist)
+    Ok(samples.finish())
 }
 
 /// Round trips over a Unix-domain datagram socket (blocking receive on both sides).
@@ -275,7 +274,7 @@ pub fn unix_socket(
     warmup: u64,
     use_rt: bool,
     observer: &dyn Observer,
-) -> Result<LatencyHistogram> {
+) -> Result<(LatencyHistogram, SecondClock)> {
     let dir = std::env::temp_dir().join(format!("companion-latency-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir)?;
@@ -291,7 +290,7 @@ fn unix_socket_in(
     warmup: u64,
     use_rt: bool,
     observer: &dyn Observer,
-) -> Result<LatencyHistogram> {
+) -> Result<(LatencyHistogram, SecondClock)> {
     let sock = UnixDatagram::bind(dir.join("bench.sock")).context("binding the benchmark's socket")?;
     sock.set_read_timeout(Some(Duration::from_secs(10)))?;
     let (own_cpu, peer_cpu) = rt_cpus();
@@ -312,9 +311,10 @@ fn unix_socket_in(
     }
     sock.connect(dir.join("peer.sock"))?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
-    let mut hist = LatencyHistogram::new();
+    let mut samples = Samples::new(warmup);
     let total = warmup + iterations;
     for i in 0..total {
+        samples.begin(i);
         let msg = ping(i, i + 1 == total);
         let t0 = msg.plant_time_ns;
         sock.send(&msg.to_bytes())?;
@@ -327,14 +327,85 @@ fn unix_socket_in(
                 break;
             }
         }
-        let t1 = rt::monotonic_ns();
-        if i >= warmup {
-            hist.record(t1 - t0);
-        }
+        samples.record(i, rt::monotonic_ns() - t0);
     }
     drop(_rt);
     child.finish(Duration::from_secs(5))?;
-    Ok(hist)
+    Ok(samples.finish())
+}
+
+/// The round trips of one measurement, with a second clock on them: each sample is timed by
+/// `CLOCK_MONOTONIC` (the message's own timestamp to its answer's arrival), and the whole batch
+/// of recorded back-to-back round trips by `CLOCK_MONOTONIC_RAW`, read apart from the
+/// samples. Back to back, the samples fill the batch but for the loop's own work between two
+/// round trips, so their sum is a little below the batch's length; a sample lost, counted
+/// twice or in the wrong unit would show.
+#[derive(Debug)]
+pub struct Samples {
+    hist: LatencyHistogram,
+    warmup: u64,
+    check: SecondClock,
+    raw_start: u64,
+}
+
+/// A measurement's samples against the second clock.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct SecondClock {
+    /// The sum of the recorded samples (`CLOCK_MONOTONIC`, ns).
+    pub samples_sum_ns: u64,
+    /// The recorded batch's length (`CLOCK_MONOTONIC_RAW`, ns).
+    pub batch_raw_ns: u64,
+    /// The samples recorded.
+    pub samples: u64,
+}
+
+impl SecondClock {
+    /// The samples' share of the batch (0 for an empty batch).
+    #[allow(clippy::cast_precision_loss)]
+    pub fn share(&self) -> f64 {
+        if self.batch_raw_ns == 0 {
+            0.0
+        } else {
+            self.samples_sum_ns as f64 / self.batch_raw_ns as f64
+        }
+    }
+
+    /// Whether the two clocks agree: the samples fill between half the batch and the whole of
+    /// it (plus the two clocks' rates' difference, well under 0.1 %).
+    pub fn agrees(&self) -> bool {
+        self.samples > 0 && (0.5..=1.001).contains(&self.share())
+    }
+}
+
+impl Samples {
+    /// Samples after `warmup` unrecorded iterations.
+    pub fn new(warmup: u64) -> Self {
+        Self { hist: LatencyHistogram::new(), warmup, check: SecondClock::default(), raw_start: 0 }
+    }
+
+    /// Iteration `i` begins (before its message is stamped).
+    #[inline]
+    pub fn begin(&mut self, i: u64) {
+        if i == self.warmup {
+            self.raw_start = rt::raw_ns();
+        }
+    }
+
+    /// Iteration `i`'s round trip took `ns` (recorded after the warm-up).
+    #[inline]
+    pub fn record(&mut self, i: u64, ns: u64) {
+        if i >= self.warmup {
+            self.hist.record(ns);
+            self.check.samples_sum_ns += ns;
+            self.check.samples += 1;
+            self.check.batch_raw_ns = rt::raw_ns() - self.raw_start;
+        }
+    }
+
+    /// The histogram and the second clock's check.
+    pub fn finish(self) -> (LatencyHistogram, SecondClock) {
+        (self.hist, self.check)
+    }
 }
 
 /// Real-time setup of the calling thread for a scope; back to the normal scheduler and all
@@ -355,5 +426,34 @@ impl RtScope {
 impl Drop for RtScope {
     fn drop(&mut self) {
         rt::reset_thread();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Samples that fill the batch agree; a batch the samples cannot fill, or samples longer
+    /// than the batch (a unit error, a sample counted twice), do not.
+    #[test]
+    fn the_second_clock_checks_the_samples() {
+        let mut s = Samples::new(2);
+        for i in 0..12 {
+            s.begin(i);
+            let t0 = rt::monotonic_ns();
+            while rt::monotonic_ns() - t0 < 200_000 {
+                core::hint::spin_loop();
+            }
+            s.record(i, rt::monotonic_ns() - t0);
+        }
+        let (h, c) = s.finish();
+        assert_eq!((h.count(), c.samples), (10, 10));
+        assert!(c.agrees(), "{c:?}: {:.3}", c.share());
+        assert!(c.share() > 0.9, "back to back the samples fill the batch: {:.3}", c.share());
+        let doubled = SecondClock { samples_sum_ns: 2 * c.samples_sum_ns, ..c };
+        assert!(!doubled.agrees());
+        let sparse = SecondClock { samples_sum_ns: c.batch_raw_ns / 4, ..c };
+        assert!(!sparse.agrees());
+        assert!(!SecondClock::default().agrees(), "no samples: nothing agrees");
     }
 }

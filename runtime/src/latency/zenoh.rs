@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Result};
 
-use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Transport};
+use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Samples, SecondClock, Transport};
 use crate::histogram::LatencyHistogram;
 use crate::ipc::Role;
 use crate::link::PeerState;
@@ -114,7 +114,7 @@ pub fn round_trips(
     use_rt: bool,
     veth: Option<&Veth>,
     observer: &dyn Observer,
-) -> Result<LatencyHistogram> {
+) -> Result<(LatencyHistogram, SecondClock)> {
     let endpoint = match veth {
         None => crate::transport::free_local_endpoint()?,
         Some(v) => {
@@ -140,9 +140,10 @@ pub fn round_trips(
     let mut child = spawn_peer_in(veth.map(|v| v.netns.as_str()), exe, &args)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
-    let mut hist = LatencyHistogram::new();
+    let mut samples = Samples::new(warmup);
     let total = warmup + iterations;
     for i in 0..total {
+        samples.begin(i);
         let msg = ping(i, i + 1 == total);
         let t0 = msg.plant_time_ns;
         ep.send(&msg)?;
@@ -158,12 +159,9 @@ pub fn round_trips(
                 bail!("the Zenoh ping-pong peer stopped answering at iteration {i}");
             }
         }
-        let t1 = rt::monotonic_ns();
-        if i >= warmup {
-            hist.record(t1 - t0);
-        }
+        samples.record(i, rt::monotonic_ns() - t0);
     }
     drop(_rt);
     child.finish(Duration::from_secs(5))?;
-    Ok(hist)
+    Ok(samples.finish())
 }
