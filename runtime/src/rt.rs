@@ -20,21 +20,23 @@
 /// `CLOCK_MONOTONIC` in nanoseconds.
 #[inline]
 pub fn monotonic_ns() -> u64 {
-    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC always exists on Linux.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) };
-    #[allow(clippy::cast_sign_loss)]
-    let ns = ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64;
-    ns
+    clock_ns(libc::CLOCK_MONOTONIC)
 }
 
 /// `CLOCK_MONOTONIC_RAW` in nanoseconds: the hardware clock without NTP's frequency
 /// corrections — a second clock to check measurements made with [`monotonic_ns`].
 #[inline]
 pub fn raw_ns() -> u64 {
+    clock_ns(libc::CLOCK_MONOTONIC_RAW)
+}
+
+/// Clock `id` in nanoseconds.
+#[inline]
+fn clock_ns(id: libc::clockid_t) -> u64 {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
-    // SAFETY: `ts` is a valid, writable timespec; CLOCK_MONOTONIC_RAW exists on Linux ≥ 2.6.28.
-    unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC_RAW, &mut ts) };
+    // SAFETY: `ts` is a valid, writable timespec; both clocks used here exist on Linux
+    // (CLOCK_MONOTONIC_RAW since 2.6.28).
+    unsafe { libc::clock_gettime(id, &mut ts) };
     #[allow(clippy::cast_sign_loss)]
     let ns = ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64;
     ns
