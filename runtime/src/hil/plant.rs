@@ -495,10 +495,6 @@ where
     for f in real_time_failures(cfg, &stats, &end) {
         outcome.summary.fail(f);
     }
-    if end != PlantEnd::Completed && outcome.summary.verdict == "ok" {
-        outcome.summary.ended_early = true;
-        outcome.summary.verdict = "failed".to_string();
-    }
     // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
     // summary again, with the wall time and the real-time verdict.
     spatial::write_summary_files(&outcome, &star, dir)?;
