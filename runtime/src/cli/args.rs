@@ -127,8 +127,8 @@ pub struct ScenarioArgs {
     /// The control period and integration step, in seconds.
     #[arg(long, default_value_t = 0.001, value_name = "SECONDS", allow_hyphen_values = true)]
     pub dt: f64,
-    /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil`, `plant` and
-    /// `control`].
+    /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil` and `plant`;
+    /// `control` ignores it (warning): its run ends at the plant's END_OF_RUN measurement].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub duration: Option<f64>,
     /// The controller's scalar type.

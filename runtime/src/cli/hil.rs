@@ -42,6 +42,9 @@ use super::terminal::Terminal;
 /// The default simulated duration of a HIL run when `--duration` is not given (s).
 pub const DEFAULT_DURATION: f64 = 30.0;
 
+/// The default `--out` of the HIL commands.
+const DEFAULT_OUT: &str = "out/hil";
+
 /// `--wait`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WaitArg {
@@ -107,7 +110,8 @@ pub struct HilArgs {
     #[arg(long, default_value_t = 500, value_name = "US", value_parser = clap::value_parser!(u64).range(1..=1_000_000), allow_hyphen_values = true)]
     pub deadline_us: u64,
     /// Lockstep: the plant waits for every command (deterministic, no deadlines; the same
-    /// timeseries.csv as `companion sim`).
+    /// timeseries.csv as `companion sim`). For `hil` and `plant`: `control` follows what the
+    /// plant announces (it warns that it ignores the flag).
     #[arg(long)]
     pub lockstep: bool,
     /// How each process waits for the other's message: `adaptive` busy-polls while it keeps
@@ -133,8 +137,9 @@ pub struct HilArgs {
     /// names never meet; one process per role and name (a lock in /tmp/companion).
     #[arg(long, default_value = "demo")]
     pub name: String,
-    /// Output folder (the plant writes it).
-    #[arg(long, default_value = "out/hil", value_name = "DIR")]
+    /// Output folder (the plant writes it; `control` writes nothing and warns that it ignores
+    /// the flag).
+    #[arg(long, default_value = DEFAULT_OUT, value_name = "DIR")]
     pub out: PathBuf,
     /// The plant also writes the run as an MCAP file for Foxglove (the robot in 3D: frame
     /// transforms, a scene, joint states, command, tracking error), one frame per row of
@@ -683,6 +688,9 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     if cfg.mcap.is_some() {
         bail!("--mcap is for the plant, which records the run (`companion hil` or `companion plant`)");
     }
+    if let Some(w) = ignored_by_control(a) {
+        eprintln!("warning: {w}");
+    }
     let inject = a.injections()?;
     let lock = match NameLock::acquire(&cfg.name, Role::Control) {
         Ok(l) => l,
@@ -720,6 +728,27 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         }
     }
     Ok(ExitCode::from(code))
+}
+
+/// The plant's flags given to `companion control`, which accepts them (one set of flags for
+/// every role) but does not use them: the plant decides the run's length (its `END_OF_RUN`
+/// measurement), whether it runs in lockstep and its simulated delay (announced in every
+/// measurement), and writes the files. `None` if none was given.
+fn ignored_by_control(a: &HilArgs) -> Option<String> {
+    let given = [
+        ("--duration", a.scenario.duration.is_some()),
+        ("--lockstep", a.lockstep),
+        ("--delay", a.delay != 0.0),
+        ("--out", a.out != std::path::Path::new(DEFAULT_OUT)),
+    ];
+    let flags: Vec<&str> = given.iter().filter(|(_, g)| *g).map(|(f, _)| *f).collect();
+    (!flags.is_empty()).then(|| {
+        format!(
+            "companion control ignores {}: the plant decides them (the run ends at the plant's END_OF_RUN \
+             measurement, lockstep and the delay are the plant's announcement, the plant writes the files)",
+            flags.join(", ")
+        )
+    })
 }
 
 /// The hash of the scenario's arm (the paper's, or the spatial arm's chain).

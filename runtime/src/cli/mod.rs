@@ -16,12 +16,12 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
-use self::exit::{EXIT_CODES_HELP, EXIT_ERROR};
+use self::exit::EXIT_ERROR;
 
 /// The companion-frame controller for mobile manipulators: simulation, hardware-in-the-loop
 /// demo over shared memory, and latency benchmark.
 #[derive(Parser, Debug)]
-#[command(name = "companion", version, about, long_about = None, propagate_version = true, after_help = EXIT_CODES_HELP)]
+#[command(name = "companion", version, about, long_about = None, propagate_version = true, after_help = exit::help())]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -32,17 +32,17 @@ enum Command {
     /// Hardware-in-the-loop demo: starts the plant as a child process and runs the controller
     /// against it over iceoryx2 shared memory, in real time (or lockstep), and writes
     /// timeseries.csv, summary.json, latency.json and plots.
-    #[command(after_help = EXIT_CODES_HELP)]
+    #[command(after_help = exit::help())]
     Hil(hil::HilArgs),
     /// Simulate a scenario in one process (fast, deterministic) and write timeseries.csv,
     /// summary.json and plots; `--all` reproduces the paper's Figures 3–10.
-    #[command(after_help = EXIT_CODES_HELP)]
+    #[command(after_help = exit::help())]
     Sim(sim::SimArgs),
     /// The plant role of the HIL demo alone (for two terminals, or a bridge to hardware).
-    #[command(after_help = EXIT_CODES_HELP)]
+    #[command(after_help = exit::help())]
     Plant(hil::HilArgs),
     /// The controller role of the HIL demo alone.
-    #[command(after_help = EXIT_CODES_HELP)]
+    #[command(after_help = exit::help())]
     Control(hil::HilArgs),
     /// Monte Carlo over initial conditions and parameters: which starts converge, with which
     /// parameters. Writes results.csv, summary.json and plots (a success map, histograms, the
@@ -54,7 +54,7 @@ enum Command {
     Tune(tune::TuneArgs),
     /// Worst-case latency benchmark: controller step, bare iceoryx2 and Unix-socket ping-pong,
     /// and the full HIL cycle in each wait mode.
-    #[command(after_help = EXIT_CODES_HELP)]
+    #[command(after_help = exit::help())]
     Latency(latency::LatencyArgs),
     /// The echoing side of `companion latency`'s ping-pong (started by it).
     #[command(hide = true)]
