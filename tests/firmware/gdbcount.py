@@ -6,24 +6,30 @@ own, from SysTick under QEMU -icount. This one never reads a clock: it starts th
 firmware ELF under qemu-system-arm with the gdb stub on a Unix socket, speaks the gdb remote
 serial protocol itself (no gdb needed) and counts single steps.
 
-For step k (k >= 1) of a case it
-  1. breaks at the entry of `scenario::controller_step::<T, Platform>` (never inlined; one
-     instance per scalar type and platform, whose calls in run (a) come first), or of
-     `scenario::spatial_step` for the spatial cases (`ur5-…`), and skips to call k - 1;
-  2. sets a read watchpoint on SysTick's current-value register (0xE000E018) and continues:
-     the stub stops *at* each load from it, so the first stop is the reading that ends step
-     k - 1 and the second the reading that starts step k;
-  3. single-steps from that reading until the program counter reaches the ending reading's
-     address again, counting; on the way it notes the entry of controller_step and the
-     return to the caller (program counter at the return address, stack pointer restored).
+For step k of a case it
+  1. breaks at `companion_case_start`, which the firmware calls just before each case with
+     the case's name (read from memory: pointer in r0, length in r1);
+  2. writes k into the firmware's `COMPANION_STOP_AT` and breaks at `companion_step_mark`,
+     which the firmware's probe calls before step k of the case, outside the step's SysTick
+     readings (a breakpoint there, not at each of the k steps before: one stop, not k);
+  3. sets a read watchpoint on SysTick's current-value register (0xE000E018) and
+     continues: the stub stops *at* the load (before it), the reading that starts step k;
+  4. single-steps from that reading, with the watchpoint set, until the stub stops at the
+     next load from SysTick (the reading that ends step k), counting; on the way it notes
+     the entry of the case's step function, `scenario::controller_step::<T, Platform>`
+     (never inlined; one instance per scalar type and platform) or `scenario::spatial_step`
+     for the spatial cases (`ur5-…`), and the return to the caller (program counter at the
+     return address, stack pointer restored).
 It reports the instructions strictly between the two readings (the firmware's definition
-of a step's count) and, of those, the instructions of controller_step from its first to its
-return instruction. Step 0 cannot be bracketed this way (no step before it).
+of a step's count) and, of those, the instructions of the step function from its first to
+its return instruction. With --trace DIR it also writes, per counted step, the program
+counter, stack pointer and link register before each instruction to DIR/CASE-STEP.trace
+(one `pc sp lr` line each, hex), which `profile.py` attributes to functions.
 
-Usage: gdbcount.py ELF CASE:STEP[,STEP...] [CASE:STEP...]
-  e.g. gdbcount.py target/thumbv7em-none-eabihf/release/companion-firmware uni-a-f32:1,2 uni-a-f64:1
+Usage: gdbcount.py [--trace DIR] ELF CASE:STEP[,STEP...] [CASE:STEP...]
+  e.g. gdbcount.py target/thumbv7em-none-eabihf/release/companion-firmware uni-1a-f32:0,1,2 uni-1a-f64:1
 Prints one line per step, in the order they run:
-  G <case> <step> <instructions between the readings> <instructions of controller_step>
+  G <case> <step> <instructions between the readings> <instructions of the step function>
 Exit status 0 on success, 2 on any failure (with a message on stderr). About 6 000 single
 steps per second.
 """
@@ -53,34 +59,45 @@ class Failure(Exception):
     """A reason the count could not be made."""
 
 
-def steps_per_case():
-    """Steps per case of the scenario (run (c) of a platform follows its run (a))."""
-    src = (HERE / "src" / "scenario.rs").read_text()
-    m = re.search(r"pub const STEPS: u32 = ([0-9_]+);", src)
-    if not m:
-        raise Failure("cannot find `pub const STEPS: u32 = …;` in src/scenario.rs")
-    return int(m.group(1).replace("_", ""))
-
-
 def parse_case(case):
-    """(step function, platform type, run, scalar) of a case name: `uni-a-f32` is the planar
-    law's `controller_step`, `ur5-uni-a-f32` the spatial law's `spatial_step`."""
+    """(step function, platform type, scalar) of a case name: `uni-2c-f32[-sampled]` is the
+    planar law's `controller_step`, `ur5-uni-1a-f32` the spatial law's `spatial_step`."""
     parts = case.split("-")
     function = "controller_step"
-    if len(parts) == 4 and parts[0] == "ur5":
+    if parts and parts[0] == "ur5":
         function, parts = "spatial_step", parts[1:]
-    if len(parts) != 3 or parts[0] not in PLATFORMS or parts[1] not in "ac" or parts[2] not in ("f32", "f64"):
-        raise Failure(f"unknown case {case!r}: expected [ur5-](uni|car|omni)-(a|c)-(f32|f64)")
-    return function, PLATFORMS[parts[0]], parts[1], parts[2]
+    if parts[3:] == ["sampled"]:
+        parts = parts[:3]
+    if (
+        len(parts) != 3
+        or parts[0] not in PLATFORMS
+        or not re.fullmatch(r"[12][a-d]", parts[1])
+        or parts[2] not in ("f32", "f64")
+    ):
+        raise Failure(f"unknown case {case!r}: expected [ur5-](uni|car|omni)-(1|2)(a|b|c|d)-(f32|f64)[-sampled]")
+    return function, PLATFORMS[parts[0]], parts[2]
+
+
+def symbols(elf):
+    """`nm -C` of the ELF."""
+    nm = shutil.which("nm") or shutil.which("llvm-nm")
+    if nm is None:
+        raise Failure("neither nm (binutils) nor llvm-nm is on the PATH")
+    return subprocess.run([nm, "-C", elf], capture_output=True, text=True, check=True).stdout
+
+
+def exported(elf, name):
+    """Address of the firmware's unmangled symbol `name` (src/main.rs)."""
+    found = [int(line.split()[0], 16) for line in symbols(elf).splitlines() if line.endswith(" " + name)]
+    if len(found) != 1:
+        raise Failure(f"{len(found)} symbols {name} in {elf} (expected one: see src/main.rs)")
+    return found[0] & ~1
 
 
 def step_function_address(elf, case):
     """Entry address of the step function's instance for `case` (e.g. uni-a-f32)."""
-    function, plat, _, ty = parse_case(case)
-    nm = shutil.which("nm") or shutil.which("llvm-nm")
-    if nm is None:
-        raise Failure("neither nm (binutils) nor llvm-nm is on the PATH")
-    out = subprocess.run([nm, "-C", elf], capture_output=True, text=True, check=True).stdout
+    function, plat, ty = parse_case(case)
+    out = symbols(elf)
     pattern = re.compile(rf"^([0-9a-f]+) [tT] .*scenario::{function}::<{ty}, [\w:]*\b{plat}\b")
     found = [int(m.group(1), 16) for line in out.splitlines() if (m := pattern.match(line))]
     if len(found) != 1:
@@ -150,6 +167,23 @@ class Remote:
     def pc(self):
         return self.registers()[15]
 
+    def write_word(self, addr, value):
+        """Writes a 32-bit little-endian word at `addr`."""
+        reply = self.command(f"M{addr:x},4:{value.to_bytes(4, 'little').hex()}")
+        if reply != "OK":
+            raise Failure(f"could not write at {addr:#x}: {reply!r}")
+
+    def memory(self, addr, length):
+        """`length` bytes at `addr`."""
+        reply = self.command(f"m{addr:x},{length:x}")
+        try:
+            data = bytes.fromhex(reply)
+        except ValueError:
+            data = b""
+        if len(data) != length:
+            raise Failure(f"could not read {length} bytes at {addr:#x}: {reply!r}")
+        return data
+
     def resume(self, packet, what):
         """Sends `s` or `c`; returns the stop reply (a signal stop, else a Failure). A
         continue may run for long (to the spatial cases, past every f64 case: ~30 s of
@@ -187,41 +221,42 @@ class Remote:
         return self.pc()
 
 
-def count_bracket(remote, entry, end):
-    """At the reading that starts a step: single-steps to the address `end` of the reading
-    that ends it; returns (instructions strictly between the readings, instructions of the
-    call of `entry`)."""
+def count_bracket(remote, entry, trace=None):
+    """At the reading that starts a step (stopped at it, the watchpoint removed):
+    single-steps with the watchpoint set until the stub stops at the next reading, the one
+    that ends the step (not executed); returns (instructions strictly between the
+    readings, instructions of the call of `entry`). `trace`: a file that receives `pc sp
+    lr` before each instruction counted."""
     start = remote.pc()
-    steps, called, returned = 0, None, None
+    remote.step()  # the starting reading itself
+    steps, called, returned = 1, None, None
+    remote.point(3, SYST_CVR, True, 4)
     while True:
-        remote.step()
-        steps += 1
         regs = remote.registers()
         if regs[15] == entry and called is None:
             called, ret, sp = steps, regs[14] & ~1, regs[13]
         elif called is not None and returned is None and regs[15] == ret and regs[13] == sp:
             returned = steps
-        if regs[15] == end:
+        reply = remote.resume("s", "single step")
+        if "watch:" in reply:
             break
+        if trace is not None:
+            trace.write(f"{regs[15]:x} {regs[13]:x} {regs[14]:x}\n")
+        steps += 1
         if steps >= MAX_STEPS:
-            raise Failure(f"no SysTick reading at {end:#x} within {MAX_STEPS} instructions of {start:#x}")
+            raise Failure(f"no SysTick reading within {MAX_STEPS} instructions of {start:#x}")
+    remote.point(3, SYST_CVR, False, 4)
     if called is None or returned is None:
-        raise Failure(f"the readings at {start:#x} and {end:#x} do not bracket a call of {entry:#x}")
+        raise Failure(f"the readings from {start:#x} to {remote.pc():#x} do not bracket a call of {entry:#x}")
     return steps - 1, returned - called
 
 
-def count(elf, wanted):
+def count(elf, wanted, trace_dir=None):
     """Counts the steps in `wanted` ({case: [step, ...]}) and prints a `G` line for each, in
     the order they run."""
-    per_case = steps_per_case()
-    plan = {}  # entry address -> {call index of that instance: (case, step)}
-    for case, steps in wanted.items():
-        entry = step_function_address(elf, case)
-        offset = 0 if parse_case(case)[2] == "a" else per_case
-        for k in steps:
-            if not 1 <= k < per_case:
-                raise Failure(f"{case}: step {k} cannot be counted (steps 1 to {per_case - 1} can)")
-            plan.setdefault(entry, {})[offset + k] = (case, k)
+    marker, mark = exported(elf, "companion_case_start"), exported(elf, "companion_step_mark")
+    stop_at = exported(elf, "COMPANION_STOP_AT")
+    entries = {case: step_function_address(elf, case) for case in wanted}
     with tempfile.TemporaryDirectory() as tmp:
         sock = os.path.join(tmp, "gdb.sock")
         qemu = subprocess.Popen(
@@ -237,40 +272,50 @@ def count(elf, wanted):
         )
         try:
             remote = Remote(sock, qemu, time.monotonic() + TIME_LIMIT)
-            # Breakpoints at every instance's entry; the hits are numbered per instance in
-            # the order they happen, whatever the order of the arguments.
-            for entry in plan:
-                remote.point(0, entry, True)
-            calls = dict.fromkeys(plan, -1)  # index of the last call entered, per instance
-            left = sum(len(p) for p in plan.values())
+            remote.point(0, marker, True)
+            left = dict(wanted)
             while left:
-                remote.resume("c", "continue to controller_step")
-                entry = remote.pc()
-                if entry not in plan:
-                    raise Failure(f"stopped at {entry:#x}, not at a breakpoint")
-                calls[entry] += 1
+                remote.resume("c", "continue to the next case")
+                regs = remote.registers()
+                if regs[15] != marker:
+                    raise Failure(f"stopped at {regs[15]:#x}, not at companion_case_start")
+                name = remote.memory(regs[0], regs[1]).decode(errors="replace") if 0 < regs[1] < 64 else ""
                 remote.step()  # off the breakpoint
-                if calls[entry] + 1 not in plan[entry]:
+                if name not in left:
                     continue
-                # From call j's entry the next reading ends call j; the one after it starts
-                # call j + 1. Count the following calls while they are wanted.
-                end = remote.next_reading()
-                while calls[entry] + 1 in plan[entry]:
-                    remote.step()  # the reading that ends call j
+                entry, steps = entries[name], left.pop(name)
+                remote.point(0, mark, True)
+                for k in steps:
+                    # The firmware calls companion_step_mark before step k (outside its
+                    # readings); the next reading after it starts step k.
+                    remote.write_word(stop_at, k)
+                    remote.resume("c", f"continue to {name}'s step {k}")
+                    regs = remote.registers()
+                    if regs[15] != mark or regs[0] != k:
+                        raise Failure(f"{name}: stopped at {regs[15]:#x} (r0 = {regs[0]}), not at the mark of step {k}")
+                    remote.step()  # off the breakpoint
                     remote.next_reading()
-                    between, call = count_bracket(remote, entry, end)
-                    calls[entry] += 1
-                    case, k = plan[entry][calls[entry]]
-                    print(f"G {case} {k} {between} {call}", flush=True)
-                    left -= 1
-                if calls[entry] >= max(plan[entry]):  # no more wanted: run its calls freely
-                    remote.point(0, entry, False)
+                    trace = open(os.path.join(trace_dir, f"{name}-{k}.trace"), "w") if trace_dir else None
+                    try:
+                        between, call = count_bracket(remote, entry, trace)
+                    finally:
+                        if trace is not None:
+                            trace.close()
+                    print(f"G {name} {k} {between} {call}", flush=True)
+                remote.point(0, mark, False)
+                remote.write_word(stop_at, 0xFFFF_FFFF)
+            if left:
+                raise Failure(f"no case named {', '.join(left)} ran")
         finally:
             qemu.kill()
             qemu.communicate()
 
 
 def main(argv):
+    trace_dir = None
+    if len(argv) > 2 and argv[1] == "--trace":
+        trace_dir, argv = argv[2], argv[:1] + argv[3:]
+        os.makedirs(trace_dir, exist_ok=True)
     if len(argv) < 3:
         sys.stderr.write(__doc__)
         return 2
@@ -287,7 +332,7 @@ def main(argv):
                 wanted[case] = sorted({int(s) for s in steps.split(",")})
             except ValueError:
                 raise Failure(f"bad argument {arg!r}: expected CASE:STEP[,STEP...]") from None
-        count(argv[1], wanted)
+        count(argv[1], wanted, trace_dir)
     except (Failure, subprocess.CalledProcessError, OSError) as e:
         sys.stderr.write(f"gdbcount: {e}\n")
         return 2

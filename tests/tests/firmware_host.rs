@@ -3,11 +3,13 @@
 //! `firmware_matches_host` builds `tests/firmware` for `thumbv7em-none-eabihf` (its own
 //! workspace and target directory), runs it under QEMU's `mps2-an386` board, and runs the
 //! same scenario source (`tests/firmware/src/scenario.rs`, included below) on the host. The
-//! firmware prints a digest of the commands every 250 steps of its closed-loop cases
-//! (unicycle, car-like, omnidirectional × runs (a), (c) × f32, f64, some with the sampled
-//! discretisation, and the UR5 on the unicycle through the spatial law of §5); with the same libm, the
-//! same `f32` functions and the same operations, host and emulated M4F must agree bit for
-//! bit. It needs `qemu-system-arm` and the Rust target: `scripts/setup` installs both.
+//! firmware prints a digest of the commands every 250 steps of its closed-loop cases (in
+//! f32 the paper's 8 runs — trajectories 1 (3 s) and 2 (6 s) × runs (a)–(d) — on the
+//! unicycle, car-like and omnidirectional platforms, and the unicycle's 8 with the sampled
+//! discretisation; in f64 runs (a) and (c) of trajectory 1; the UR5 on the unicycle through
+//! the spatial law of §5); with the same libm, the same `f32` functions and the same
+//! operations, host and emulated M4F must agree bit for bit. It needs `qemu-system-arm` and
+//! the Rust target: `scripts/setup` installs both.
 //!
 //! `f32_closed_loop_tracks_f64` (host only) checks that the `f32` build, with its own
 //! elementary functions, keeps the closed loop where the `f64` build takes it.
@@ -18,7 +20,8 @@ mod scenario;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use scenario::{Case, NoProbe, Outcome, Plat, CASES};
+use companion_core::PaperRun;
+use scenario::{Case, NoProbe, Outcome, Plat, Traj, CASES};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
 
@@ -149,5 +152,33 @@ fn f32_closed_loop_tracks_f64() {
             c.name, single.e_p, double.e_p
         );
         assert!(diff <= tol, "{}: |e_p| f32 {} vs f64 {}", c.name, single.e_p, double.e_p);
+    }
+}
+
+/// The case names are unique and say what each case runs: `tests/firmware/gdbcount.py` and
+/// `report.py` read the platform, trajectory, run, scalar and law from them.
+#[test]
+fn case_names_say_what_they_run() {
+    for (i, c) in CASES.iter().enumerate() {
+        assert!(CASES[..i].iter().all(|d| d.name != c.name), "{} twice", c.name);
+        let plat = match c.plat {
+            Plat::Uni => "uni",
+            Plat::Car => "car",
+            Plat::Omni => "omni",
+            Plat::Ur5Uni => "ur5-uni",
+        };
+        let traj = match c.traj {
+            Traj::One => 1,
+            Traj::Two => 2,
+        };
+        let run = match c.run {
+            PaperRun::A => 'a',
+            PaperRun::B => 'b',
+            PaperRun::C => 'c',
+            PaperRun::D => 'd',
+        };
+        let scalar = if c.double { "f64" } else { "f32" };
+        let law = if c.sampled { "-sampled" } else { "" };
+        assert_eq!(c.name, format!("{plat}-{traj}{run}-{scalar}{law}"));
     }
 }

@@ -21,8 +21,10 @@
 //! ```text
 //! M <flash bytes> <static RAM bytes> <SysTick ticks per 20 000 instructions>
 //! K <function> <f32|libm-f32|f64> <mean instructions per call>
-//! S <case> <step index> <instructions of that step>
-//! C <case> <mean instructions/step> <min> <max> <first step> <stack bytes of two steps> <stack bytes of the case> <stack bytes of building the controller and two steps>
+//! S <case> <step index> <instructions of that step>   (the SAMPLE_STEPS, the largest, the largest after the first)
+//! C <case> <steps> <sum of instructions> <min> <max> <step of max> <max of the steps after the first> <its step>
+//!   <first step> <stack bytes of two steps> <stack bytes of the case> <stack bytes of building the controller and two steps>
+//!   <most stack bytes of one step, painted around each> <its step> <bytes painted> <1 if a step reached the paint's end>
 //! V <SysTick ticks per 20 000 instructions, measured again after the last case>
 //! E <why the counts cannot be trusted>
 //! ```
@@ -31,8 +33,12 @@
 //! around the call of [`scenario::controller_step`] (or [`scenario::spatial_step`]: argument set-up, call, step, return)
 //! less those between the readings of an empty pair (the probe's own). The steps' stack is
 //! that of the first two steps of a controller already built (the first initialises the
-//! state); the build's, of building the controller and the same two steps; the case's adds
-//! the plant, the digest and the formatting of the output.
+//! state), called from a closure that holds their result; the build's, of building the
+//! controller and the same two steps; the case's adds the plant, the digest and the
+//! formatting of the output. The stack of one step is measured around every step of the
+//! case: a window below the caller's stack pointer is painted before the first SysTick
+//! reading and scanned after the second; the most any step wrote, below the caller's
+//! stack pointer (the call's own frame and everything under it, not the caller's result).
 //!
 //! Exit code 0 when every case ran without a rejected step, 1 when a step was rejected,
 //! 3 when the SysTick calibration failed its checks, 101 on a panic.
@@ -122,8 +128,9 @@ impl Clock {
     }
 }
 
-/// Counts instructions per controller step: mean, min, max, the first step, and the
-/// steps of [`SAMPLE_STEPS`].
+/// Counts instructions per controller step: sum (for the mean), min, max and where, the
+/// largest after the first step and where, the first step, and the steps of
+/// [`SAMPLE_STEPS`]; and, when `window > 0`, the stack of each step by painting.
 struct Meter {
     start: u32,
     clock: Clock,
@@ -131,12 +138,28 @@ struct Meter {
     sum: u64,
     min: u32,
     max: u32,
+    /// The step of `max` (the first of equal ones).
+    max_at: u32,
+    /// The largest count of the steps after the first (which initialises the state).
+    max_later: u32,
+    /// The step of `max_later`.
+    max_later_at: u32,
     first: u32,
     samples: [u32; SAMPLE_STEPS.len()],
+    /// Bytes below the stack pointer painted before each step (0: no painting).
+    window: usize,
+    /// The stack pointer at the step's call (the top of the painted window).
+    top: usize,
+    /// The most stack one step used (bytes below the caller's stack pointer).
+    stack: usize,
+    /// The step of `stack`.
+    stack_at: u32,
+    /// Whether a step wrote the lowest word of the window (then `stack` is a lower bound).
+    overflow: bool,
 }
 
 impl Meter {
-    fn new(clock: Clock) -> Self {
+    fn new(clock: Clock, window: usize) -> Self {
         Self {
             start: 0,
             clock,
@@ -144,8 +167,16 @@ impl Meter {
             sum: 0,
             min: u32::MAX,
             max: 0,
+            max_at: 0,
+            max_later: 0,
+            max_later_at: 0,
             first: 0,
             samples: [0; SAMPLE_STEPS.len()],
+            window,
+            top: 0,
+            stack: 0,
+            stack_at: 0,
+            overflow: false,
         }
     }
 
@@ -159,6 +190,25 @@ impl Meter {
 impl Probe for Meter {
     #[inline(always)]
     fn enter(&mut self) {
+        if self.n == COMPANION_STOP_AT.load(core::sync::atomic::Ordering::Relaxed) {
+            companion_step_mark(self.n);
+        }
+        if self.window > 0 {
+            // Paint [sp − window, sp): the step's frames will be there, and nothing
+            // else writes below the stack pointer of this (the caller's) frame until the
+            // step is called.
+            let top = stack_pointer_register() & !3;
+            let bottom = top.saturating_sub(self.window).max(stack_floor());
+            self.top = top;
+            let mut p = bottom;
+            while p < top {
+                // SAFETY: [bottom, top) is RAM below the stack pointer (free: the step
+                // is not yet called and this loop keeps its state in registers) and
+                // above every static (`.bss` ends at the floor).
+                unsafe { core::ptr::write_volatile(p as *mut u32, PAINT) };
+                p += 4;
+            }
+        }
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
         self.start = ticks();
         core::sync::atomic::compiler_fence(core::sync::atomic::Ordering::SeqCst);
@@ -172,22 +222,75 @@ impl Probe for Meter {
         let d = self.clock.instructions(elapsed(self.start, end)).saturating_sub(self.clock.overhead);
         if self.n == 0 {
             self.first = d;
+        } else if d > self.max_later {
+            self.max_later = d;
+            self.max_later_at = self.n;
         }
         if let Some(i) = SAMPLE_STEPS.iter().position(|&k| k == self.n) {
             self.samples[i] = d;
         }
+        if d > self.max || self.n == 0 {
+            self.max = d;
+            self.max_at = self.n;
+        }
+        if self.window > 0 {
+            let bottom = self.top.saturating_sub(self.window).max(stack_floor());
+            let mut p = bottom;
+            // SAFETY: reads the painted window, RAM below this frame's stack pointer.
+            while p < self.top && unsafe { core::ptr::read_volatile(p as *const u32) } == PAINT {
+                p += 4;
+            }
+            let used = self.top - p;
+            if used > self.stack {
+                self.stack = used;
+                self.stack_at = self.n;
+            }
+            self.overflow |= p == bottom;
+        }
         self.n += 1;
         self.sum += u64::from(d);
         self.min = self.min.min(d);
-        self.max = self.max.max(d);
     }
+}
+
+/// The stack pointer (the register, not the address of a local, which is above it).
+#[inline(always)]
+fn stack_pointer_register() -> usize {
+    let sp: usize;
+    // SAFETY: copies SP into a register; no memory access, flags unchanged.
+    unsafe { core::arch::asm!("mov {}, sp", out(reg) sp, options(nomem, nostack, preserves_flags)) };
+    sp
+}
+
+/// The step of the current case before which [`companion_step_mark`] is called (none
+/// unless `gdbcount.py` writes one here, through QEMU's gdb stub).
+#[no_mangle]
+static COMPANION_STOP_AT: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(u32::MAX);
+
+/// Called before step [`COMPANION_STOP_AT`] of a case, outside the step's SysTick
+/// readings (the next reading starts the step): `gdbcount.py` breaks here instead of at
+/// each of the steps before. Exported and never inlined, as [`companion_case_start`].
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn companion_step_mark(step: u32) {
+    black_box(step);
+}
+
+/// Marks the start of a case (called just before it, with its name): `gdbcount.py` breaks
+/// here, reads the name (pointer in r0, length in r1) and numbers the calls of the case's
+/// step function from here. Exported unmangled so that its name and calling convention are
+/// fixed; never inlined.
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn companion_case_start(name: *const u8, len: usize) {
+    black_box((name, len));
 }
 
 /// Instructions of an empty `enter`/`leave` pair, least and most of 16 (equal when the
 /// counts are exact).
 #[inline(never)]
 fn empty_bracket(per: u32) -> (u32, u32) {
-    let mut m = Meter::new(Clock { per, overhead: 0 });
+    let mut m = Meter::new(Clock { per, overhead: 0 }, 0);
     for _ in 0..16 {
         m.enter();
         m.leave();
@@ -324,7 +427,7 @@ const FUNCTION_ARGS: [f64; 8] = [0.3, 1.2, -2.5, 3.0, 0.05, 2.0, -0.7, 5.5];
 
 /// Prints the mean instructions of one call of `f` (including a call through `dyn`).
 fn function_cost<T: Real>(out: &mut Out, name: &str, ty: &str, clock: Clock, f: &dyn Fn(T) -> T) {
-    let mut m = Meter::new(clock);
+    let mut m = Meter::new(clock, 0);
     for a in FUNCTION_ARGS {
         // The argument is converted before the first reading (black_box) and passes
         // through black_box after it, so the call can be neither hoisted above the first
@@ -411,8 +514,10 @@ fn main() -> ! {
         let build_stack = stack_of(|| {
             scenario::first_steps(case, &mut NoStack);
         });
-        let mut meter = Meter::new(clock);
+        // Each step's stack painted in a window of twice the first two steps' and 1 KiB.
+        let mut meter = Meter::new(clock, (2 * step_stack + 1024 + 3) & !3);
         let mut outcome = None;
+        companion_case_start(case.name.as_ptr(), case.name.len());
         let case_stack = stack_of(|| outcome = Some(scenario::run_case(case, &mut out, &mut meter)));
         if outcome.is_none_or(|o| o.rejected > 0) {
             failed = true;
@@ -420,14 +525,24 @@ fn main() -> ! {
         for (k, n) in SAMPLE_STEPS.iter().zip(meter.samples) {
             let _ = writeln!(out, "S {} {k} {n}", case.name);
         }
+        let _ = writeln!(out, "S {} {} {}", case.name, meter.max_at, meter.max);
+        let _ = writeln!(out, "S {} {} {}", case.name, meter.max_later_at, meter.max_later);
         let _ = writeln!(
             out,
-            "C {} {} {} {} {} {step_stack} {case_stack} {build_stack}",
+            "C {} {} {} {} {} {} {} {} {} {step_stack} {case_stack} {build_stack} {} {} {} {}",
             case.name,
-            meter.mean(),
+            meter.n,
+            meter.sum,
             meter.min,
             meter.max,
-            meter.first
+            meter.max_at,
+            meter.max_later,
+            meter.max_later_at,
+            meter.first,
+            meter.stack,
+            meter.stack_at,
+            meter.window,
+            u8::from(meter.overflow),
         );
     }
     let (end, _) = calibrate();

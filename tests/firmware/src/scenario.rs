@@ -2,15 +2,22 @@
 //! and the host test `tests/tests/firmware_host.rs` (`#[path] mod scenario`) both compile,
 //! so that both run the same operations and their outputs can be compared bit for bit.
 //!
-//! It closes the loop of the controller around a minimal plant on the first 3 s of the
-//! paper's trajectory 1 (SPEC §4): target velocity `u_d(t) = −(π/20)(sin(πt/2),
-//! cos(πt/2), 0)`, platform at the origin, target at `(2.6, 1, 0)`, `q(0) = (0, 0.35, 0)`,
-//! step 1 ms, for runs (a) and (c) on the unicycle, car-like and omnidirectional platforms,
-//! in `f32` and `f64`; and the spatial law of §5 ([`SpatialArm`]): the UR5 on the unicycle,
-//! run (a), on trajectory 1 lifted (the same circle, the target level and `0.2 m` below the
-//! flange at home, plus `z = 0.05 sin(2πt/10)` m), from its home configuration. It prints
-//! a digest of the commands (FNV-1a of their bits) every [`REPORT_EVERY`] steps and a final
-//! line per case.
+//! It closes the loop of the controller around a minimal plant, step 1 ms, platform at the
+//! origin, `q(0) = (0, 0.35, 0)`, on the start of the paper's two trajectories (SPEC §4):
+//! - trajectory 1, the first 3 s: target velocity `u_d(t) = −(π/20)(sin(πt/2), cos(πt/2),
+//!   0)`, target at `(2.6, 1, 0)`;
+//! - trajectory 2 (Table 1), the first 6 s: the target at rest at `(2.5, 1, 0)` for 5 s,
+//!   then the first second of its first rotation, `ω_d = (π²/20) cos(π(t − 5)/2)` (a jump
+//!   of `ω_d` from 0 to 0.49 rad/s at `t = 5 s`).
+//!
+//! In `f32`, all four of the paper's runs (a)–(d) on both trajectories, unicycle, car-like
+//! and omnidirectional (the 8 runs × 3 platforms of the cost table), and the `Sampled`
+//! discretisation on the unicycle's 8 runs; in `f64` (≈ 50 times slower on the M4F), runs
+//! (a) and (c) of trajectory 1; and the spatial law of §5 ([`SpatialArm`]): the UR5 on the
+//! unicycle, run (a), on trajectory 1 lifted (the same circle, the target level and `0.2 m`
+//! below the flange at home, plus `z = 0.05 sin(2πt/10)` m), from its home configuration.
+//! It prints a digest of the commands (FNV-1a of their bits) every [`REPORT_EVERY`] steps
+//! and a final line per case.
 //!
 //! Output lines (space separated, floats as the hex bits of their `f64` value):
 //!
@@ -32,8 +39,10 @@ use companion_core::{
 
 /// Control period (s).
 pub const DT: f64 = 1e-3;
-/// Steps per case: 3 s.
-pub const STEPS: u32 = 3000;
+/// Steps of a case on trajectory 1: 3 s.
+pub const STEPS_1: u32 = 3000;
+/// Steps of a case on trajectory 2: 6 s (the rest, then the first second of the rotation).
+pub const STEPS_2: u32 = 6000;
 /// A `D` line every this many steps (and after the last).
 pub const REPORT_EVERY: u32 = 250;
 
@@ -50,14 +59,26 @@ pub enum Plat {
     Ur5Uni,
 }
 
+/// The paper's target trajectory of a case (§4.3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Traj {
+    /// Trajectory 1, the circle ([`target`]), for [`STEPS_1`] steps.
+    One,
+    /// Trajectory 2, Table 1 ([`target_2`]), for [`STEPS_2`] steps.
+    Two,
+}
+
 /// One closed-loop run.
 #[derive(Clone, Copy, Debug)]
 pub struct Case {
-    /// Short name used in the output.
+    /// Short name used in the output: platform, trajectory and run (`uni-2c-f32`), scalar,
+    /// `-sampled` for the earlier discretisation.
     pub name: &'static str,
     /// The platform.
     pub plat: Plat,
-    /// The paper's run (a) or (c).
+    /// The paper's trajectory.
+    pub traj: Traj,
+    /// The paper's run (a)–(d).
     pub run: PaperRun,
     /// `f64` (else `f32`).
     pub double: bool,
@@ -65,38 +86,82 @@ pub struct Case {
     pub sampled: bool,
 }
 
-const fn case(name: &'static str, plat: Plat, run: PaperRun, double: bool) -> Case {
-    Case { name, plat, run, double, sampled: false }
+impl Case {
+    /// Steps of 1 ms the case runs.
+    pub const fn steps(&self) -> u32 {
+        match self.traj {
+            Traj::One => STEPS_1,
+            Traj::Two => STEPS_2,
+        }
+    }
 }
 
-const fn sampled(name: &'static str, plat: Plat, run: PaperRun, double: bool) -> Case {
-    Case { name, plat, run, double, sampled: true }
+const fn f32c(name: &'static str, plat: Plat, traj: Traj, run: PaperRun) -> Case {
+    Case { name, plat, traj, run, double: false, sampled: false }
 }
 
-/// Every case, in output order. The `Sampled` cases come last, so that in each instance of
-/// `controller_step` the calls of run (a) and then (c) of the default come first (the
-/// single-step count numbers calls per instance). The spatial cases (`ur5-…`) step through
-/// their own function, `spatial_step`.
-pub const CASES: [Case; 19] = [
-    case("uni-a-f32", Plat::Uni, PaperRun::A, false),
-    case("uni-c-f32", Plat::Uni, PaperRun::C, false),
-    case("car-a-f32", Plat::Car, PaperRun::A, false),
-    case("car-c-f32", Plat::Car, PaperRun::C, false),
-    case("omni-a-f32", Plat::Omni, PaperRun::A, false),
-    case("omni-c-f32", Plat::Omni, PaperRun::C, false),
-    case("uni-a-f64", Plat::Uni, PaperRun::A, true),
-    case("uni-c-f64", Plat::Uni, PaperRun::C, true),
-    case("car-a-f64", Plat::Car, PaperRun::A, true),
-    case("car-c-f64", Plat::Car, PaperRun::C, true),
-    case("omni-a-f64", Plat::Omni, PaperRun::A, true),
-    case("omni-c-f64", Plat::Omni, PaperRun::C, true),
-    sampled("uni-a-f32-sampled", Plat::Uni, PaperRun::A, false),
-    sampled("uni-c-f32-sampled", Plat::Uni, PaperRun::C, false),
-    sampled("car-a-f32-sampled", Plat::Car, PaperRun::A, false),
-    sampled("omni-a-f32-sampled", Plat::Omni, PaperRun::A, false),
-    sampled("uni-a-f64-sampled", Plat::Uni, PaperRun::A, true),
-    case("ur5-uni-a-f32", Plat::Ur5Uni, PaperRun::A, false),
-    case("ur5-uni-a-f64", Plat::Ur5Uni, PaperRun::A, true),
+const fn f64c(name: &'static str, plat: Plat, run: PaperRun) -> Case {
+    Case { name, plat, traj: Traj::One, run, double: true, sampled: false }
+}
+
+const fn sampled(name: &'static str, plat: Plat, traj: Traj, run: PaperRun, double: bool) -> Case {
+    Case { name, plat, traj, run, double, sampled: true }
+}
+
+use PaperRun::{A, B, C, D};
+use Plat::{Car, Omni, Uni, Ur5Uni};
+use Traj::{One, Two};
+
+/// Every case, in output order: the `f32` cases of the cost table first (the default law,
+/// 8 runs × 3 platforms, then the sampled one), so that the single-step count reaches them
+/// soon; then the spatial law in `f32`, the `f64` cases, the UR5 in `f64`. The firmware
+/// marks the start of each case (`companion_case_start`), where `gdbcount.py` starts
+/// numbering the calls of the case's step function. The spatial cases (`ur5-…`) step
+/// through their own function, `spatial_step`.
+pub const CASES: [Case; 43] = [
+    f32c("uni-1a-f32", Uni, One, A),
+    f32c("uni-1b-f32", Uni, One, B),
+    f32c("uni-1c-f32", Uni, One, C),
+    f32c("uni-1d-f32", Uni, One, D),
+    f32c("uni-2a-f32", Uni, Two, A),
+    f32c("uni-2b-f32", Uni, Two, B),
+    f32c("uni-2c-f32", Uni, Two, C),
+    f32c("uni-2d-f32", Uni, Two, D),
+    f32c("car-1a-f32", Car, One, A),
+    f32c("car-1b-f32", Car, One, B),
+    f32c("car-1c-f32", Car, One, C),
+    f32c("car-1d-f32", Car, One, D),
+    f32c("car-2a-f32", Car, Two, A),
+    f32c("car-2b-f32", Car, Two, B),
+    f32c("car-2c-f32", Car, Two, C),
+    f32c("car-2d-f32", Car, Two, D),
+    f32c("omni-1a-f32", Omni, One, A),
+    f32c("omni-1b-f32", Omni, One, B),
+    f32c("omni-1c-f32", Omni, One, C),
+    f32c("omni-1d-f32", Omni, One, D),
+    f32c("omni-2a-f32", Omni, Two, A),
+    f32c("omni-2b-f32", Omni, Two, B),
+    f32c("omni-2c-f32", Omni, Two, C),
+    f32c("omni-2d-f32", Omni, Two, D),
+    sampled("uni-1a-f32-sampled", Uni, One, A, false),
+    sampled("uni-1b-f32-sampled", Uni, One, B, false),
+    sampled("uni-1c-f32-sampled", Uni, One, C, false),
+    sampled("uni-1d-f32-sampled", Uni, One, D, false),
+    sampled("uni-2a-f32-sampled", Uni, Two, A, false),
+    sampled("uni-2b-f32-sampled", Uni, Two, B, false),
+    sampled("uni-2c-f32-sampled", Uni, Two, C, false),
+    sampled("uni-2d-f32-sampled", Uni, Two, D, false),
+    sampled("car-1a-f32-sampled", Car, One, A, false),
+    sampled("omni-1a-f32-sampled", Omni, One, A, false),
+    f32c("ur5-uni-1a-f32", Ur5Uni, One, A),
+    f64c("uni-1a-f64", Uni, A),
+    f64c("uni-1c-f64", Uni, C),
+    f64c("car-1a-f64", Car, A),
+    f64c("car-1c-f64", Car, C),
+    f64c("omni-1a-f64", Omni, A),
+    f64c("omni-1c-f64", Omni, C),
+    sampled("uni-1a-f64-sampled", Uni, One, A, true),
+    f64c("ur5-uni-1a-f64", Ur5Uni, A),
 ];
 
 /// Hooks around each controller step (the firmware counts instructions there).
@@ -176,6 +241,56 @@ pub fn target<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
     let speed = T::pi() / T::of(20.0);
     let pose = Pose::new(T::of(2.6) + tenth * (c - T::one()), T::one() - tenth * s, T::zero());
     (pose, Vector3::new(-speed * s, -speed * c, T::zero()))
+}
+
+/// `(r_d(t), u_d(t))` of trajectory 2 (Table 1), in closed form, with `r_d(0) = (2.5, 1,
+/// 0)`: at rest for 5 s; rotations in place, `ω_d = (π²/20) cos(π(t − t₀)/2)`, on [5, 27)
+/// and [37, 59) s, each of which ends where it started (`θ_d = (π/10) sin(π(t − t₀)/2)`,
+/// zero at the end); between and after them straight lines at `θ_d = 0`: `v₁ = 0.2` m/s on
+/// [27, 37), `v₂ = 0.05` m/s on [59, 99), rest on [99, 105), `v₁ = −0.2` m/s on [105, 115),
+/// then rest. (The cases run its first 6 s.)
+pub fn target_2<T: Real>(t: T) -> (Pose<T>, Vector3<T>) {
+    let at = |x: f64, y: f64| Pose::new(T::of(x), T::of(y), T::zero());
+    let rest = T::of(5.0);
+    if t < rest {
+        return (Pose::new(T::of(2.5), T::one(), T::zero()), Vector3::zeros());
+    }
+    let rotation = |t0: T, x: f64, y: f64| {
+        let pi = T::pi();
+        let (s, c) = (pi * T::of(0.5) * (t - t0)).sincos();
+        (
+            Pose::new(T::of(x), T::of(y), pi / T::of(10.0) * s),
+            Vector3::new(T::zero(), T::zero(), pi * pi / T::of(20.0) * c),
+        )
+    };
+    let line = |t0: f64, x: f64, y: f64, vx: f64, vy: f64| {
+        let d = t - T::of(t0);
+        let pose = Pose::new(T::of(x) + T::of(vx) * d, T::of(y) + T::of(vy) * d, T::zero());
+        (pose, Vector3::new(T::of(vx), T::of(vy), T::zero()))
+    };
+    if t < T::of(27.0) {
+        rotation(rest, 2.5, 1.0)
+    } else if t < T::of(37.0) {
+        line(27.0, 2.5, 1.0, 0.2, 0.0)
+    } else if t < T::of(59.0) {
+        rotation(T::of(37.0), 4.5, 1.0)
+    } else if t < T::of(99.0) {
+        line(59.0, 4.5, 1.0, 0.0, 0.05)
+    } else if t < T::of(105.0) {
+        (at(4.5, 3.0), Vector3::zeros())
+    } else if t < T::of(115.0) {
+        line(105.0, 4.5, 3.0, -0.2, 0.0)
+    } else {
+        (at(2.5, 3.0), Vector3::zeros())
+    }
+}
+
+/// The target of case `c` at `t`.
+fn target_of<T: Real>(c: &Case, t: T) -> (Pose<T>, Vector3<T>) {
+    match c.traj {
+        Traj::One => target(t),
+        Traj::Two => target_2(t),
+    }
 }
 
 /// Trajectory 1 lifted, from `start`: the circle of [`target`], level, plus
@@ -281,9 +396,9 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
     let mut digest = FNV_OFFSET;
     let mut rejected = 0;
     let mut e_p = f64::NAN;
-    for n in 0..STEPS {
+    for n in 0..c.steps() {
         let t = T::of(f64::from(n)) * dt;
-        let (target, target_velocity) = target(t);
+        let (target, target_velocity) = target_of(c, t);
         let meas =
             Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
         // The inputs are complete in memory before the probe's first reading (black_box
@@ -322,7 +437,7 @@ fn record<T: Real, const N: usize, W: Write>(
     for w in command_words(cmd) {
         digest = fnv(digest, w);
     }
-    if (n + 1) % REPORT_EVERY == 0 || n + 1 == STEPS {
+    if (n + 1) % REPORT_EVERY == 0 || n + 1 == c.steps() {
         let _ = write!(out, "D {} {} {:016x}", c.name, n + 1, digest);
         for w in command_words(cmd) {
             let _ = write!(out, " {w:016x}");
@@ -334,9 +449,9 @@ fn record<T: Real, const N: usize, W: Write>(
 
 /// The case's `F` line and outcome.
 fn finish<W: Write>(c: &Case, rejected: u32, digest: u64, e_p: f64, out: &mut W) -> Outcome {
-    let _ =
-        writeln!(out, "F {} {} {} {:016x} {:016x} {:e}", c.name, STEPS, rejected, digest, e_p.to_bits(), e_p);
-    Outcome { steps: STEPS, rejected, digest, e_p }
+    let steps = c.steps();
+    let _ = writeln!(out, "F {} {steps} {rejected} {digest:016x} {:016x} {e_p:e}", c.name, e_p.to_bits());
+    Outcome { steps, rejected, digest, e_p }
 }
 
 /// The spatial law's controller with the UR5.
@@ -392,7 +507,7 @@ where
     let mut digest = FNV_OFFSET;
     let mut rejected = 0;
     let mut e_p = f64::NAN;
-    for n in 0..STEPS {
+    for n in 0..c.steps() {
         let t = T::of(f64::from(n)) * dt;
         let (target, target_velocity) = lifted(t, &start);
         let meas =
@@ -495,7 +610,7 @@ fn one<T: Real, P: Platform<T>, S: StackProbe>(c: &Case, platform: P, stack: &mu
         params.discretisation = Discretisation::Sampled;
     }
     if let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) {
-        let (target, target_velocity) = target(T::zero());
+        let (target, target_velocity) = target_of(c, T::zero());
         let meas = Measurement {
             t: T::zero(),
             base: Pose::new(T::zero(), T::zero(), T::zero()),
