@@ -249,10 +249,13 @@ fn own_pid() -> i32 {
     i32::try_from(std::process::id()).unwrap_or(0)
 }
 
-/// The state of the first node of another process that `keep(id, node name)` picks, from
-/// iceoryx2's node list (a live one is preferred to a dead one).
+/// The state of the first node that `keep(id, node name)` picks, from iceoryx2's node list (a
+/// live one is preferred to a dead one).
+///
+/// Nodes are told apart by id, never by process: the two ends of a demo may live in one
+/// process (the in-process tests do), and a filter on the own pid made each end find its peer
+/// "absent" after the first silence, as if it had left.
 fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -> Result<PeerState> {
-    let own = own_pid();
     let mut found = PeerState::Absent;
     Node::<ipc::Service>::list(cfg, |state| {
         let (id, details, alive) = match &state {
@@ -262,7 +265,7 @@ fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -
         };
         let (pid, name) =
             details.map_or((0, String::new()), |d| (d.process_id().value(), d.name().to_string()));
-        if pid != own && keep(&id, &name) {
+        if keep(&id, &name) {
             found = if alive { PeerState::Alive(pid) } else { PeerState::Dead(pid) };
             if alive {
                 return CallbackProgression::Stop;
