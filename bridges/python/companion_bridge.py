@@ -348,8 +348,15 @@ class Link:
         iox.set_log_level_from_env_or(iox.LogLevel.Fatal)
         self.cfg = iox.config.default()
         self.cfg.global_cfg.prefix = iox.FileName.new(PREFIX)
+        # No clean-up of every dead node of the prefix when a node is created or dropped: that
+        # would let this process erase another demo's just-killed peer before its partner looks
+        # (docs/protocol.md §2). Only this demo's dead nodes are removed, below and in
+        # peer_state.
+        self.cfg.global_cfg.node.cleanup_dead_nodes_on_creation = False
+        self.cfg.global_cfg.node.cleanup_dead_nodes_on_destruction = False
         self.name = name
         self.version = service_version
+        self.remove_dead(self.demo_dead_nodes())
         self.node = iox.NodeBuilder.new().config(self.cfg).create(iox.ServiceType.Ipc)
         base = f"companion/{name}/v{service_version}"
         self.meas_service = self._pubsub(base + "/measurement", Measurement, default_settings)
@@ -366,6 +373,27 @@ class Link:
             self.notifier = ready.notifier_builder().create()
             self.listener = self._event(base + "/command-ready").listener_builder().create()
         self.peer = None
+
+    def demo_dead_nodes(self):
+        """Ids of the dead nodes an earlier run of this demo left: those attached to its
+        services, and the project's own nodes NAME/plant and NAME/control."""
+        prefix = f"companion/{self.name}/"
+        ids = []  # (the binding's UniqueNodeId compares but does not hash)
+        for d in iox.Service.list(self.cfg, iox.ServiceType.Ipc):
+            if d.name().to_string().startswith(prefix):
+                ids.extend(n._0.id for n in d.nodes() or [] if isinstance(n, iox.NodeState.Dead))
+        names = {f"{self.name}/plant", f"{self.name}/control"}
+        for n in iox.Node.list(iox.ServiceType.Ipc, self.cfg):
+            if isinstance(n, iox.NodeState.Dead) and n._0.details is not None:
+                if n._0.details.name.as_str() in names:
+                    ids.append(n._0.id)
+        return ids
+
+    def remove_dead(self, ids):
+        """Removes the resources of the dead nodes whose ids are in `ids`, and only those."""
+        for n in iox.Node.list(iox.ServiceType.Ipc, self.cfg):
+            if isinstance(n, iox.NodeState.Dead) and n._0.id in ids:
+                n._0.try_remove_stale_resources()
 
     def _pubsub(self, name, payload, default_settings):
         sn = iox.ServiceName.new(name)
@@ -488,7 +516,7 @@ class Link:
                 if isinstance(n, iox.NodeState.Dead):
                     state = "dead"
         if state == "dead":
-            self.node.try_cleanup_dead_nodes()
+            self.remove_dead(ids)
         return state
 
 
@@ -704,6 +732,7 @@ class Bridge:
         delay = 0.0
         for n in range(steps + 1):
             self.maybe_fault(n)
+            self.progress(n)
             self.publish(n, END_OF_RUN if n == steps else 0, delay)
             heard = spun = time.monotonic_ns()
             while True:
@@ -732,6 +761,7 @@ class Bridge:
         heard = start
         for n in range(steps + 1):
             self.maybe_fault(n)
+            self.progress(n)
             release = start + n * period
             while time.monotonic_ns() < release - 300_000:
                 time.sleep(0.0001)
@@ -790,6 +820,12 @@ class Bridge:
             if not got:
                 self.watch(heard)
         return EXIT_OK
+
+    def progress(self, n):
+        """A line every --progress periods: a counted state others can wait for."""
+        every = self.a.progress
+        if every > 0 and n > 0 and n % every == 0:
+            print(f"bridge: period {n}", file=sys.stderr, flush=True)
 
     def maybe_fault(self, n):
         a = self.a
@@ -916,6 +952,9 @@ def main(argv=None):
     p.add_argument("--pause-ms", type=float, default=100.0)
     p.add_argument("--stall-at", type=int, default=-1, help="(tests) stop publishing, stay alive")
     p.add_argument("--out", help="write the run's figures as JSON here")
+    p.add_argument(
+        "--progress", type=int, default=0, help="print 'bridge: period N' every N periods (0: never)"
+    )
     a = p.parse_args(argv)
     a.inject = parse_inject(a.inject)
     if a.scenario_json:

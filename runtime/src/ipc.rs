@@ -42,9 +42,12 @@
 //! (iceoryx2's sample header names it), or before the first sample the node of the
 //! subscribed service's publisher. Its state comes from iceoryx2's node list: a process that
 //! died is reported [`PeerState::Dead`] at once, a node that was removed [`PeerState::Absent`].
-//! Nothing depends on node names. [`Endpoint::cleanup_dead_nodes`] then removes a dead
-//! peer's shared memory, so that the next run starts clean (creating a node also cleans dead
-//! nodes).
+//! Nothing depends on node names. [`Endpoint::cleanup_dead_nodes`] then removes that dead
+//! peer's shared memory, and the next run of the same name removes what its dead processes
+//! left ([`remove_dead_nodes_of_demo`]). No process of this project removes another demo's dead
+//! nodes: iceoryx2's clean-up of every dead node whenever a node is created or dropped is off
+//! ([`config`]), since it let a third process erase a just-killed peer before its partner looked
+//! (the partner then reported a death as a clean leave).
 //!
 //! The project's own processes name their nodes `N/plant` and `N/control`, and a second demo
 //! with the *same* name finds the first one's node alive and stops with [`NameInUse`]; a
@@ -167,10 +170,58 @@ pub fn validate_name(name: &str) -> Result<()> {
 ///
 /// # Errors
 /// The prefix is not a valid file name (never, it is a constant).
+///
+/// iceoryx2's implicit clean-up of *every* dead node of the prefix, whenever any node is
+/// created or dropped, is turned off: it let any other process of this project (another demo,
+/// a test beside it) remove a peer that had just been killed before its own partner looked,
+/// and the partner then said "left" for a process that died. Each side removes only what is
+/// its demo's: the dead peer it found ([`Endpoint::cleanup_dead_nodes`]) and, at start-up, the
+/// dead nodes an earlier run of the same name left ([`remove_dead_nodes_of_demo`]).
 pub fn config() -> Result<Config> {
     let mut cfg = Config::global_config().clone();
     cfg.global.prefix = FileName::new(PREFIX).map_err(|e| anyhow!("iceoryx2 prefix: {e:?}"))?;
+    cfg.global.node.cleanup_dead_nodes_on_creation = false;
+    cfg.global.node.cleanup_dead_nodes_on_destruction = false;
     Ok(cfg)
+}
+
+/// Removes the resources of the dead nodes that `pick` selects by id; returns how many were
+/// removed. (Listed first, removed after the list: removing inside iceoryx2's iteration would
+/// change the folder it walks.)
+fn remove_dead_nodes(cfg: &Config, mut pick: impl FnMut(&UniqueNodeId, &str) -> bool) -> u64 {
+    let mut dead = Vec::new();
+    let _ = Node::<ipc::Service>::list(cfg, |state| {
+        if let NodeState::Dead(v) = state {
+            let name = v.details().as_ref().map(|d| d.name().to_string()).unwrap_or_default();
+            if pick(v.id(), &name) {
+                dead.push(v);
+            }
+        }
+        CallbackProgression::Continue
+    });
+    dead.into_iter().map(|v| u64::from(v.try_remove_stale_resources().is_ok())).sum()
+}
+
+/// Removes what dead processes of demo `name` left: nodes named `NAME/plant` or
+/// `NAME/control`, and any other dead node attached to a service `companion/NAME/…` (a
+/// bridge's node has no particular name). Other demos' residue is theirs to remove. Returns
+/// how many nodes were removed.
+pub fn remove_dead_nodes_of_demo(cfg: &Config, name: &str) -> u64 {
+    let base = format!("companion/{name}/");
+    let mut attached = Vec::new();
+    let _ = ipc::Service::list(cfg, |details| {
+        if details.static_details.name().as_str().starts_with(&base) {
+            if let Some(d) = &details.dynamic_details {
+                attached.extend(d.nodes.iter().filter_map(|n| match n {
+                    NodeState::Dead(v) => Some(*v.id()),
+                    _ => None,
+                }));
+            }
+        }
+        CallbackProgression::Continue
+    });
+    let roles = [node_name(name, Role::Plant), node_name(name, Role::Control)];
+    remove_dead_nodes(cfg, |id, n| attached.contains(id) || roles.iter().any(|r| r == n))
 }
 
 /// Silences iceoryx2's own log (expected failures, such as a refused second publisher, are
@@ -198,10 +249,13 @@ fn own_pid() -> i32 {
     i32::try_from(std::process::id()).unwrap_or(0)
 }
 
-/// The state of the first node of another process that `keep(id, node name)` picks, from
-/// iceoryx2's node list (a live one is preferred to a dead one).
+/// The state of the first node that `keep(id, node name)` picks, from iceoryx2's node list (a
+/// live one is preferred to a dead one).
+///
+/// Nodes are told apart by id, never by process: the two ends of a demo may live in one
+/// process (the in-process tests do), and a filter on the own pid made each end find its peer
+/// "absent" after the first silence, as if it had left.
 fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -> Result<PeerState> {
-    let own = own_pid();
     let mut found = PeerState::Absent;
     Node::<ipc::Service>::list(cfg, |state| {
         let (id, details, alive) = match &state {
@@ -211,7 +265,7 @@ fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -
         };
         let (pid, name) =
             details.map_or((0, String::new()), |d| (d.process_id().value(), d.name().to_string()));
-        if pid != own && keep(&id, &name) {
+        if keep(&id, &name) {
             found = if alive { PeerState::Alive(pid) } else { PeerState::Dead(pid) };
             if alive {
                 return CallbackProgression::Stop;
@@ -385,7 +439,8 @@ pub struct Endpoint<
     name: String,
     role: Role,
     cfg: Config,
-    node: Node<ipc::Service>,
+    /// Kept for the ports' lifetime: dropping it would remove this process's node.
+    _node: Node<ipc::Service>,
     tx_service: pubsub_factory::PortFactory<ipc::Service, Tx, ()>,
     rx_service: pubsub_factory::PortFactory<ipc::Service, Rx, ()>,
     publisher: Publisher<ipc::Service, Tx, ()>,
@@ -412,8 +467,9 @@ pub type PlantEndpoint = Endpoint<MeasurementMsg, CommandMsg>;
 pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
 
 impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
-    /// Opens `role`'s side of demo `name`: checks that the name is free, creates the node (which
-    /// also cleans the resources of dead nodes), the services and the ports; `events`: the
+    /// Opens `role`'s side of demo `name`: checks that the name is free, removes what dead
+    /// processes of this demo left ([`remove_dead_nodes_of_demo`]), creates the node, the
+    /// services and the ports; `events`: the
     /// event services too (a notifier on ours, a listener on the peer's).
     ///
     /// # Errors
@@ -422,6 +478,7 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
         validate_name(name)?;
         let cfg = config()?;
         ensure_name_free(&cfg, name, role)?;
+        remove_dead_nodes_of_demo(&cfg, name);
         let (tx, rx) = role.services();
         let node_name = NodeName::new(&node_name(name, role)).map_err(|e| anyhow!("node name: {e:?}"))?;
         let node = NodeBuilder::new()
@@ -473,7 +530,7 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
             name: name.to_string(),
             role,
             cfg,
-            node,
+            _node: node,
             tx_service,
             rx_service,
             publisher,
@@ -606,10 +663,22 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
         }
     }
 
-    /// Removes the resources of dead nodes (a dead peer's shared memory). Returns how many
-    /// nodes were cleaned.
+    /// Removes the dead peer's resources (its shared memory), and only its: the peer that
+    /// published the last received sample, or before the first sample the subscribed service's
+    /// publisher. Returns how many nodes were cleaned.
     pub fn cleanup_dead_nodes(&self) -> u64 {
-        self.node.try_cleanup_dead_nodes().cleanups
+        let publishers = match self.peer {
+            Some(id) => vec![id],
+            None => {
+                let mut ids = Vec::new();
+                self.rx_service.dynamic_config().list_publishers(|p| {
+                    ids.push(p.node_id);
+                    CallbackProgression::Continue
+                });
+                ids
+            }
+        };
+        remove_dead_nodes(&self.cfg, |id, _| publishers.contains(id))
     }
 }
 

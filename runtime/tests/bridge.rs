@@ -113,17 +113,97 @@ fn pair(control_args: &[&str], bridge_args: &[&str]) -> ((ExitStatus, String), (
     (bo, finish(c, LIMIT, "controller"))
 }
 
+/// Waits until demo `name`'s two services exist (whoever created them), as iceoryx2 lists
+/// them: the state "the first side is up", however slowly it started.
+fn wait_for_services(name: &str) {
+    use iceoryx2::prelude::*;
+    companion_runtime::ipc::quiet_logs();
+    let cfg = companion_runtime::ipc::config().unwrap();
+    let want = ["measurement", "command"].map(|w| companion_runtime::ipc::service_name(name, w));
+    let end = Instant::now() + LIMIT;
+    loop {
+        let mut found = 0;
+        ipc::Service::list(&cfg, |d| {
+            found += usize::from(want.iter().any(|w| d.static_details.name().as_str() == w));
+            CallbackProgression::Continue
+        })
+        .unwrap();
+        if found == want.len() {
+            return;
+        }
+        assert!(Instant::now() < end, "demo {name}'s services not created within {LIMIT:?}");
+        std::thread::sleep(Duration::from_millis(5));
+    }
+}
+
 /// The bridge and the controller, `bridge_first` or the other way round, the second started
 /// once the first has created the services: `(bridge, controller)`.
-fn start_in_order(bridge_first: bool, bridge_args: &[&str], control_args: &[&str]) -> (Child, Child) {
+fn start_in_order(
+    bridge_first: bool,
+    name: &str,
+    bridge_args: &[&str],
+    control_args: &[&str],
+) -> (Child, Child) {
     if bridge_first {
         let b = bridge(bridge_args);
-        std::thread::sleep(Duration::from_millis(1500));
+        wait_for_services(name);
         (b, control(control_args))
     } else {
         let c = control(control_args);
-        std::thread::sleep(Duration::from_millis(500));
+        wait_for_services(name);
         (bridge(bridge_args), c)
+    }
+}
+
+/// A child whose stderr lines arrive on a channel as they are written (and are kept for its
+/// end), so that a test can act when the run reaches a counted state.
+struct Watched {
+    child: Child,
+    lines: std::sync::mpsc::Receiver<String>,
+    seen: Vec<String>,
+}
+
+impl Watched {
+    fn new(mut child: Child) -> Self {
+        let err = child.stderr.take().unwrap();
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            use std::io::BufRead;
+            for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+                if tx.send(l).is_err() {
+                    break;
+                }
+            }
+        });
+        Self { child, lines, seen: Vec::new() }
+    }
+
+    /// Waits for a line containing `pat` (at most [`LIMIT`]).
+    fn wait_line(&mut self, pat: &str) {
+        let end = Instant::now() + LIMIT;
+        loop {
+            match self.lines.recv_timeout(end.saturating_duration_since(Instant::now())) {
+                Ok(l) => {
+                    let hit = l.contains(pat);
+                    self.seen.push(l);
+                    if hit {
+                        return;
+                    }
+                }
+                Err(_) => panic!("no line with {pat:?} within {LIMIT:?}; saw {:#?}", self.seen),
+            }
+        }
+    }
+
+    /// To its end (at most `limit`): status and everything it wrote to stdout and stderr.
+    fn finish(self, limit: Duration, what: &str) -> (ExitStatus, String) {
+        let Self { child, lines, mut seen } = self;
+        let (st, out) = finish(child, limit, what);
+        // (The reader ends at the pipe's end, once the process has exited.)
+        while let Ok(l) = lines.recv_timeout(Duration::from_secs(5)) {
+            seen.push(l);
+        }
+        (st, format!("{out}{}", seen.join("\n")))
     }
 }
 
@@ -272,22 +352,42 @@ fn a_killed_bridge_and_a_killed_controller_are_noticed_by_the_other_side() {
     let _g = serial();
     // The bridge killed: the controller finds it dead (iceoryx2's node list, by the node id of
     // its samples; the bridge's node has no particular name).
+    // Each kill comes when the bridge has run 500 periods (a counted state: on a loaded machine
+    // a fixed sleep may end before the loop has started).
     let n = name("killb");
-    let c = control(&["--name", &n, "--duration", "20", "--wait", "hybrid"]);
-    let b = bridge(&["--name", &n, "--duration", "20", "--hold-periods", "200"]);
-    std::thread::sleep(Duration::from_millis(2500));
-    signal(b.id(), "KILL");
+    let c = control(&["--name", &n, "--wait", "hybrid"]);
+    let mut b = Watched::new(bridge(&[
+        "--name",
+        &n,
+        "--duration",
+        "20",
+        "--hold-periods",
+        "200",
+        "--progress",
+        "500",
+    ]));
+    b.wait_line("bridge: period 500");
+    signal(b.child.id(), "KILL");
     let (cs, ct) = finish(c, LIMIT, "controller");
-    let _ = finish(b, LIMIT, "bridge");
+    let _ = b.finish(LIMIT, "bridge");
     assert_eq!(cs.code(), Some(3), "{ct}");
     assert!(ct.contains("the plant (pid") && ct.contains("died"), "{ct}");
     // The controller killed: the bridge stops its robot and says why.
     let n = name("killc");
-    let c = control(&["--name", &n, "--duration", "20", "--wait", "hybrid"]);
-    let b = bridge(&["--name", &n, "--duration", "20", "--hold-periods", "200"]);
-    std::thread::sleep(Duration::from_millis(2500));
+    let c = control(&["--name", &n, "--wait", "hybrid"]);
+    let mut b = Watched::new(bridge(&[
+        "--name",
+        &n,
+        "--duration",
+        "20",
+        "--hold-periods",
+        "200",
+        "--progress",
+        "500",
+    ]));
+    b.wait_line("bridge: period 500");
     signal(c.id(), "KILL");
-    let (bs, bt) = finish(b, LIMIT, "bridge");
+    let (bs, bt) = b.finish(LIMIT, "bridge");
     let _ = finish(c, LIMIT, "controller");
     assert_eq!(bs.code(), Some(3), "{bt}");
     assert!(bt.contains("the controller died") && bt.contains("robot stopped"), "{bt}");
@@ -327,7 +427,7 @@ fn a_bridge_with_iceoryx2_default_settings_is_served_whoever_starts_first() {
     for bridge_first in [true, false] {
         let n = name(if bridge_first { "defaults-b" } else { "defaults-c" });
         let args = ["--name", &n, "--duration", "1", "--lockstep", "--default-settings"];
-        let (b, c) = start_in_order(bridge_first, &args, &["--name", &n, "--duration", "1"]);
+        let (b, c) = start_in_order(bridge_first, &n, &args, &["--name", &n]);
         let (bs, bt) = finish(b, LIMIT, "bridge");
         let (cs, ct) = finish(c, LIMIT, "controller");
         assert!(
@@ -350,8 +450,8 @@ fn a_bridge_with_another_command_layout_is_refused_by_name_whoever_starts_first(
         let n = name(if bridge_first { "layout-b" } else { "layout-c" });
         let bridge_args =
             ["--name", &n, "--duration", "1", "--lockstep", "--short-command", "--startup-timeout", "4"];
-        let control_args = ["--name", &n, "--duration", "1", "--startup-timeout", "4"];
-        let (b, c) = start_in_order(bridge_first, &bridge_args, &control_args);
+        let control_args = ["--name", &n, "--startup-timeout", "4"];
+        let (b, c) = start_in_order(bridge_first, &n, &bridge_args, &control_args);
         let (bs, bt) = finish(b, LIMIT, "bridge");
         let (cs, ct) = finish(c, LIMIT, "controller");
         println!("bridge first: {bridge_first}\n  controller: {}\n  bridge: {}", ct.trim(), bt.trim());

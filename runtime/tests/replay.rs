@@ -289,13 +289,19 @@ fn a_plant_whose_controller_is_killed_leaves_a_readable_replay() {
     };
     let plant = run("plant", &["--out", out.to_str().unwrap(), "--mcap", file.to_str().unwrap()]);
     let mut control = run("control", &[]);
-    std::thread::sleep(std::time::Duration::from_secs(2));
+    // Killed once the plant has streamed 50 rows (a counted state, not a sleep that a loaded
+    // machine may spend starting up); a watchdog, not a measurement, bounds the wait.
+    let csv = out.join("timeseries.csv");
+    let end = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    while std::fs::read(&csv).map_or(0, |b| b.iter().filter(|&&c| c == b'\n').count()) <= 50 {
+        assert!(std::time::Instant::now() < end, "the plant wrote no 50 rows in 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    }
     control.kill().unwrap();
     let _ = control.wait();
     let o = plant.wait_with_output().unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(3), "{err}");
-    let csv = out.join("timeseries.csv");
     let got = check(&file, Some(&csv), "unicycle");
     let frames = got["frames"].as_u64().unwrap();
     assert!(frames > 10 && frames < 3_000, "{got}");

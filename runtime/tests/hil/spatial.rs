@@ -179,7 +179,7 @@ fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
         d.to_str().unwrap(),
     ]);
     let pid = demo.plant_pid();
-    std::thread::sleep(Duration::from_millis(1500));
+    wait_rows(&d.join("timeseries.csv"), 500);
     signal(pid, "KILL");
     let (st, seen) = demo.wait(Duration::from_secs(20));
     assert_eq!(st.code(), Some(3), "{seen:#?}");
