@@ -352,28 +352,20 @@ fn a_killed_bridge_and_a_killed_controller_are_noticed_by_the_other_side() {
     let _g = serial();
     // The bridge killed: the controller finds it dead (iceoryx2's node list, by the node id of
     // its samples; the bridge's node has no particular name).
-    // Each kill comes when the bridge has run 500 periods (a counted state: on a loaded machine
-    // a fixed sleep may end before the loop has started).
-    let n = name("killb");
-    let c = control(&["--name", &n, "--wait", "hybrid"]);
-    let mut b = Watched::new(bridge(&[
-        "--name",
-        &n,
-        "--duration",
-        "20",
-        "--hold-periods",
-        "200",
-        "--progress",
-        "500",
-    ]));
-    b.wait_line("bridge: period 500");
-    signal(b.child.id(), "KILL");
-    let (cs, ct) = finish(c, LIMIT, "controller");
-    let _ = b.finish(LIMIT, "bridge");
+    let ((cs, ct), _) = kill_one_side("killb", true);
     assert_eq!(cs.code(), Some(3), "{ct}");
     assert!(ct.contains("the plant (pid") && ct.contains("died"), "{ct}");
     // The controller killed: the bridge stops its robot and says why.
-    let n = name("killc");
+    let (_, (bs, bt)) = kill_one_side("killc", false);
+    assert_eq!(bs.code(), Some(3), "{bt}");
+    assert!(bt.contains("the controller died") && bt.contains("robot stopped"), "{bt}");
+}
+
+/// A real-time run of `companion control` and the bridge in which one side (the bridge if
+/// `bridge`) is SIGKILLed once the bridge has run 500 periods — a counted state: on a loaded
+/// machine a fixed sleep may end before the loop has started. `((controller), (bridge))`.
+fn kill_one_side(tag: &str, bridge_dies: bool) -> ((ExitStatus, String), (ExitStatus, String)) {
+    let n = name(tag);
     let c = control(&["--name", &n, "--wait", "hybrid"]);
     let mut b = Watched::new(bridge(&[
         "--name",
@@ -386,11 +378,9 @@ fn a_killed_bridge_and_a_killed_controller_are_noticed_by_the_other_side() {
         "500",
     ]));
     b.wait_line("bridge: period 500");
-    signal(c.id(), "KILL");
-    let (bs, bt) = b.finish(LIMIT, "bridge");
-    let _ = finish(c, LIMIT, "controller");
-    assert_eq!(bs.code(), Some(3), "{bt}");
-    assert!(bt.contains("the controller died") && bt.contains("robot stopped"), "{bt}");
+    signal(if bridge_dies { b.child.id() } else { c.id() }, "KILL");
+    let controller = finish(c, LIMIT, "controller");
+    (controller, b.finish(LIMIT, "bridge"))
 }
 
 #[test]
