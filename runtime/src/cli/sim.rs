@@ -52,7 +52,9 @@ pub struct SimArgs {
     /// Lemma 1's epsilon_2 = 0.8 m instead of the paper's 0.4 (with 0.4 the manoeuvres ask
     /// its shoulder for 2.59 rad/s, beyond the published 2.175, and it does not settle); an
     /// arm file may carry `[unicycle]` and `[car]` tables as --config's. A --config table of
-    /// the same name overrides the arm's.
+    /// the same name overrides the arm's. The UR5 on the unicycle tracks --trajectory 2 with
+    /// --config examples/arms/ur5-trajectory2.toml (the paper's settings ask its base,
+    /// shoulder and elbow for more than their published 180 deg/s: 70 % tracked).
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,
     /// Also write the run as an MCAP file for Foxglove (the robot in 3D: frame transforms,
