@@ -289,9 +289,10 @@ impl ScenarioArgs {
             None if self.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
             None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
         };
-        // The planar scenario carries every other flag; its own target is not used.
+        // The planar scenario carries every other flag; its own target is not used. The
+        // arm's platform settings apply where the config file has no table of its own.
         let b = self.builder(
-            self.config_file()?,
+            arm.platform_defaults().under(self.config_file()?),
             Target::Paper(PaperTrajectory::One),
             self.choice.into(),
             self.platform.into(),
