@@ -57,3 +57,4 @@ pub fn summaries(list: &[(&str, Scenario)]) -> Vec<Summary> {
     use rayon::prelude::*;
     list.par_iter().map(|(tag, s)| run(s, tag).summary).collect()
 }
+pub mod pointwise;
