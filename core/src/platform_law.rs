@@ -297,7 +297,7 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
         }
         let j = g_a * d_disp;
         let (h, half) = (hold.period, hold.half);
-        let mut theta = T::one();
+        let (mut theta, mut square) = (T::one(), T::zero());
         if midpoint {
             let mut norm = T::zero();
             for r in 0..3 {
@@ -306,12 +306,13 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
                     norm = row;
                 }
             }
-            let zz = h * norm;
-            theta = T::of(0.5) + T::of(0.5) * zz / (T::one() + zz);
+            (theta, square) = stiffness_weights(h * norm);
         }
         let base = u_e - j * hold.guess_u_bar * half;
+        let jh = j * h;
+        let jh2 = if square > T::zero() { jh * jh } else { Matrix3::zeros() };
         for _ in 0..4 {
-            let m = Matrix3::identity() - j * (theta * h);
+            let m = Matrix3::identity() - jh * theta + jh2 * square;
             if let Some((inv, det)) = inverse3(&m) {
                 // (`Sampled` keeps the earlier rest-filter step as it was: any invertible M.)
                 if det >= T::of(0.5) || !midpoint {
@@ -320,6 +321,7 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
                 }
             }
             theta *= T::of(0.5);
+            square *= T::of(0.25);
         }
         (u_e, T::zero())
     }
@@ -367,6 +369,38 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
         let d1 = theta * h * a1 - half * g[1];
         w_e + c0 * d0 + c1 * d1
     }
+}
+
+/// The weights `(a, b)` of the step's matrix `M = I − a hJ + b (hJ)²` for `z = h‖J‖∞`
+/// (module docs). A mode `y′ = −μy` of `J` (`x = μh ≤ z`) is advanced by
+/// `R(x) = (1 − (1 − a)x + b x²)/(1 + a x + b x²)`; exact (`R = e^{−x}`) needs
+/// `m(x) = 1 + a x + b x² = x/(1 − e^{−x})`.
+///
+/// - `a = ½`, `b = (θ(z) − ½)/z` with `θ(z) = 1/(1 − e^{−z}) − 1/z` while `b ≥ 1/16`
+///   (`z ≤ z* ≈ 4.8`): exact for the mode at `x = z`, and for every mode to `O(x³)` (`b → 1/12`,
+///   the (2,2) Padé approximant of `e^{−x}` as `z → 0`). Below `z = ½`, `b` from its series
+///   `1/12 − z²/720 + z⁴/30240 − z⁶/1209600 + z⁸/47900160` (truncation below 3·10⁻¹⁶;
+///   the closed form cancels, in `f32` completely below `z ≈ 10⁻³`).
+/// - beyond, `b = s²/4`, `a = 1 − s`, `s = 2 (1 + √(z/(e^z − 1)))/z`: still exact at `x = z`
+///   and `1 − (1 − a)x + b x² = (1 − s x/2)² ≥ 0`, so no mode rings (`0 ≤ R < 1`); as
+///   `z → ∞`, `a → 1`, `b → 0` (implicit Euler: the stiff modes are damped, `R(z) = e^{−z}`).
+///   The two branches meet continuously at `z*` (where `s = ½`).
+#[inline(always)]
+pub(crate) fn stiffness_weights<T: Real>(z: T) -> (T, T) {
+    let half = T::of(0.5);
+    if z < half {
+        let z2 = z * z;
+        let b = T::of(1.0 / 30_240.0) + z2 * (T::of(-1.0 / 1_209_600.0) + z2 * T::of(1.0 / 47_900_160.0));
+        return (half, T::of(1.0 / 12.0) + z2 * (T::of(-1.0 / 720.0) + z2 * b));
+    }
+    let e = (-z).exponential();
+    let one_m = T::one() - e;
+    let b = (T::one() / one_m - T::one() / z - half) / z;
+    if b >= T::of(1.0 / 16.0) || !z.finite() {
+        return (half, b);
+    }
+    let s = T::of(2.0) * (T::one() + (z * e / one_m).square_root()) / z;
+    (T::one() - s, s * s * T::of(0.25))
 }
 
 /// The quantities of (37) that its linearisation needs.
