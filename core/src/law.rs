@@ -243,15 +243,19 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         if !self.midpoint {
             return Ok((first, out));
         }
-        let mut again = fresh;
-        again.last_w = first.last_w;
-        again.last_u_bar = first.last_u_bar;
-        again.last_sensitivity = first.last_sensitivity;
-        let guess = first.last_sent();
-        match self.compute(&mut again, meas, period, delay, Some(&guess)) {
-            Ok(out) => Ok((again, out)),
-            Err(_) => Ok((first, out)),
+        let (mut best, mut out) = (first, out);
+        for _ in 0..2 {
+            let mut again = fresh;
+            again.last_w = best.last_w;
+            again.last_u_bar = best.last_u_bar;
+            again.last_sensitivity = best.last_sensitivity;
+            let guess = best.last_sent();
+            match self.compute(&mut again, meas, period, delay, Some(&guess)) {
+                Ok(o) => (best, out) = (again, o),
+                Err(_) => break,
+            }
         }
+        Ok((best, out))
     }
 
     /// The step once more from filters re-initialised from the measurement.
