@@ -40,7 +40,8 @@ fn main() {
         .iter()
         .flat_map(|(t, r, _)| {
             PERIODS.iter().map(move |dt| {
-                let s = scenario(Scenario::builder(*t, *r, PlatformKind::Unicycle).dt(*dt).log_every(100_000));
+                let s =
+                    scenario(Scenario::builder(*t, *r, PlatformKind::Unicycle).dt(*dt).log_every(100_000));
                 (format!("pointwise-{}-{dt}", s.name), s)
             })
         })

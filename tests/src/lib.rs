@@ -14,6 +14,7 @@ use companion_runtime::sim::run_one;
 
 pub mod fuzz;
 pub mod modgraph;
+pub mod pointwise;
 
 /// The scenario `b` builds.
 ///
@@ -57,4 +58,3 @@ pub fn summaries(list: &[(&str, Scenario)]) -> Vec<Summary> {
     use rayon::prelude::*;
     list.par_iter().map(|(tag, s)| run(s, tag).summary).collect()
 }
-pub mod pointwise;

@@ -13,8 +13,7 @@
 
 use companion_core::nalgebra::{SVector, Vector2, Vector3};
 use companion_core::{
-    Controller, Discretisation, Measurement, PaperRun, PlatformKind, Pose, RestFilter, Rpr, State,
-    Unicycle,
+    Controller, Discretisation, Measurement, PaperRun, PlatformKind, Pose, RestFilter, Rpr, State, Unicycle,
 };
 use companion_plant::{paper_initial, PaperTrajectory, Plant, PlantConfig, Trajectory};
 use companion_runtime::controller::{ControllerSpec, Scalar};
@@ -231,10 +230,7 @@ pub fn sampled(trajectory: PaperTrajectory, run: PaperRun, period: f64, duration
 
 /// The largest difference of any component between two series sampled at the same instants.
 pub fn distance(a: &[Sample], b: &[Sample]) -> f64 {
-    a.iter()
-        .zip(b)
-        .flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs()))
-        .fold(0.0, f64::max)
+    a.iter().zip(b).flat_map(|(x, y)| x.iter().zip(y).map(|(u, v)| (u - v).abs())).fold(0.0, f64::max)
 }
 
 /// Where the largest difference is: `(difference, sample index, component)`.

@@ -238,7 +238,7 @@ fn traj2_d_is_sharper_than_c() {
 /// 2 (95 against 36; max |v| 29 m/s). The hold-aware default treats those gains linearly
 /// implicitly, and (b)'s chattering nearly vanishes (27 and 191 sign changes; max |v| 5.6
 /// and 21 m/s): it is mostly an artifact of sampling a stiff gain explicitly. (d) on
-/// trajectory 2 still chatters (252 against 34; max |v| 88 m/s): Choice 3 puts the drift
+/// trajectory 2 still chatters (211 against 34; max |v| 17 m/s): Choice 3 puts the drift
 /// in `b̂₂`, whose gain grows without bound as `a → 0`, not only stiffly. Asserted as
 /// observed.
 #[test]
