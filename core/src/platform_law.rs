@@ -404,7 +404,7 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
 /// - `a = ½`, `b = (θ(z) − ½)/z` with `θ(z) = 1/(1 − e^{−z}) − 1/z` while `b ≥ 1/16`
 ///   (`z ≤ z* ≈ 4.8`): exact for the mode at `x = z`, and for every mode to `O(x³)` (`b → 1/12`,
 ///   the (2,2) Padé approximant of `e^{−x}` as `z → 0`). Below `z = ½`, `b` from its series
-///   `1/12 − z²/720 + z⁴/30240 − z⁶/1209600 + z⁸/47900160` (truncation below 3·10⁻¹⁶;
+///   `Σ B₂ₙ z²ⁿ⁻²/(2n)! = 1/12 − z²/720 + z⁴/30240 − …` to `z¹²` (truncation below 10⁻¹⁶;
 ///   the closed form cancels, in `f32` completely below `z ≈ 10⁻³`).
 /// - beyond, `b = s²/4`, `a = 1 − s`, `s = 2 (1 + √(z/(e^z − 1)))/z`: still exact at `x = z`
 ///   and `1 − (1 − a)x + b x² = (1 − s x/2)² ≥ 0`, so no mode rings (`0 ≤ R < 1`); as
@@ -415,7 +415,10 @@ pub(crate) fn stiffness_weights<T: Real>(z: T) -> (T, T) {
     let half = T::of(0.5);
     if z < half {
         let z2 = z * z;
-        let b = T::of(1.0 / 30_240.0) + z2 * (T::of(-1.0 / 1_209_600.0) + z2 * T::of(1.0 / 47_900_160.0));
+        // The Bernoulli numbers B₂ₙ/(2n)!, n = 1..7.
+        let b = T::of(-691.0 / (2730.0 * 479_001_600.0)) + z2 * T::of(7.0 / (6.0 * 87_178_291_200.0));
+        let b = T::of(1.0 / 47_900_160.0) + z2 * b;
+        let b = T::of(1.0 / 30_240.0) + z2 * (T::of(-1.0 / 1_209_600.0) + z2 * b);
         return (half, T::of(1.0 / 12.0) + z2 * (T::of(-1.0 / 720.0) + z2 * b));
     }
     let e = (-z).exponential();
@@ -438,4 +441,48 @@ struct Linearisation<'a, T> {
     dh_dt: T,
     track_a: &'a Vector3<T>,
     track_b1: &'a Vector3<T>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::stiffness_weights;
+
+    /// `R(x)` of the module docs for weights `(a, b)`.
+    fn r(x: f64, (a, b): (f64, f64)) -> f64 {
+        (1.0 - (1.0 - a) * x + b * x * x) / (1.0 + a * x + b * x * x)
+    }
+
+    #[test]
+    fn the_step_is_exact_at_the_norm_and_never_rings() {
+        let mut last = stiffness_weights(0.0_f64);
+        assert_eq!(last, (0.5, 1.0 / 12.0));
+        for i in 1..=4000 {
+            let z = f64::from(i) * 0.01;
+            let w = stiffness_weights(z);
+            // Exact for the mode at x = z; continuous in z (both branch switches included).
+            assert!((r(z, w) - (-z).exp()).abs() < 1e-12, "z = {z}: R = {} vs {}", r(z, w), (-z).exp());
+            assert!(
+                (w.0 - last.0).abs() < 0.01 && (w.1 - last.1).abs() < 0.01,
+                "z = {z}: {w:?} after {last:?}"
+            );
+            // No mode below z rings (up to rounding), and every one is damped.
+            for k in 1..=50 {
+                let x = z * f64::from(k) / 50.0;
+                let rx = r(x, w);
+                assert!((-1e-15..1.0).contains(&rx), "z = {z}, x = {x}: R = {rx}");
+            }
+            last = w;
+        }
+        // The series and the closed form agree where they meet, in f32 too.
+        let (below, above) = (stiffness_weights(0.5 - 1e-12_f64), stiffness_weights(0.5_f64));
+        assert!((below.1 - above.1).abs() < 1e-14, "{below:?} {above:?}");
+        for z in [1e-6_f32, 1e-3, 0.1, 0.49, 0.5, 1.0, 4.0, 10.0, 1e3] {
+            let (a32, b32) = stiffness_weights(z);
+            let (a64, b64) = stiffness_weights(f64::from(z));
+            assert!(
+                (f64::from(a32) - a64).abs() < 1e-6 && (f64::from(b32) - b64).abs() < 1e-5 * b64.max(1e-3),
+                "z = {z}"
+            );
+        }
+    }
 }
