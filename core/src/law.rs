@@ -233,6 +233,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// was sent. If a pass fails, the last result stands. (A cold path: the cost of a
     /// step in steady state is unchanged.)
     #[inline(never)]
+    #[allow(clippy::type_complexity)]
     fn start(
         &self,
         fresh: St<T, A, N>,

@@ -52,7 +52,7 @@ fn main() {
     println!("|---|---|---|---|---|---|");
     for (i, (t, r, name)) in runs.iter().enumerate() {
         let fine = &refs[2 * i];
-        let self_check = distance(&fine, &refs[2 * i + 1]);
+        let self_check = distance(fine, &refs[2 * i + 1]);
         let d: Vec<f64> = PERIODS
             .par_iter()
             .map(|dt| {
