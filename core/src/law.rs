@@ -197,7 +197,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         if !state.initialized {
             return self.first_step(state, meas, period, delay);
         }
-        match self.compute(state, meas, period, delay, None) {
+        match self.compute(state, meas, period, delay) {
             Err(Rejected { error: StepError::NumericalFailure, .. }) => {
                 self.recover(state, meas, period, delay)
             }
@@ -215,50 +215,10 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         period: T,
         delay: T,
     ) -> Result<Out<T, A, N>, Rejected<T, N>> {
-        let fresh = self.initial(state, meas);
-        let (fresh, out) = self.start(fresh, meas, period, delay)?;
+        let mut fresh = self.initial(state, meas);
+        let out = self.compute(&mut fresh, meas, period, delay)?;
         *state = fresh;
         Ok(out)
-    }
-
-    /// A step from a fresh state (no command before it). With the hold-aware law there is no
-    /// previous command to predict the hold with, so the step is computed three times, each
-    /// pass with the previous pass's result as the guess (of `ū_b`, `w`, `u_q` and
-    /// `∂u_q/∂u_b`), as every later step has its predecessor's — two predictor–corrector
-    /// iterations of the midpoint. Predicted with the robot at rest, the first hold's error
-    /// is close to the sampled law's (T1 (c): `q₁` 1.3·10⁻² rad off after the first
-    /// millisecond, the run's largest distance from the continuous law); after one
-    /// iteration it is still the largest of T1 (c) and T2 (a) (3.3·10⁻³, 5.8·10⁻³), after
-    /// two it is no longer. The commands in flight stay none: a guess is not a command that
-    /// was sent. If a pass fails, the last result stands. (A cold path: the cost of a
-    /// step in steady state is unchanged.)
-    #[inline(never)]
-    #[allow(clippy::type_complexity)]
-    fn start(
-        &self,
-        fresh: St<T, A, N>,
-        meas: &Meas<T, A, N>,
-        period: T,
-        delay: T,
-    ) -> Result<(St<T, A, N>, Out<T, A, N>), Rejected<T, N>> {
-        let mut first = fresh;
-        let out = self.compute(&mut first, meas, period, delay, None)?;
-        if !self.midpoint {
-            return Ok((first, out));
-        }
-        let (mut best, mut out) = (first, out);
-        for _ in 0..2 {
-            let mut again = fresh;
-            again.last_w = best.last_w;
-            again.last_u_bar = best.last_u_bar;
-            again.last_sensitivity = best.last_sensitivity;
-            let guess = best.last_sent();
-            match self.compute(&mut again, meas, period, delay, Some(&guess)) {
-                Ok(o) => (best, out) = (again, o),
-                Err(_) => break,
-            }
-        }
-        Ok((best, out))
     }
 
     /// The step once more from filters re-initialised from the measurement.
@@ -274,7 +234,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let mut fresh = self.initial(state, meas);
         fresh.t0 = state.t0;
         fresh.recoveries = state.recoveries.saturating_add(1);
-        let (fresh, mut out) = self.start(fresh, meas, period, delay)?;
+        let mut out = self.compute(&mut fresh, meas, period, delay)?;
         out.diagnostics.recovered = true;
         *state = fresh;
         Ok(out)
@@ -451,7 +411,6 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         meas: &Meas<T, A, N>,
         h: T,
         delay: T,
-        first_guess: Option<&Sent<T, N>>,
     ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         let st: &St<T, A, N> = state;
         let prm = &self.params;
@@ -479,8 +438,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         } else {
             start.q
         };
-        // The previous command (or, on a first step's second pass, the first pass's).
-        let guess = first_guess.copied().unwrap_or_else(|| st.last_sent());
+        let guess = st.last_sent();
         let sc_b = meas.base.theta.sincos();
         let r_bd = A::Space::relative(&meas.base, sc_b, &meas.target);
         let s_target = delay + half;
