@@ -289,10 +289,9 @@ impl ScenarioArgs {
             None if self.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
             None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
         };
-        // The planar scenario carries every other flag; its own target is not used. The
-        // arm's platform settings apply where the config file has no table of its own.
+        // The planar scenario carries every other flag; its own target is not used.
         let b = self.builder(
-            arm.platform_defaults().under(self.config_file()?),
+            self.config_file()?,
             Target::Paper(PaperTrajectory::One),
             self.choice.into(),
             self.platform.into(),
