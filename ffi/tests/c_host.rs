@@ -18,6 +18,9 @@
 //! target directory (`cargo test` builds the crate's staticlib too, but leaves it under a
 //! hashed name in `deps/`, with the features of the test build).
 
+mod common;
+use common::NoRows;
+
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
@@ -29,7 +32,6 @@ use companion_core::{Command as CoreCommand, Measurement, PaperRun, PlatformComm
 use companion_plant::PaperTrajectory;
 use companion_runtime::controller::{measurement_in, Scalar, StepReport, JOINTS};
 use companion_runtime::observe::Silent;
-use companion_runtime::record::{Row, RowSink};
 use companion_runtime::scenario::Scenario;
 use companion_runtime::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
 
@@ -225,18 +227,6 @@ impl Exchange for Twin {
         let (c_status, c_command) = self.c.step(meas)?;
         self.steps.push(Pair { reference, c_status, c_command });
         Ok(StepReport { command: c_command, ..reference })
-    }
-}
-
-/// Rows are not needed: the exchange keeps both controllers' answers.
-struct NoRows;
-
-impl RowSink for NoRows {
-    fn log_every(&self) -> u64 {
-        u64::MAX
-    }
-    fn record(&mut self, _n: u64, _row: &Row, _last: bool) -> Result<()> {
-        Ok(())
     }
 }
 

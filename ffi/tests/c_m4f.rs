@@ -14,6 +14,9 @@
 //! Needs `qemu-system-arm`, `arm-none-eabi-gcc` (Debian's `gcc-arm-none-eabi`) and the Rust
 //! target; `scripts/setup` installs them. Missing tools fail the test: it is not skipped.
 
+mod common;
+use common::NoRows;
+
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -23,7 +26,6 @@ use companion_core::{Command as CoreCommand, Measurement, PaperRun, PlatformKind
 use companion_plant::PaperTrajectory;
 use companion_runtime::controller::{measurement_in, Scalar, StepReport, JOINTS};
 use companion_runtime::observe::Silent;
-use companion_runtime::record::{Row, RowSink};
 use companion_runtime::scenario::Scenario;
 use companion_runtime::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
 
@@ -62,17 +64,6 @@ impl Exchange for Recorder {
         let report = self.reference.exchange(n, meas)?;
         self.steps.push((*meas, report));
         Ok(report)
-    }
-}
-
-struct NoRows;
-
-impl RowSink for NoRows {
-    fn log_every(&self) -> u64 {
-        u64::MAX
-    }
-    fn record(&mut self, _n: u64, _row: &Row, _last: bool) -> Result<()> {
-        Ok(())
     }
 }
 
