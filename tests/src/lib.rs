@@ -14,6 +14,7 @@ use companion_runtime::sim::run_one;
 
 pub mod fuzz;
 pub mod modgraph;
+pub mod pointwise;
 
 /// The scenario `b` builds.
 ///

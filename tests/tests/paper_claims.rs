@@ -238,7 +238,9 @@ fn traj2_d_is_sharper_than_c() {
 /// 2 (95 against 36; max |v| 29 m/s). The hold-aware default treats those gains linearly
 /// implicitly, and (b)'s chattering nearly vanishes (27 and 191 sign changes; max |v| 5.6
 /// and 21 m/s): it is mostly an artifact of sampling a stiff gain explicitly. (d) on
-/// trajectory 2 still chatters (252 against 34; max |v| 88 m/s): Choice 3 puts the drift
+/// trajectory 2 still chatters in direction (sign changes ≫ 34), though at 9.7 m/s at most
+/// (the sampled law's 29; 88 before the platform step was made exact for its stiffest mode):
+/// Choice 3 puts the drift
 /// in `b̂₂`, whose gain grows without bound as `a → 0`, not only stiffly. Asserted as
 /// observed.
 #[test]
@@ -300,10 +302,14 @@ fn psi_rate_term_makes_b_and_d_chatter() {
                 default.v_sign_changes,
                 base.v_sign_changes
             );
+            // Its peak speed, though, is no longer the chatter's: below the sampled law's
+            // (measured 9.7 against 29 m/s, 3.1 without the term; 88 m/s with the earlier
+            // θ-weighted platform step).
             assert!(
-                default.max_abs_v > 5.0 * base.max_abs_v,
-                "default traj 2 (d): max |v| {}",
-                default.max_abs_v
+                default.max_abs_v < with.max_abs_v,
+                "default traj 2 (d): max |v| {} vs sampled {}",
+                default.max_abs_v,
+                with.max_abs_v
             );
         }
     }
