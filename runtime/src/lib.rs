@@ -30,8 +30,6 @@
 //! a cycle, in every crate of the workspace.
 
 pub mod arm;
-#[cfg(feature = "zenoh")]
-pub mod certs;
 pub mod clock;
 pub mod controller;
 pub mod explore;
@@ -60,5 +58,3 @@ pub mod tune;
 pub mod wire;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_link;
-#[cfg(feature = "zenoh")]
-pub mod zenoh_log;
