@@ -22,6 +22,7 @@
 //! ```
 
 mod config;
+mod options;
 
 use std::path::PathBuf;
 
@@ -30,6 +31,7 @@ use companion_plant::PaperTrajectory;
 use serde::{Serialize, Serializer};
 
 pub use self::config::{ConfigError, ConfigFile, NoiseConfig, PlantFileConfig};
+pub use self::options::Options;
 use crate::controller::{
     platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
     LimitsConfig, RestFilterConfig, Scalar,
