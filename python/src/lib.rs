@@ -3,7 +3,8 @@
 //! The Python package `companion`: researchers who apply the controller to a robot prototype
 //! in Python reach the law and the simulator without the wire protocol. Nothing here is a
 //! second implementation: [`law`] builds the runtime's controllers from the CLI's presets and
-//! `--config` files (`companion_runtime::scenario::Options`), [`batch`] steps many of them in
+//! `--config` files (`companion_runtime::scenario::Options`), [`plant`] is the simulator's plant
+//! for a loop written in Python, [`batch`] steps many of them in
 //! one call, [`simulate`] runs `companion sim`'s own loop (`companion_runtime::sim`,
 //! `companion_runtime::spatial`). Errors are Python exceptions named after companion-core's
 //! `StepError` and `ParamError` variants ([`errors`]); no Rust panic crosses the boundary
@@ -13,6 +14,7 @@ pub mod batch;
 pub mod errors;
 pub mod law;
 pub mod measurement;
+pub mod plant;
 pub mod simulate;
 
 use pyo3::prelude::*;
@@ -24,6 +26,7 @@ fn companion(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<law::Output>()?;
     m.add_class::<measurement::Measurement>()?;
     m.add_class::<batch::LawBatch>()?;
+    m.add_class::<plant::Plant>()?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     errors::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
