@@ -223,8 +223,13 @@ pub fn step_error(py: Python<'_>, e: CoreStepError, output: Py<PyAny>, command: 
 
 /// The exception of an invalid parameter, with `param`, `joint` and `rule` set.
 pub fn param_error(py: Python<'_>, e: CoreParamError) -> PyErr {
-    let msg = e.to_string();
-    let (err, rule) = match e.rule {
+    rule_error(py, e.to_string(), e.param, e.joint, e.rule)
+}
+
+/// The `ParamError` subclass of `rule` with message `msg`, `param`, `joint` set (an arm file's
+/// rule names the field in the file's words: `joint 2: axis`).
+fn rule_error(py: Python<'_>, msg: String, param: &str, joint: Option<u8>, rule: Rule) -> PyErr {
+    let (err, name) = match rule {
         Rule::NonFinite => (NonFiniteParameter::new_err(msg), "NonFinite"),
         Rule::NotPositive => (NotPositive::new_err(msg), "NotPositive"),
         Rule::Negative => (Negative::new_err(msg), "Negative"),
@@ -246,17 +251,22 @@ pub fn param_error(py: Python<'_>, e: CoreParamError) -> PyErr {
         Rule::PeriodTooLong => (PeriodTooLong::new_err(msg), "PeriodTooLong"),
     };
     let v = err.value(py);
-    let _ = v.setattr("param", e.param);
-    let _ = v.setattr("joint", e.joint);
-    let _ = v.setattr("rule", rule);
+    let _ = v.setattr("param", param);
+    let _ = v.setattr("joint", joint);
+    let _ = v.setattr("rule", name);
     err
 }
 
-/// A runtime error as a Python exception: an invalid parameter as its `ParamError` subclass
-/// (wherever it sits in the chain of causes), a file as `ConfigError`, the rest as
-/// `ScenarioError`, with the whole chain of causes in the message.
+/// A runtime error as a Python exception: an invalid parameter (of the law, or of an arm file's
+/// chain) as its `ParamError` subclass (wherever it sits in the chain of causes), a file as
+/// `ConfigError`, the rest as `ScenarioError`, with the whole chain of causes in the message.
 pub fn runtime_error(py: Python<'_>, e: &anyhow::Error) -> PyErr {
     for cause in e.chain() {
+        if let Some(companion_runtime::arm::ArmError::Invalid { field, rule }) =
+            cause.downcast_ref::<companion_runtime::arm::ArmError>()
+        {
+            return rule_error(py, format!("{e:#}"), field, None, *rule);
+        }
         if let Some(p) = cause.downcast_ref::<CoreParamError>() {
             return param_error(py, *p);
         }

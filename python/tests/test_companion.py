@@ -149,15 +149,29 @@ def test_every_step_error_variant_has_its_class():
         ("[controller]\njoint_step_fraction = 2.0", companion.NotInUnitInterval, "joint_step_fraction"),
         ("[controller]\ngain = [1e7, 1, 1]", companion.TooLarge, "gain"),
         ("[controller]\nmax_time_step = 0.5", companion.PeriodTooLong, "max_time_step"),
+        ("[controller]\nregularisation_gain = -1", companion.Negative, "regularisation_gain"),
+        ("[controller]\npenalty_margin = [1, 1, 1]", companion.PenaltyMarginTooWide, "penalty_margin"),
+        ("[unicycle]\nepsilon_1 = 100\nepsilon_2 = 0.4", companion.TooLarge, "epsilon_1"),
+        ("[arm]\nstroke = -1", companion.NotPositive, "arm.stroke"),
+        ("[car]\nepsilon = 0.3\neta_1 = 1\neta_2 = 1\neta_3 = 1\nk = 5", companion.Transversality, "eta"),
     ],
 )
 def test_a_bad_config_raises_its_param_error(tmp_path, toml, error, param):
     path = tmp_path / "c.toml"
     path.write_text(toml)
     with pytest.raises(error) as e:
-        companion.Law(config=str(path))
+        companion.Law("car" if "[car]" in toml else "unicycle", config=str(path))
     assert isinstance(e.value, companion.ParamError)
     assert e.value.param.endswith(param) and e.value.rule == ("NonFinite" if error is companion.NonFiniteParameter else error.__name__)
+
+
+def test_a_bad_arm_file_raises_the_param_error_of_its_rule(tmp_path):
+    text = (ROOT / "examples" / "arms" / "ur5.toml").read_text()
+    path = tmp_path / "arm.toml"
+    path.write_text(text.replace("axis = [0.0, 0.0, 1.0]", "axis = [0.0, 0.0, 2.0]", 1))
+    with pytest.raises(companion.NotUnitVector) as e:
+        companion.Law(arm=str(path))
+    assert e.value.param == "joint 1: axis" and isinstance(e.value, companion.ParamError)
 
 
 def test_a_bad_file_or_scenario_raises_config_or_scenario_error(tmp_path):
