@@ -221,3 +221,11 @@ def test_every_platform_arm_and_scalar_builds_and_steps(tmp_path):
             for arm in ["ur5", "panda", str(arm_file)]:
                 law = companion.Law(platform, "a", arm, scalar)
                 assert law.spatial and law.joints in (6, 7)
+
+
+def test_a_spatial_simulate_gives_the_cli_digest(cli, tmp_path):
+    """simulate(arm="ur5") is `companion sim --arm ur5` (its summary.json digest), here on the car."""
+    want = cli_digest(cli, tmp_path, "--arm", "ur5", "--platform", "car", "--duration", "3")
+    ts, summary = companion.simulate(1, "a", "car", arm="ur5", duration=3.0)
+    assert summary["trajectory_digest"] == want
+    assert ts["target"].shape[1:] == (4, 4) and ts["command"].shape[1] == 10
