@@ -130,7 +130,7 @@ class Law:
     @property
     def measurement_width(self) -> int:
         """Numbers in a measurement row: 14 planar, 23 + joints spatial."""
-    def step(self, measurement: Union[Measurement, FloatArray], period: float, delay: float = 0.0) -> Output:
+    def step(self, measurement: Union[Measurement, ArrayLike], period: float, delay: float = 0.0) -> Output:
         """The command to hold for `period` s, taking effect `delay` s after the measurement.
         Raises the StepError subclass of a rejection (its .command is the zero command); the
         law's state is then unchanged."""

@@ -374,16 +374,19 @@ impl Output {
     }
 }
 
-/// A measurement row from a Python value: a `Measurement`, or a 1-D array of the row layout.
+/// A measurement row from a Python value: a `Measurement`, or a 1-D array (or sequence) of the
+/// row layout.
 pub fn row_of(m: &Bound<'_, PyAny>, width: usize, buf: &mut Vec<f64>) -> PyResult<()> {
     buf.clear();
     if let Ok(m) = m.cast::<crate::measurement::Measurement>() {
         buf.extend_from_slice(&m.get().values);
     } else if let Ok(a) = m.extract::<PyReadonlyArray1<'_, f64>>() {
         buf.extend(a.as_array().iter().copied());
+    } else if let Ok(v) = m.extract::<Vec<f64>>() {
+        buf.extend(v);
     } else {
         return Err(PyTypeError::new_err(
-            "a measurement must be a companion.Measurement or a 1-D float64 array",
+            "a measurement must be a companion.Measurement, a 1-D float64 array or a sequence of numbers",
         ));
     }
     if buf.len() != width {
@@ -474,7 +477,8 @@ impl Law {
     /// One step: the command to hold for `period` seconds, taking effect `delay` seconds after
     /// the measurement was taken (0: at once), and the diagnostics.
     ///
-    /// `measurement`: a `companion.Measurement` or its 1-D float64 row (`Measurement.row`).
+    /// `measurement`: a `companion.Measurement`, or its row (`Measurement.row`) as a 1-D float64
+    /// array or a sequence of numbers.
     /// Raises the `StepError` subclass named after the law's rejection (its `.command` is the
     /// safe zero command, `.output` the whole result); the law's state is then unchanged.
     #[pyo3(signature = (measurement, period, delay=0.0))]

@@ -229,3 +229,14 @@ def test_a_spatial_simulate_gives_the_cli_digest(cli, tmp_path):
     ts, summary = companion.simulate(1, "a", "car", arm="ur5", duration=3.0)
     assert summary["trajectory_digest"] == want
     assert ts["target"].shape[1:] == (4, 4) and ts["command"].shape[1] == 10
+
+
+def test_a_measurement_row_as_array_or_list_is_the_measurement():
+    m = planar()
+    a, b, c = companion.Law(), companion.Law(), companion.Law()
+    for k in range(5):
+        oa, ob, oc = a.step(m, 0.001), b.step(m.row, 0.001), c.step(list(m.row), 0.001)
+        np.testing.assert_array_equal(oa.command, ob.command)
+        np.testing.assert_array_equal(oa.command, oc.command)
+    with pytest.raises(ValueError):
+        a.step(m.row[:-1], 0.001)
