@@ -17,7 +17,7 @@ except ImportError:
     sys.exit(0)
 
 fig, (top, err) = plt.subplots(1, 2, figsize=(11, 4.5))
-top.plot(ts["target"][:, 0], ts["target"][:, 1], "k--", label="target")
+top.plot(ts["target"][:, 0], ts["target"][:, 1], "k--", label="target (r*_ed: 0.5 m ahead of the effector)")
 top.plot(ts["end_effector"][:, 0], ts["end_effector"][:, 1], label="end effector")
 top.plot(ts["base"][:, 0], ts["base"][:, 1], label="platform")
 top.set(xlabel="x (m)", ylabel="y (m)", aspect="equal", title=summary["scenario"])
