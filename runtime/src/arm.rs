@@ -26,7 +26,17 @@
 //! limits = [-6.28, 6.28]           # [lower, upper] (rad or m)
 //! home = 0.0                       # strictly inside the limits (rad or m)
 //! max_velocity = 3.14              # rad/s or m/s (optional: no limit)
+//! [unicycle]                       # optional: the platform law's settings this arm needs
+//! epsilon_1 = 0.2                  #   (the keys of --config's [unicycle] and [car];
+//! epsilon_2 = 0.8                  #   a --config table of the same name wins)
 //! ```
+//!
+//! # The platform settings an arm carries
+//!
+//! The paper's transverse functions ask the arm to compensate the platform's manoeuvres; an
+//! arm whose published joint speeds cannot ([`PlatformDefaults`]) carries the settings that
+//! do — the `panda` preset and `examples/arms/panda.toml` the unicycle's `ε₂ = 0.8 m` — and
+//! they apply wherever the run's `--config` has no table of its own for that platform.
 //!
 //! Every error names the field (`joint 3: limits`, `mount.rotation`) and the rule, and the
 //! CLI reports it with exit code 2 before anything runs.
@@ -36,6 +46,8 @@ use std::path::{Path, PathBuf};
 use companion_core::nalgebra::Matrix3;
 use companion_core::{so3, Chain, FrameData, JointData, JointKind, ParamError, Real};
 use serde::Deserialize;
+
+use crate::platform_config::{CarConfig, UnicycleConfig};
 
 /// The most joints a spatial arm may have here (the record and the CSV carry this many).
 pub const MAX_JOINTS: usize = 8;
@@ -64,6 +76,32 @@ impl ArmChoice {
             "panda" => Self::Panda,
             path => Self::File(PathBuf::from(path)),
         }
+    }
+}
+
+/// The Panda's unicycle transverse function: Lemma 1's `ε₂ = 0.8 m` instead of the paper's
+/// 0.4 m. With the paper's, run (a) of lifted trajectory 1 makes the platform manoeuvre at up
+/// to 0.83 m/s and asks the Panda's shoulder (joint 2) for 2.59 rad/s, beyond its published
+/// 2.175 rad/s: the joint guard slows the whole arm, and `e_p` stays at ~2e−2 until the
+/// manoeuvres calm (final ‖e_p‖ 6.4e−5 after 40 s). The wider function buys the same lateral
+/// motion with slower manoeuvres (0.54 m/s), which the published speeds follow (final
+/// ‖e_p‖ 4.4e−8; core's `panda_unicycle_tracks_lifted_trajectory_1` says the same).
+pub const PANDA_UNICYCLE: UnicycleConfig = UnicycleConfig { epsilon_1: 0.2, epsilon_2: 0.8 };
+
+/// The platform law's settings an arm carries (module docs): each, if given, replaces the
+/// runtime's default (the paper's) for its platform unless the run's `--config` has the table.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PlatformDefaults {
+    /// Lemma 1's parameters for the unicycle (`[unicycle]`).
+    pub unicycle: Option<UnicycleConfig>,
+    /// Lemma 2's parameters for the car (`[car]`).
+    pub car: Option<CarConfig>,
+}
+
+impl PlatformDefaults {
+    /// Whether the arm carries no settings (the paper's apply).
+    pub fn is_empty(&self) -> bool {
+        self.unicycle.is_none() && self.car.is_none()
     }
 }
 
@@ -98,6 +136,16 @@ impl SpatialArmSpec {
             Self::Ur5 => "ur5",
             Self::Panda => "panda",
             Self::File(d) => &d.name,
+        }
+    }
+
+    /// The platform law's settings the arm carries: the Panda's [`PANDA_UNICYCLE`], a file's
+    /// `[unicycle]` and `[car]`; none for the UR5 (the paper's settings track with it).
+    pub fn platform_defaults(&self) -> PlatformDefaults {
+        match self {
+            Self::Ur5 => PlatformDefaults::default(),
+            Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: None },
+            Self::File(d) => d.platform,
         }
     }
 
@@ -141,6 +189,8 @@ pub struct ArmDescription {
     pub joints: Vec<JointData<f64>>,
     /// The end effector in the last joint's moving frame.
     pub tool: FrameData<f64>,
+    /// The platform law's settings the file carries (`[unicycle]`, `[car]`).
+    pub platform: PlatformDefaults,
 }
 
 /// Why an arm file was refused.
@@ -259,7 +309,9 @@ impl ArmDescription {
                 })
             })
             .collect::<Result<Vec<_>, ArmError>>()?;
-        let d = Self { name: file.name.unwrap_or_else(|| default_name.to_string()), mount, joints, tool };
+        let platform = PlatformDefaults { unicycle: file.unicycle, car: file.car };
+        let name = file.name.unwrap_or_else(|| default_name.to_string());
+        let d = Self { name, mount, joints, tool, platform };
         match n {
             6 => d.chain::<f64, 6>().map(|_| ()),
             7 => d.chain::<f64, 7>().map(|_| ()),
@@ -304,6 +356,8 @@ struct ArmFile {
     tool: Option<FrameFile>,
     #[serde(default)]
     joint: Vec<JointFile>,
+    unicycle: Option<UnicycleConfig>,
+    car: Option<CarConfig>,
 }
 
 #[derive(Debug, Default, Deserialize)]
@@ -386,6 +440,8 @@ mod tests {
     use companion_core::nalgebra::SVector;
     use companion_core::Rule;
 
+    use crate::scenario::ConfigFile;
+
     use super::*;
 
     fn example(name: &str) -> PathBuf {
@@ -435,6 +491,33 @@ mod tests {
             assert!((a.translation - b.translation).norm() < 1e-12);
             assert!((a.rotation - b.rotation).norm() < 1e-12);
         }
+        // And it carries the preset's platform settings.
+        assert_eq!(d.platform, SpatialArmSpec::Panda.platform_defaults());
+        assert_eq!(d.platform.unicycle, Some(PANDA_UNICYCLE));
+    }
+
+    /// The UR5 file carries no platform settings, as the preset; a file's `[car]` and
+    /// `[unicycle]` fill a config file's missing tables only.
+    #[test]
+    fn platform_settings_fill_only_what_the_config_lacks() {
+        let d = ArmDescription::load(&example("ur5.toml")).expect("valid");
+        assert!(d.platform.is_empty());
+        assert!(SpatialArmSpec::Ur5.platform_defaults().is_empty());
+        let car = "[car]\nepsilon = 0.2\neta_1 = 1.0\neta_2 = 2.0\neta_3 = 1.0\nk = 10.0\n";
+        let d = ArmDescription::from_toml_str(&format!("{}\n{car}", ur5_text()), "x").expect("valid");
+        let carried = d.platform.car.expect("[car] read");
+        assert_eq!(carried.eta_2, 2.0);
+        assert_eq!(d.platform.unicycle, None);
+        let filled = ConfigFile::default().with_arm_settings(d.platform);
+        assert_eq!(filled.car, Some(carried));
+        assert_eq!(filled.unicycle, None);
+        let own = ConfigFile { car: Some(CarConfig::default()), ..ConfigFile::default() };
+        assert_eq!(own.with_arm_settings(d.platform).car, Some(CarConfig::default()), "--config wins");
+        let panda = ConfigFile::default().with_arm_settings(SpatialArmSpec::Panda.platform_defaults());
+        assert_eq!(panda.unicycle, Some(PANDA_UNICYCLE));
+        let bad = format!("{}\n[unicycle]\nepsilon_1 = 0.2\nepsilon = 0.8\n", ur5_text());
+        let e = ArmDescription::from_toml_str(&bad, "x").unwrap_err().to_string();
+        assert!(e.contains("unknown field `epsilon`"), "{e}");
     }
 
     fn ur5_text() -> String {

@@ -8,6 +8,7 @@
 //! Layers, each depending only on the ones above it:
 //!
 //! - domain: [`controller`] (the one module that touches the core's controller),
+//!   [`platform_config`] (the `[unicycle]` and `[car]` tables, a leaf),
 //!   [`scenario`] (a run's description, built in one expression or from a TOML file),
 //!   [`plant_setup`], [`record`] (`timeseries.csv`, `summary.json`), [`plots`],
 //!   [`histogram`], [`observe`] (progress and messages, for the CLI to show);
@@ -42,6 +43,7 @@ pub mod lock;
 pub mod machine;
 pub mod observe;
 pub mod plant_setup;
+pub mod platform_config;
 pub mod plots;
 pub mod process;
 pub mod record;

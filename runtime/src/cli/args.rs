@@ -276,9 +276,10 @@ impl ScenarioArgs {
             None if self.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
             None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
         };
-        // The planar scenario carries every other flag; its own target is not used.
+        // The planar scenario carries every other flag; its own target is not used. The
+        // arm's platform settings apply where the config file has no table of its own.
         let b = self.builder(
-            self.config_file()?,
+            self.config_file()?.with_arm_settings(arm.platform_defaults()),
             Target::Paper(PaperTrajectory::One),
             self.choice.into(),
             self.platform.into(),

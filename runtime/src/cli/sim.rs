@@ -47,6 +47,14 @@ pub struct SimArgs {
     /// arm runs the SE(3) law of §5 on the paper's trajectory lifted with a 5 cm vertical
     /// sine at the arm's home height (--trajectory 1|2), or on a spatial --target-file of
     /// 6-DOF body twists (sim-plant/examples/target3d.toml); it writes top and side views.
+    /// An arm carries the platform settings it needs where the paper's cannot work with its
+    /// published joint speeds: `panda` (and examples/arms/panda.toml) runs the unicycle with
+    /// Lemma 1's epsilon_2 = 0.8 m instead of the paper's 0.4 (with 0.4 the manoeuvres ask
+    /// its shoulder for 2.59 rad/s, beyond the published 2.175, and it does not settle); an
+    /// arm file may carry `[unicycle]` and `[car]` tables as --config's. A --config table of
+    /// the same name overrides the arm's. The UR5 on the unicycle tracks --trajectory 2 with
+    /// --config examples/arms/ur5-trajectory2.toml (the paper's settings ask its base,
+    /// shoulder and elbow for more than their published 180 deg/s: 70 % tracked).
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,
     /// Also write the run as an MCAP file for Foxglove (the robot in 3D: frame transforms,

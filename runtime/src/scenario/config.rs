@@ -36,6 +36,7 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::arm::PlatformDefaults;
 use crate::controller::{ArmConfig, CarConfig, ControllerConfig, LimitsConfig, UnicycleConfig};
 
 /// Plant imperfections in a config file (`companion-plant`'s `Imperfections`).
@@ -128,6 +129,18 @@ impl ConfigFile {
         let text = std::fs::read_to_string(path)
             .map_err(|source| ConfigError::Read { path: path.into(), source })?;
         toml::from_str(&text).map_err(|e| ConfigError::Parse { path: path.into(), source: Box::new(e) })
+    }
+
+    /// This file with the platform settings an arm carries wherever it has no table of its
+    /// own: a `[unicycle]` or `[car]` of the run's `--config` wins over the arm's.
+    pub fn with_arm_settings(mut self, arm: PlatformDefaults) -> Self {
+        if self.unicycle.is_none() {
+            self.unicycle = arm.unicycle;
+        }
+        if self.car.is_none() {
+            self.car = arm.car;
+        }
+        self
     }
 }
 
