@@ -261,12 +261,16 @@ impl LawSpec {
             limits: parse_limits(self.limits.as_deref())?,
             ..Options::default()
         };
-        let file = config_file(py, self.config.as_ref())?;
+        let err = |e: anyhow::Error| runtime_error(py, &e);
+        let arm = SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm)).map_err(|e| err(e.into()))?;
+        let mut file = config_file(py, self.config.as_ref())?;
+        if let Some(a) = &arm {
+            // As `companion sim --arm`: the arm's platform settings where the file has none.
+            file = file.with_arm_settings(a.platform_defaults());
+        }
         let (platform, choice) = (parse_platform(&self.platform)?, parse_choice(&self.choice)?);
         let b = opts.builder(file, Target::Paper(PaperTrajectory::One), choice, platform, 1.0);
-        let err = |e: anyhow::Error| runtime_error(py, &e);
         let s = b.build().map_err(|e| err(e.into()))?;
-        let arm = SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm)).map_err(|e| err(e.into()))?;
         let Some(arm) = arm else {
             return AnyController::new(&s.controller)
                 .map(Inner::Planar)

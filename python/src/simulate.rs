@@ -202,10 +202,14 @@ pub fn simulate<'py>(
         seed,
         ..Options::default()
     };
-    let file = config_file(py, config.as_ref())?;
     let (platform, choice) = (parse_platform(platform)?, parse_choice(choice)?);
     let err = |e: anyhow::Error| runtime_error(py, &e);
     let spatial = SpatialArmSpec::from_choice(&ArmChoice::parse(arm)).map_err(|e| err(e.into()))?;
+    let mut file = config_file(py, config.as_ref())?;
+    if let Some(a) = &spatial {
+        // As `companion sim --arm`: the arm's platform settings where the file has none.
+        file = file.with_arm_settings(a.platform_defaults());
+    }
     let planar_target = match (&target_file, &spatial) {
         (Some(p), None) => Target::File(p.clone()),
         _ => Target::Paper(traj),

@@ -240,3 +240,10 @@ def test_a_measurement_row_as_array_or_list_is_the_measurement():
         np.testing.assert_array_equal(oa.command, oc.command)
     with pytest.raises(ValueError):
         a.step(m.row[:-1], 0.001)
+
+
+def test_the_panda_simulate_carries_its_platform_settings_as_the_cli(cli, tmp_path):
+    """`companion sim --arm panda` runs the unicycle with the arm's own Lemma 1 settings; simulate too."""
+    want = cli_digest(cli, tmp_path, "--arm", "panda", "--duration", "2")
+    _, summary = companion.simulate(1, "a", arm="panda", duration=2.0)
+    assert summary["trajectory_digest"] == want
