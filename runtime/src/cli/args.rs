@@ -8,11 +8,11 @@ use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use companion_runtime::arm::SpatialArmSpec;
-use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
+use companion_runtime::controller::{DiscretisationConfig, Scalar};
 use companion_runtime::record::verdict::DEFAULT_MAX_REJECTED;
 use companion_runtime::record::Acceptance;
 use companion_runtime::scenario::{
-    ConfigFile, LimitsChoice, NoiseConfig, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
+    ConfigFile, LimitsChoice, Options, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
 };
 use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
 
@@ -215,42 +215,29 @@ impl ScenarioArgs {
         platform: PlatformKind,
         default_duration: f64,
     ) -> ScenarioBuilder {
-        let file_has_seed = file.plant.seed.is_some();
-        let file_has_noise = file.plant.noise.is_some();
-        let mut b = Scenario::builder(target, choice, platform)
-            .config(file)
-            .scalar(self.scalar.into())
-            .dt(self.dt)
-            .duration(self.duration.unwrap_or(default_duration))
-            .log_every(self.log_every)
-            .max_output_bytes(self.max_output_mb.saturating_mul(1_000_000));
-        if self.psi_rate_in_drift {
-            b = b.psi_rate_in_drift(true);
+        self.options().builder(file, target, choice, platform, default_duration)
+    }
+
+    /// The typed options these flags set (everything but the target, variant and platform).
+    pub fn options(&self) -> Options {
+        Options {
+            scalar: self.scalar.into(),
+            dt: self.dt,
+            duration: self.duration,
+            log_every: self.log_every,
+            max_output_bytes: self.max_output_mb.saturating_mul(1_000_000),
+            psi_rate_in_drift: self.psi_rate_in_drift,
+            explicit_rest_filter: self.explicit_rest_filter,
+            discretisation: self.discretisation.map(Into::into),
+            limits: self.limits.map(|l| match l {
+                LimitsArg::Realistic => LimitsChoice::Realistic,
+                LimitsArg::None => LimitsChoice::Unlimited,
+            }),
+            actuator_lag: self.actuator_lag,
+            noise: self.noise,
+            wheel_scale_error: self.wheel_scale_error,
+            seed: self.seed,
         }
-        if self.explicit_rest_filter {
-            b = b.rest_filter(RestFilterConfig::Explicit);
-        }
-        if let Some(d) = self.discretisation {
-            b = b.discretisation(d.into());
-        }
-        match self.limits {
-            Some(LimitsArg::Realistic) => b = b.limits(LimitsChoice::Realistic),
-            Some(LimitsArg::None) => b = b.limits(LimitsChoice::Unlimited),
-            None => {}
-        }
-        if let Some(tau) = self.actuator_lag {
-            b = b.actuator_lag(tau);
-        }
-        if self.noise && !file_has_noise {
-            b = b.noise(NoiseConfig::default());
-        }
-        if let Some(e) = self.wheel_scale_error {
-            b = b.wheel_scale_error(e);
-        }
-        if !file_has_seed {
-            b = b.seed(self.seed);
-        }
-        b
     }
 
     /// The scenario the flags describe (`default_duration` if `--duration` is not given), with
