@@ -68,6 +68,8 @@ pub struct PeerOptions {
     pub socket_dir: Option<PathBuf>,
     /// The endpoint to connect to (zenoh).
     pub endpoint: Option<String>,
+    /// The TLS material of a `tls/` endpoint (zenoh; `ca.pem`, `control.pem`, `control.key`).
+    pub tls_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
     pub rt_cpu: Option<usize>,
 }
