@@ -51,6 +51,16 @@ impl Transport {
             Self::Zenoh(_, sec) => *sec == crate::zenoh_link::Security::Insecure,
         }
     }
+
+    /// Whether this is zenoh's TLS-over-TCP link (`tls/`), which zenoh#2557 makes fail
+    /// under load ([`Scheme`](crate::zenoh_link::Scheme)).
+    pub fn tls_over_tcp(&self) -> bool {
+        match self {
+            Self::Iceoryx2 => false,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(l, _) => l.endpoint().scheme == crate::zenoh_link::Scheme::Tls,
+        }
+    }
 }
 
 /// The Zenoh link's security as the command line gives it.
@@ -83,8 +93,8 @@ pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -
             (None, Some(c)) => ZenohLink::Connect(TcpEndpoint::parse(c)?),
             (Some(_), Some(_)) => bail!("--transport zenoh: give --listen or --connect, not both"),
             (None, None) => bail!(
-                "--transport zenoh needs an endpoint: --listen tls/ADDR:PORT (usually the plant) or --connect \
-                 tls/ADDR:PORT (usually the controller)"
+                "--transport zenoh needs an endpoint: --listen quic/ADDR:PORT (usually the plant) or --connect \
+                 quic/ADDR:PORT (usually the controller)"
             ),
         };
         let tls_given = sec.ca.is_some() || sec.cert.is_some() || sec.key.is_some() || sec.peer.is_some();
@@ -126,16 +136,24 @@ pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -
     }
 }
 
-/// `tls/127.0.0.1:PORT` (`tcp/…` if `insecure`) with a port that was free a moment ago (the
+/// `quic/127.0.0.1:PORT` (`tcp/…` if `insecure`) with a port that was free a moment ago (the
 /// kernel's pick): where `companion hil --transport zenoh` lets its plant listen.
 ///
 /// # Errors
 /// No local TCP port can be bound.
 pub fn free_local_endpoint(insecure: bool) -> Result<String> {
-    let l = std::net::TcpListener::bind(("127.0.0.1", 0))
-        .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?;
-    let port = l.local_addr().map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?.port();
-    Ok(format!("{}/127.0.0.1:{port}", if insecure { "tcp" } else { "tls" }))
+    let port = if insecure {
+        let l = std::net::TcpListener::bind(("127.0.0.1", 0));
+        l.and_then(|l| l.local_addr())
+            .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?
+            .port()
+    } else {
+        let s = std::net::UdpSocket::bind(("127.0.0.1", 0));
+        s.and_then(|s| s.local_addr())
+            .map_err(|e| anyhow::anyhow!("finding a free local UDP port: {e}"))?
+            .port()
+    };
+    Ok(format!("{}/127.0.0.1:{port}", if insecure { "tcp" } else { "quic" }))
 }
 
 /// The transport that connects where `t` listens (`t` itself otherwise).

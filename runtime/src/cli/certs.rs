@@ -41,13 +41,13 @@ pub fn run(a: &CertsArgs) -> Result<()> {
         }
         if let [(p, pc, pk), (c, cc, ck), ..] = &m.hosts[..] {
             let ca = m.ca.display();
-            println!("\non {p}:  companion plant --transport zenoh --listen tls/0.0.0.0:7447 \\");
+            println!("\non {p}:  companion plant --transport zenoh --listen quic/0.0.0.0:7447 \\");
             println!(
                 "    --tls-ca {ca} --tls-cert {} --tls-key {} --tls-peer {c}",
                 pc.display(),
                 pk.display()
             );
-            println!("on {c}:  companion control --transport zenoh --connect tls/{p}:7447 \\");
+            println!("on {c}:  companion control --transport zenoh --connect quic/{p}:7447 \\");
             println!(
                 "    --tls-ca {ca} --tls-cert {} --tls-key {} --tls-peer {p}",
                 cc.display(),

@@ -180,19 +180,19 @@ pub struct HilArgs {
     pub no_plots: bool,
     /// The transport between the two roles: iceoryx2 shared memory on one machine, or Zenoh
     /// over mutual TLS across machines (`companion plant --transport zenoh --listen
-    /// tls/ADDR:PORT`, `companion control --transport zenoh --connect tls/ADDR:PORT`, each with
+    /// quic/ADDR:PORT`, `companion control --transport zenoh --connect quic/ADDR:PORT`, each with
     /// --tls-ca, --tls-cert, --tls-key and --tls-peer; `companion hil` picks a free local port
     /// and makes throwaway certificates). Zenoh needs a build with `--features zenoh`.
     #[arg(long, value_enum, default_value = "iceoryx2")]
     pub transport: TransportArg,
-    /// Zenoh: listen on this endpoint, tls/ADDR:PORT (usually the plant; 0.0.0.0 for every
+    /// Zenoh: listen on this endpoint, quic/ADDR:PORT (usually the plant; 0.0.0.0 for every
     /// interface; tcp/ADDR:PORT only with --insecure).
-    #[arg(long, value_name = "tls/ADDR:PORT")]
+    #[arg(long, value_name = "quic/ADDR:PORT")]
     pub listen: Option<String>,
-    /// Zenoh: connect to this endpoint, tls/ADDR:PORT (usually the controller; retried until
+    /// Zenoh: connect to this endpoint, quic/ADDR:PORT (usually the controller; retried until
     /// the peer listens, up to --startup-timeout). Over TLS the listener's certificate must be
     /// valid for ADDR.
-    #[arg(long, value_name = "tls/ADDR:PORT")]
+    #[arg(long, value_name = "quic/ADDR:PORT")]
     pub connect: Option<String>,
     /// Zenoh over TLS: the deployment's CA certificate, which the peer's certificate must be
     /// signed by (PEM; `companion certs` writes it as ca.pem).
@@ -372,6 +372,13 @@ impl HilArgs {
                 "warning: --insecure: plain TCP, no authentication, no encryption — anyone who reaches {} can \
                  drive the robot and anyone on the path read and alter its traffic (recorded in summary.json)",
                 self.listen.as_deref().or(self.connect.as_deref()).unwrap_or("the port")
+            );
+        }
+        if transport.tls_over_tcp() && !self.child {
+            eprintln!(
+                "warning: tls/ is zenoh's TLS-over-TCP link, which reads and writes one TLS connection from two \
+                 tasks at once (eclipse-zenoh/zenoh#2557): under load it loses the link within seconds and the \
+                 run ends as a dead peer; use quic/ (the same mutual TLS over UDP) unless UDP cannot pass"
             );
         }
         let cfg = HilConfig {

@@ -570,7 +570,7 @@ fn across_namespaces(pair: &NetnsPair, tag: &str, extra: &[&str]) -> (Demo, Demo
     let f = |x: &str| certs.join(x).display().to_string();
     let (ca, pc, pk, cc, ck) =
         (f("ca.pem"), f("plant.local.pem"), f("plant.local.key"), f("ctrl.local.pem"), f("ctrl.local.key"));
-    let ep = format!("tls/{}:7447", pair.addr_a);
+    let ep = format!("quic/{}:7447", pair.addr_a);
     let mut common = vec!["--transport", "zenoh", "--no-plots", "--quiet", "--log-every", "1", "--name", &n];
     common.extend(extra);
     let plant_tls = ["--tls-ca", &ca, "--tls-cert", &pc, "--tls-key", &pk, "--tls-peer", "ctrl.local"];
@@ -579,7 +579,7 @@ fn across_namespaces(pair: &NetnsPair, tag: &str, extra: &[&str]) -> (Demo, Demo
     let plant = in_namespace(
         &pair.a,
         &[
-            &["plant", "--listen", "tls/0.0.0.0:7447", "--out", out.to_str().unwrap()],
+            &["plant", "--listen", "quic/0.0.0.0:7447", "--out", out.to_str().unwrap()],
             &plant_tls[..],
             &common[..],
         ]

@@ -53,9 +53,11 @@ fn pki() -> &'static Pki {
     })
 }
 
-/// `tls/127.0.0.1:PORT` on a port that was free a moment ago.
+/// `quic/127.0.0.1:PORT` (the secure default: QUIC under mutual TLS) on a UDP port that was
+/// free a moment ago.
 fn free_tls_endpoint() -> String {
-    free_endpoint().replacen("tcp/", "tls/", 1)
+    let s = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    format!("quic/127.0.0.1:{}", s.local_addr().unwrap().port())
 }
 
 /// The TLS flags of a side: CA of `ca_dir`, the pair `dir/NAME.{pem,key}`, the peer's name.
@@ -208,7 +210,7 @@ fn control_in_background(args: Vec<String>) -> Box<dyn FnOnce()> {
 #[test]
 fn a_controller_of_another_ca_is_refused() {
     let b = &pki().b;
-    refused_by_the_plant("tls-other-ca", &["refused a TLS connection", "UnknownIssuer"], |ep, n| {
+    refused_by_the_plant("tls-other-ca", &["refused a TLS handshake", "UnknownIssuer"], |ep, n| {
         // It trusts A's CA (so it would accept the plant), but its own certificate is B's.
         control_in_background(control_with(
             ep,
@@ -222,7 +224,7 @@ fn a_controller_of_another_ca_is_refused() {
 #[test]
 fn an_expired_controller_certificate_is_refused() {
     let a = &pki().a;
-    refused_by_the_plant("tls-expired", &["refused a TLS connection", "xpired"], |ep, n| {
+    refused_by_the_plant("tls-expired", &["refused a TLS handshake", "xpired"], |ep, n| {
         control_in_background(control_with(
             ep,
             n,
@@ -247,15 +249,17 @@ fn a_controller_with_the_right_ca_and_the_wrong_name_is_refused_and_named() {
 
 #[test]
 fn a_plaintext_controller_against_a_tls_plant_is_refused() {
-    refused_by_the_plant("tls-plaintext", &["refused a TLS connection"], |ep, n| {
-        let tcp = ep.replacen("tls/", "tcp/", 1);
+    // Over QUIC (UDP) a plain TCP peer never reaches the listener: the kernel resets its
+    // connection; the plant names nobody, serves nobody, and the controller exits 2.
+    refused_by_the_plant("tls-plaintext", &[], |ep, n| {
+        let tcp = ep.replacen("quic/", "tcp/", 1);
         control_in_background(control_with(&tcp, n, &["--insecure".to_string()], &["--startup-timeout", "4"]))
     });
 }
 
 #[test]
 fn a_controller_without_a_certificate_is_refused() {
-    refused_by_the_plant("tls-no-cert", &["refused a TLS connection", "no certificate"], |ep, _| {
+    refused_by_the_plant("tls-no-cert", &["refused a TLS handshake", "no certificate"], |ep, _| {
         // A TLS client that checks the plant against A's CA but presents no certificate
         // (the companion command line cannot be told to: it always presents one).
         use zenoh::Wait;
@@ -428,14 +432,18 @@ fn frames_of_the_wrong_size_or_content_for_10_s_are_counted_dropped_never_applie
 fn a_flood_of_connection_attempts_leaves_the_served_run_intact() {
     let _g = serial();
     let (plant, control, ep, _, d) = served_run("tls-flood", "16");
-    let addr = ep.strip_prefix("tls/").unwrap().to_string();
-    // 1 000 connections from this process, each sending a line that is not TLS and closing,
-    // paced over 10 s; loopback only.
+    let addr = ep.strip_prefix("quic/").unwrap().to_string();
+    // 1 000 attempts from this process, paced over 10 s, loopback only: each a fresh UDP
+    // socket sending what is not a QUIC handshake (a line of HTTP, then a datagram shaped like
+    // a QUIC long-header Initial with garbage after it), which the listener must drop.
     let mut made = 0;
-    for _ in 0..1000 {
-        if let Ok(mut s) = std::net::TcpStream::connect(&addr) {
-            let _ = std::io::Write::write_all(&mut s, b"GET / HTTP/1.0\r\n\r\n");
-            made += 1;
+    for i in 0..1000u32 {
+        if let Ok(s) = std::net::UdpSocket::bind("127.0.0.1:0") {
+            let mut initial = vec![0xc3, 0, 0, 0, 1, 8];
+            initial.extend((0..1200u32).map(|k| (k.wrapping_mul(2_654_435_761).wrapping_add(i) >> 7) as u8));
+            if s.send_to(b"GET / HTTP/1.0\r\n\r\n", &addr).is_ok() && s.send_to(&initial, &addr).is_ok() {
+                made += 1;
+            }
         }
         std::thread::sleep(Duration::from_millis(10));
     }
@@ -444,9 +452,8 @@ fn a_flood_of_connection_attempts_leaves_the_served_run_intact() {
     assert!(pst.success(), "plant: {pseen:#?}\ncontroller: {cseen:#?}");
     assert!(cst.success(), "controller: {cseen:#?}");
     assert!(made > 900, "{made} connections of 1000");
-    assert!(pseen.iter().any(|l| l.contains("connection(s) refused in all")), "{pseen:#?}");
     let lat = json(&d.join("latency.json"));
     assert_eq!(lat["cycles"], 16_001, "{lat:#}");
     assert_eq!(lat["invalid_total"], 0, "{lat:#}");
-    println!("flood over TLS: {made} connections refused; the run's misses {}", lat["deadline_misses"]);
+    println!("flood over QUIC: {made} bogus handshakes dropped; the run's misses {}", lat["deadline_misses"]);
 }
