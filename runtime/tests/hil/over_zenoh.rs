@@ -279,10 +279,15 @@ fn bad_endpoints_are_clear_errors() {
     let taken = TcpListener::bind("127.0.0.1:0").unwrap();
     let ep = format!("tcp/127.0.0.1:{}", taken.local_addr().unwrap().port());
     let d = dir("zenoh-taken");
+    // Names of their own: on the default name `demo` these runs would meet (and be refused by)
+    // any other demo or test run on this machine (seen: a second test run's controller).
+    let n = name("zbad");
     let (st, _, err) = run(&[
         "plant",
         "--transport",
         "zenoh",
+        "--name",
+        &n,
         "--listen",
         &ep,
         "--duration",
@@ -296,7 +301,8 @@ fn bad_endpoints_are_clear_errors() {
     // Nobody listens: an error naming the endpoint within the startup timeout.
     // (That it gives up rather than hangs is the harness's watchdog; how soon is not asserted.)
     let ep = free_endpoint();
-    let (st, _, err) = run(&["control", "--transport", "zenoh", "--connect", &ep, "--startup-timeout", "2"]);
+    let (st, _, err) =
+        run(&["control", "--transport", "zenoh", "--name", &n, "--connect", &ep, "--startup-timeout", "2"]);
     assert_eq!(st.code(), Some(2), "{err}");
     assert!(err.contains("nothing answered at") && err.contains(&ep), "{err}");
 }
