@@ -400,6 +400,9 @@ fn config(name: &str, link: &ZenohLink, security: &Security) -> Result<zenoh::Co
     }
     set("scouting/multicast/enabled", "false")?;
     set("scouting/gossip/enabled", "false")?;
+    if let Ok(ms) = std::env::var("COMPANION_ZENOH_LEASE_MS") {
+        set("transport/link/tx/lease", &ms)?;
+    }
     // Zenoh's low-latency transport (`transport/unicast/lowlatency` with QoS off) was tried:
     // loopback p50 34 µs against 58 µs, but p99.9 4.1 ms against 0.17 ms in the same hour on the
     // loaded 2-CPU machine (README, "Two machines"); not taken.
