@@ -94,7 +94,6 @@ impl ParamError {
     }
 
     /// An error for joint `joint` (from 0) of a per-joint parameter.
-    #[allow(clippy::cast_possible_truncation)]
     pub const fn joint(param: &'static str, joint: usize, rule: Rule) -> Self {
         Self { param, joint: Some(joint as u8), rule }
     }

@@ -140,7 +140,6 @@ fn copysign(x: f32, s: f32) -> f32 {
 /// 2ⁿ for −126 ≤ n ≤ 127.
 #[inline]
 fn pow2(n: i32) -> f32 {
-    #[allow(clippy::cast_sign_loss)]
     f32::from_bits(((n + 127) as u32) << 23)
 }
 
@@ -179,12 +178,10 @@ fn quadrant(n: i32, (s, c): (f32, f32)) -> (f32, f32) {
 fn reduce_large(a: f32) -> (i32, f32, f32) {
     let bits = a.to_bits();
     // a = m · 2^(e − 23), m a 24-bit integer (a is normal here).
-    #[allow(clippy::cast_possible_wrap)]
     let e = ((bits >> 23) & 0xff) as i32 - 127;
     let m = u128::from((bits & 0x007f_ffff) | 0x0080_0000);
     // Bits of 2/π of weight 2^−i with i < e − 24 contribute multiples of 4 (a full turn)
     // to a · 2/π: start the window at bit i0 = e − 24, global position i0 + 31 in the table.
-    #[allow(clippy::cast_sign_loss)]
     let g0 = (e + 7) as usize;
     let (w, sh) = (g0 / 32, g0 % 32);
     let word = |i: usize| u128::from(TWO_OVER_PI.get(w + i).copied().unwrap_or(0));
@@ -192,7 +189,6 @@ fn reduce_large(a: f32) -> (i32, f32, f32) {
     let bits96 = (window << sh) >> 32;
     // a · 2/π (mod 4) = m · bits96 · 2⁻⁹⁴.
     let prod = m * bits96;
-    #[allow(clippy::cast_possible_truncation)]
     let mut n = ((prod >> 94) & 3) as i32;
     let frac = prod & ((1u128 << 94) - 1);
     let half = 1u128 << 93;
@@ -206,19 +202,13 @@ fn reduce_large(a: f32) -> (i32, f32, f32) {
         return (n, 0.0, 0.0);
     }
     let lz = mag.leading_zeros(); // ≥ 35
-    #[allow(clippy::cast_possible_truncation)]
     let top = ((mag << lz) >> 64) as u64; // 64 significant bits
-    #[allow(clippy::cast_possible_truncation)]
     let hp = ((u128::from(top) * u128::from(PIO2_Q62)) >> 64) as u64; // in [2⁶¹, 2⁶³)
                                                                       // r = hp · 2^(−28 − lz): hi = hp rounded to 24 bits, lo = the integer remainder.
-    #[allow(clippy::cast_precision_loss)]
     let hi = hp as f32;
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_possible_wrap)]
     let rest = hp.wrapping_sub(hi as u64) as i64;
-    #[allow(clippy::cast_precision_loss)]
     let lo = rest as f32;
     // lz ≤ 98 (|r| > 2⁻⁶⁴ for every f32): the scale is a normal power of two, so exact.
-    #[allow(clippy::cast_possible_wrap)]
     let scale = pow2((-28 - lz as i32).max(-126));
     let (hi, lo) = (hi * scale, lo * scale);
     if negative {
@@ -243,9 +233,7 @@ pub(crate) fn sin_cos(x: f32) -> (f32, f32) {
         // exact (7 + 17 bits); x − k P1 is exact (Sterbenz); the rounding of t − k P2 is
         // kept by a two-sum, so r = hi + lo carries ~48 good bits even next to a zero.
         let kf = x * FRAC_2_PI;
-        #[allow(clippy::cast_possible_truncation)]
         let k = (kf + copysign(0.5, kf)) as i32;
-        #[allow(clippy::cast_precision_loss)]
         let kf = k as f32;
         let t = x - kf * PIO2_1;
         let c = kf * PIO2_2;
@@ -279,9 +267,7 @@ pub(crate) fn exp(x: f32) -> f32 {
         return 0.0;
     }
     let kf = x * LOG2_E;
-    #[allow(clippy::cast_possible_truncation)]
     let k = (kf + copysign(0.5, kf)) as i32; // |k| ≤ 150
-    #[allow(clippy::cast_precision_loss)]
     let kf = k as f32;
     let r = (x - kf * LN2_HI) - kf * LN2_LO;
     let p = 1.0 + (r + r * r * (E0 + r * (E1 + r * (E2 + r * (E3 + r * E4)))));
@@ -378,9 +364,7 @@ pub(crate) fn round(x: f32) -> f32 {
     if a.is_nan() || a >= 8_388_608.0 {
         return x; // |x| ≥ 2²³ is an integer already; NaN, ±∞
     }
-    #[allow(clippy::cast_possible_truncation)]
     let t = a as i32;
-    #[allow(clippy::cast_precision_loss)]
     let mut r = t as f32;
     if a - r >= 0.5 {
         r += 1.0;
@@ -554,7 +538,6 @@ mod tests {
         // Next to multiples of π/2, where the reduction cancels.
         for k in 1..200 {
             let m = f64::from(k) * core::f64::consts::FRAC_PI_2;
-            #[allow(clippy::cast_possible_truncation)]
             let x = m as f32;
             for x in [x, f32::from_bits(x.to_bits() + 1), f32::from_bits(x.to_bits() - 1)] {
                 assert!(ulps(sin_(x), libm::sin(f64::from(x))) <= 1.0, "sin {x}");

@@ -347,7 +347,6 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         for i in 0..N {
             let q = meas.joints[i];
             if q <= lim.lower[i] || q >= lim.upper[i] {
-                #[allow(clippy::cast_possible_truncation)]
                 return Err(StepError::JointAtLimit(i as u8));
             }
         }

@@ -561,7 +561,6 @@ impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
         };
         for i in 0..N {
             let d = self.primary.penalty_margin[i];
-            #[allow(clippy::cast_possible_truncation)]
             let j = i as u8;
             if margins.lower_inner[i] <= d {
                 let _ = out.push(Warning::LowerWeightMarginInsidePenalty(j));

@@ -102,7 +102,6 @@ pub struct PrimaryPoint<'a, T, const N: usize, R = Pose<T>> {
 }
 
 /// Evaluates the primary task at a point. `rot_star = (sin θ*, cos θ*)` of `r*_ed`.
-#[allow(clippy::similar_names)]
 #[inline(always)]
 pub fn primary_terms<T: Real, A: Arm<T, N>, const N: usize>(
     task: &PrimaryTask<T, N>,

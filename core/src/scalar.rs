@@ -127,7 +127,6 @@ impl Real for f32 {
         self.is_nan()
     }
     #[inline]
-    #[allow(clippy::cast_possible_truncation)]
     fn of(x: f64) -> Self {
         x as f32
     }

@@ -251,7 +251,6 @@ fn report(result: Result<(), InitError>, error: *mut CompanionParamError) -> Com
     if !error.is_null() {
         let mut param = [0 as c_char; 48];
         for (d, s) in param.iter_mut().zip(name.bytes().take(47)) {
-            #[allow(clippy::cast_possible_wrap)]
             let c = s as c_char;
             *d = c;
         }

@@ -173,7 +173,6 @@ pub const STEP_ERRORS: [&str; 8] = [
 pub fn step_error_code(e: Option<CoreStepError>) -> u8 {
     e.map_or(0, |e| {
         let name = step_error_name(e);
-        #[allow(clippy::cast_possible_truncation)]
         let i = STEP_ERRORS.iter().position(|n| *n == name).unwrap_or(0) as u8;
         i + 1
     })

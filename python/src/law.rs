@@ -534,7 +534,6 @@ impl Law {
             }
             let t0 = std::time::Instant::now();
             let f = self.inner.step(std::hint::black_box(&row), period, delay);
-            #[allow(clippy::cast_precision_loss)]
             times.push(t0.elapsed().as_nanos() as f64);
             sink += f.command[0];
         }

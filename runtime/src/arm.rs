@@ -461,7 +461,6 @@ mod tests {
         // configurations across the range.
         assert_eq!(file, preset);
         for k in 0..50 {
-            #[allow(clippy::cast_precision_loss)]
             let q = SVector::<f64, 6>::from_fn(|i, _| ((k * 7 + i * 3) as f64).sin() * 2.0);
             let (a, b) = (file.end_effector(&q), preset.end_effector(&q));
             assert_eq!(a, b, "q = {q}");
@@ -485,7 +484,6 @@ mod tests {
         let preset = Chain::<f64, 7>::panda();
         assert_eq!(file.limits(), preset.limits());
         for k in 0..20 {
-            #[allow(clippy::cast_precision_loss)]
             let q = SVector::<f64, 7>::from_fn(|i, _| ((k * 5 + i) as f64).cos());
             let (a, b) = (file.end_effector(&q), preset.end_effector(&q));
             assert!((a.translation - b.translation).norm() < 1e-12);

@@ -113,7 +113,6 @@ pub struct Percentiles {
 
 /// Formats nanoseconds for a table: `850 ns`, `12.3 µs`, `4.56 ms`.
 pub fn fmt_ns(ns: u64) -> String {
-    #[allow(clippy::cast_precision_loss)]
     let x = ns as f64;
     if ns < 1_000 {
         format!("{ns} ns")

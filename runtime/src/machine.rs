@@ -42,7 +42,6 @@ pub fn process_cpu_seconds() -> Option<f64> {
     let rest = stat.rsplit_once(')')?.1;
     let fields: Vec<&str> = rest.split_whitespace().collect();
     let (utime, stime) = (fields.get(11)?.parse::<u64>().ok()?, fields.get(12)?.parse::<u64>().ok()?);
-    #[allow(clippy::cast_precision_loss)]
     Some((utime + stime) as f64 / 100.0)
 }
 

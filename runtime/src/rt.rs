@@ -37,15 +37,12 @@ fn clock_ns(id: libc::clockid_t) -> u64 {
     // SAFETY: `ts` is a valid, writable timespec; both clocks used here exist on Linux
     // (CLOCK_MONOTONIC_RAW since 2.6.28).
     unsafe { libc::clock_gettime(id, &mut ts) };
-    #[allow(clippy::cast_sign_loss)]
-    let ns = ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64;
-    ns
+    ts.tv_sec as u64 * 1_000_000_000 + ts.tv_nsec as u64
 }
 
 /// Sleeps until `CLOCK_MONOTONIC` reaches `t_ns` (returns at once if it has), resuming after
 /// signals.
 pub fn sleep_until_ns(t_ns: u64) {
-    #[allow(clippy::cast_possible_wrap)]
     let ts = libc::timespec {
         tv_sec: (t_ns / 1_000_000_000) as libc::time_t,
         tv_nsec: (t_ns % 1_000_000_000) as libc::c_long,

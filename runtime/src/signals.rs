@@ -21,7 +21,6 @@ fn flag() -> &'static Arc<AtomicUsize> {
 /// The operating system refused a handler.
 pub fn install_termination_handler() -> Result<()> {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
-        #[allow(clippy::cast_sign_loss)]
         let value = sig as usize;
         signal_hook::flag::register_usize(sig, Arc::clone(flag()), value)
             .with_context(|| format!("installing the handler of signal {sig}"))?;

@@ -79,9 +79,7 @@ impl DelayLine {
     /// A delay of `delay` seconds at period `dt` (`0 ≤ delay ≤ HISTORY·dt`, checked by the
     /// scenario).
     pub fn new(delay: f64, dt: f64) -> Self {
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let whole = ((delay / dt).floor() as usize).min(DELAY_RING - 2);
-        #[allow(clippy::cast_precision_loss)]
         let mut rest = delay - whole as f64 * dt;
         if rest < dt * 1e-9 {
             rest = 0.0;
@@ -97,7 +95,6 @@ impl DelayLine {
         n: u64,
         command: &Command<f64, JOINTS>,
     ) -> (Command<f64, JOINTS>, Command<f64, JOINTS>, f64) {
-        #[allow(clippy::cast_possible_truncation)]
         let slot = |k: u64| (k % DELAY_RING as u64) as usize;
         self.ring[slot(n)] = *command;
         let at = |back: usize| {

@@ -85,7 +85,6 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial> {
     let star = s.controller.params::<f64>().primary.target_in_effector;
     let mut summary = crate::record::recorder::summary_for(s);
     let steps = s.steps();
-    #[allow(clippy::cast_precision_loss)]
     let end = steps as f64 * s.dt;
     let (half, window_start) = (judge.track_after.unwrap_or(0.5 * end), end - judge.window);
     let mut tail = Tail {
@@ -130,7 +129,6 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial> {
             }
         }
     }
-    #[allow(clippy::cast_precision_loss)]
     {
         tail.tracked_fraction = if second_half > 0 { tracked as f64 / second_half as f64 } else { 0.0 };
         tail.time_saturated_s = saturated as f64 * s.dt;

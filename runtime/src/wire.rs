@@ -466,7 +466,6 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
         0 => None,
         0x100..=0x1ff => Some(StepError::NonFinite(field(code - 0x100).ok_or(WireError::Status(code))?)),
         0x200 => Some(StepError::BadTimeStep),
-        #[allow(clippy::cast_possible_truncation)]
         0x300..=0x3ff if ((code - 0x300) as usize) < MAX_JOINTS => {
             Some(StepError::JointAtLimit((code - 0x300) as u8))
         }
@@ -479,7 +478,6 @@ pub fn decode_status(code: u32) -> Result<Option<StepError>, WireError> {
     })
 }
 
-#[allow(clippy::cast_possible_truncation)]
 const fn count_u32(n: usize) -> u32 {
     n as u32
 }

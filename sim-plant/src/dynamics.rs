@@ -229,7 +229,6 @@ impl Model<'_> {
             // the usual case h ≤ τ).
             let ratio = h / tau;
             if ratio > 1.0 {
-                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                 let n = libm::ceil(ratio) as u32;
                 let hk = h / f64::from(n);
                 let mut y = *x;

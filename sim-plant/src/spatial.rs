@@ -262,7 +262,6 @@ impl<const N: usize> SpatialPlant<N> {
             trajectory: &self.planar,
         };
         let n = self.state.step;
-        #[allow(clippy::cast_precision_loss)]
         let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
         self.x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, &mut self.trig);
         let target = self.target_pose(t1, &self.x.target);
@@ -324,7 +323,6 @@ mod tests {
     }
 
     fn command(k: usize) -> (Command<f64, 3>, Command<f64, 6>) {
-        #[allow(clippy::cast_precision_loss)]
         let s = (k as f64 * 0.37).sin();
         let platform = PlatformCommand { v: 0.5 * s, v_lat: 0.2, omega: 0.3 - s, v_xi: 0.1 * s };
         (
@@ -381,7 +379,6 @@ mod tests {
             let mut spatial = ur5_plant(kind, traj);
             for k in 1..3000 {
                 let ((p3, p6), (c3, c6)) = (command(k - 1), command(k));
-                #[allow(clippy::cast_precision_loss)]
                 let delay = 1e-3 * (k % 10) as f64 / 10.0;
                 planar.try_advance_delayed(&p3, &c3, delay, 1e-3).unwrap();
                 spatial.try_advance_delayed(&p6, &c6, delay, 1e-3).unwrap();

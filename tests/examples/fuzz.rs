@@ -25,7 +25,6 @@ fn arg<T: std::str::FromStr>(n: usize, name: &str, default: T) -> T {
 }
 
 fn main() {
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let steps = arg::<f64>(1, "STEPS", 1e7) as u64;
     let seconds = arg::<f64>(2, "SECONDS", 0.0);
     let seed = arg::<u64>(3, "SEED", 1);

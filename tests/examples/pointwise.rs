@@ -31,7 +31,6 @@ fn main() {
         .par_iter()
         .flat_map(|(t, r, _)| [(*t, *r, STEP), (*t, *r, 2.0 * STEP)])
         .map(|(t, r, step)| {
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             let stride = (1e-3 / step).round() as usize;
             reference(t, r, step, DURATION, stride)
         })
@@ -60,11 +59,9 @@ fn main() {
                 let (a, b) = (every(&sampled(*t, *r, *dt, DURATION), *dt, at), every(fine, 1e-3, at));
                 if std::env::var_os("POINTWISE_WHERE").is_some() {
                     let (d, i, c) = worst(&a, &b);
-                    #[allow(clippy::cast_precision_loss)]
                     let when = i as f64 * at;
                     eprintln!("{name} at {dt}: {d:.2e} at t = {when} s, component {c}");
                     for lo in [0.0, 0.1, 1.0] {
-                        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
                         let k = (lo / at).round() as usize;
                         eprintln!("    after {lo} s: {:.2e}", distance(&a[k..], &b[k..]));
                     }

@@ -302,13 +302,11 @@ impl Rng {
     }
 
     /// Uniform in `[0, 1)`.
-    #[allow(clippy::cast_precision_loss)]
     pub fn unit(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 
     /// Uniform in `0..n`.
-    #[allow(clippy::cast_possible_truncation)]
     pub fn below(&mut self, n: usize) -> usize {
         (self.next_u64() % n as u64) as usize
     }
@@ -329,7 +327,6 @@ impl Rng {
 }
 
 /// The scenario of one episode of `steps` steps.
-#[allow(clippy::cast_precision_loss)]
 fn episode_scenario(rng: &mut Rng, steps: u64) -> Scenario {
     let platform = rng.pick(&[PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni]);
     let run = rng.pick(&[PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D]);
@@ -416,7 +413,6 @@ fn garbage(
 }
 
 /// One episode of `steps` closed-loop steps.
-#[allow(clippy::cast_precision_loss, clippy::too_many_lines)]
 fn episode(index: u64, seed: u64, steps: u64, burst_rate: f64) -> FuzzReport {
     let mut rng = Rng::new(seed ^ index.wrapping_mul(0xd134_2543_de82_ef95));
     let s = episode_scenario(&mut rng, steps);

@@ -174,12 +174,10 @@ pub fn reference(
         r_tilde: Vector3::new(template.r_tilde.x, template.r_tilde.y, template.r_tilde.theta),
     };
     let f = Continuous { law, trajectory, template };
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let steps = (duration / step).round() as usize;
     let mut out = Vec::with_capacity(steps / every + 1);
     out.push(x.sample());
     for n in 0..steps {
-        #[allow(clippy::cast_precision_loss)]
         let (t0, t1) = (n as f64 * step, (n + 1) as f64 * step);
         let tm = 0.5 * (t0 + t1);
         // One piece of u_d per step, the one at its midpoint (trajectory 2's jumps fall on
@@ -211,7 +209,6 @@ pub fn sampled(trajectory: PaperTrajectory, run: PaperRun, period: f64, duration
         Trajectory::from(trajectory),
     )
     .expect("the paper's plant");
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let steps = (duration / period).round() as usize;
     let sample = |p: &Plant<Rpr<f64>, 3>| {
         let s = p.truth();
@@ -248,7 +245,6 @@ pub fn worst(a: &[Sample], b: &[Sample]) -> (f64, usize, usize) {
 
 /// `series` (sampled every `own` seconds) at the instants `k·at` (`at` a multiple of `own`).
 pub fn every(series: &[Sample], own: f64, at: f64) -> Vec<Sample> {
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let stride = (at / own).round() as usize;
     series.iter().step_by(stride.max(1)).copied().collect()
 }

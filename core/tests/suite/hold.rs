@@ -74,7 +74,6 @@ fn residual<P: Platform<f64>>(
     pt: &Point,
     h: f64,
 ) -> Result<(Q, f64), TestCaseError> {
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let warm = (0.02 / h).round() as usize;
     let kind = kind_of::<P>();
     let mut st = steady(pt, h);

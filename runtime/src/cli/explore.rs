@@ -116,14 +116,11 @@ pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
     if outcome.ran > 0 {
         // Per CPU second where the system tells it (a shared machine gives the cores to
         // others too), else per thread second of wall time.
-        #[allow(clippy::cast_precision_loss)]
         let (cpu, what) = match outcome.cpu_s.filter(|c| *c > 0.0) {
             Some(c) => (c, "CPU"),
             None => (outcome.wall_s * threads as f64, "thread"),
         };
-        #[allow(clippy::cast_precision_loss)]
         let per_hour = outcome.ran as f64 / cpu * 3600.0;
-        #[allow(clippy::cast_precision_loss)]
         let step_ns = cpu / outcome.steps.max(1) as f64 * 1e9;
         eprintln!(
             "ran {} samples in {:.1} s on {threads} threads, {cpu:.1} {what} s: {per_hour:.0} runs per {what}-hour, \

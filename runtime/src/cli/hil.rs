@@ -232,7 +232,6 @@ pub struct HilArgs {
     pub child: bool,
 }
 
-#[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
 fn secs_to_ns(s: f64) -> u64 {
     (s * 1e9).round() as u64
 }
@@ -589,7 +588,6 @@ fn spawn_progress(live: Arc<LiveFigures>, steps: u64, dt: f64) -> Option<std::th
             while !live.is_done() {
                 std::thread::sleep(Duration::from_millis(250));
                 let c = live.cycle.load(Ordering::Relaxed);
-                #[allow(clippy::cast_precision_loss)]
                 let t = c as f64 * dt;
                 eprint!(
                     "\r  cycle {c:>7}/{}  t {t:6.1} s  misses {:>5}  round trip p99 {:>9}{}   ",

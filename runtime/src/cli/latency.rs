@@ -177,7 +177,6 @@ fn print_table(b: &Benchmark) {
         );
     }
     for (mode, load, f) in &b.hil {
-        #[allow(clippy::cast_precision_loss)]
         let pct = if f.cycles > 0 { 100.0 * f.deadline_misses as f64 / f.cycles as f64 } else { 0.0 };
         println!(
             "  {:<9} {:<5} {:>8} {:>8} {:>6.2}% {:>6} {:>10} {:>10} {:>10}{}",

@@ -105,7 +105,6 @@ impl AnyController {
     /// to hold for `period` seconds, taking effect `delay` seconds after the measurement.
     #[inline]
     pub fn step(&mut self, meas: &Measurement<f64, JOINTS>, period: f64, delay: f64) -> StepReport {
-        #[allow(clippy::cast_possible_truncation)]
         let (p32, d32) = (period as f32, delay as f32);
         match self {
             Self::UnicycleF64(c) => report(c.step_delayed(meas, period, delay)),

@@ -223,7 +223,6 @@ impl Exploration {
         let mut u = [0.0; space::DRAWS];
         for x in &mut u {
             // 53 random bits: uniform on [0, 1).
-            #[allow(clippy::cast_precision_loss)]
             {
                 *x = (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64);
             }

@@ -106,10 +106,8 @@ fn map(file: &Path, s: &ExploreSummary) -> Plot {
                 chart.draw_series([Rectangle::new(rect, RGBColor(235, 235, 235).filled())])?;
                 continue;
             }
-            #[allow(clippy::cast_precision_loss)]
             let f = m.converged[j][i] as f64 / n as f64;
             // Red (none converge) to green (all converge).
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             let colour = RGBColor((220.0 * (1.0 - f)) as u8 + 20, (180.0 * f) as u8 + 40, 60);
             chart.draw_series([Rectangle::new(rect, colour.filled())])?;
             let centre = (0.5 * (rect[0].0 + rect[1].0), 0.5 * (rect[0].1 + rect[1].1));
@@ -141,7 +139,6 @@ fn histogram(file: &Path, title: &str, values: &[f64]) -> Plot {
     let bins = 30usize;
     let mut counts = vec![0u32; bins];
     for v in values {
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
         let i = (((v - lo) / (hi - lo)) * bins as f64).floor() as usize;
         counts[i.min(bins - 1)] += 1;
     }
@@ -153,9 +150,7 @@ fn histogram(file: &Path, title: &str, values: &[f64]) -> Plot {
         .y_label_area_size(48)
         .build_cartesian_2d(lo..hi, 0u32..top + top / 10 + 1)?;
     chart.configure_mesh().disable_x_mesh().y_desc("samples").draw()?;
-    #[allow(clippy::cast_precision_loss)]
     let width = (hi - lo) / bins as f64;
-    #[allow(clippy::cast_precision_loss)]
     chart.draw_series(counts.iter().enumerate().map(|(i, &c)| {
         let x = lo + width * i as f64;
         Rectangle::new([(x, 0), (x + width, c)], RGBColor(31, 119, 180).filled())

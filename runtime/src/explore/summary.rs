@@ -45,7 +45,6 @@ impl Spread {
         }
         v.sort_by(f64::total_cmp);
         let q = |p: f64| {
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
             let i = ((v.len() - 1) as f64 * p).round() as usize;
             v[i]
         };
@@ -121,7 +120,6 @@ pub fn input_index(name: &str, knobs: &[Knob]) -> Option<usize> {
 }
 
 fn edges(lo: f64, hi: f64, n: usize) -> Vec<f64> {
-    #[allow(clippy::cast_precision_loss)]
     (0..=n).map(|i| lo + (hi - lo) * i as f64 / n as f64).collect()
 }
 
@@ -130,7 +128,6 @@ fn bin(v: f64, e: &[f64]) -> Option<usize> {
     if !(v >= e[0] && v <= e[n]) {
         return None;
     }
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss, clippy::cast_precision_loss)]
     let i = (((v - e[0]) / (e[n] - e[0])) * n as f64).floor() as usize;
     Some(i.min(n - 1))
 }
@@ -164,7 +161,6 @@ pub fn summarize(
     }
     debug_assert_eq!(CLASSES.len(), 5);
     let n = records.len() as u64;
-    #[allow(clippy::cast_precision_loss)]
     let converged_fraction = if n > 0 { counts.converged as f64 / n as f64 } else { 0.0 };
     let col = |name: &str, only: Option<Class>| -> Vec<f64> {
         records.iter().filter(|r| only.is_none_or(|c| r.class == c)).map(|r| r.outcome(name)).collect()

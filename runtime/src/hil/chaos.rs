@@ -76,7 +76,6 @@ impl Plan {
             bail!("--chaos needs real time (not --lockstep)");
         }
         let run_ns = steps.saturating_mul(period);
-        #[allow(clippy::cast_precision_loss)]
         if (run_ns as f64) < MIN_DURATION_S * 1e9 {
             bail!("--chaos needs a run of at least {MIN_DURATION_S} s (--duration)");
         }

@@ -33,7 +33,6 @@ const LINGER: Duration = Duration::from_secs(1);
 /// The options of [`serve_scenario`] for a configuration and scenario.
 pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
     let t = &cfg.timing;
-    #[allow(clippy::cast_possible_truncation)]
     let startup = cfg.startup_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
     ServeOptions {
         wait: t.wait,
@@ -211,7 +210,6 @@ struct Fault {
     controller_answered: u64,
 }
 
-#[allow(clippy::cast_precision_loss)]
 fn ms(ns: u64) -> f64 {
     ns as f64 / 1e6
 }

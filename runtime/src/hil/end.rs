@@ -40,7 +40,6 @@ pub enum PlantEnd {
 impl PlantEnd {
     /// One sentence.
     pub fn describe(&self) -> String {
-        #[allow(clippy::cast_precision_loss)]
         let ms = |ns: &u64| *ns as f64 / 1e6;
         match self {
             Self::Completed => "completed".into(),
@@ -90,7 +89,6 @@ pub enum ControlEnd {
     Interrupted,
 }
 
-#[allow(clippy::cast_precision_loss)]
 fn ms(ns: u64) -> f64 {
     ns as f64 / 1e6
 }

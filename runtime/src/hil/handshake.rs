@@ -34,7 +34,6 @@ pub fn arm_hash() -> u64 {
 
 /// The controller's identity for a specification (the paper's arm).
 pub fn identity(spec: &ControllerSpec) -> ControllerIdentity {
-    #[allow(clippy::cast_possible_truncation)]
     ControllerIdentity {
         platform: platform::code(spec.platform),
         joint_count: JOINTS as u32,

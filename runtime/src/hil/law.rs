@@ -57,7 +57,6 @@ pub trait Served<const N: usize> {
 /// The largest delay a law of `spec` admits at period `dt`: its `max_delay`, and no more
 /// than its history of commands spans.
 fn max_delay(spec: &ControllerSpec, dt: f64) -> f64 {
-    #[allow(clippy::cast_precision_loss)]
     let span = dt * HISTORY as f64;
     spec.params::<f64>().max_delay.min(span)
 }

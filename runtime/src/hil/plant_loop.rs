@@ -268,7 +268,6 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
             st.longest_stall_ns = st.longest_stall_ns.max(behind);
         }
         let t_pub = side.publish(n, fl, delay, &meas)?;
-        #[allow(clippy::cast_possible_truncation)]
         let slot = |seq: u64| (seq % PUBLISHED as u64) as usize;
         published[slot(n)] = t_pub;
         // The handshake's answer (a cold first step) and, at the end of a completed run, the
@@ -339,7 +338,6 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
                     stats.event_fallback = true;
                 }
                 if n > 0 {
-                    #[allow(clippy::cast_precision_loss)]
                     let scale = |ns: u64| ns as f64 * dt / period as f64;
                     switch_at = scale(t_rx.saturating_sub(t_pub)).min(dt * (1.0 - 1e-9));
                     delay = if c.seq == n {

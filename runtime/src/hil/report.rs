@@ -138,7 +138,6 @@ impl LatencyReport {
     ) -> Self {
         let t = &cfg.timing;
         let plan = cfg.rt;
-        #[allow(clippy::cast_precision_loss)]
         let rate_hz = if t.period_ns > 0 { 1e9 / t.period_ns as f64 } else { 0.0 };
         Self {
             scenario: s.name.clone(),

@@ -226,7 +226,6 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
             cmd.compute_ns = clock.now_ns() - t_rx;
             link.publish(&cmd)?;
             stats.compute.record(cmd.compute_ns);
-            #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
             stats.delay.record(if delay.is_finite() { (delay * 1e9) as u64 } else { 0 });
             stats.answered += 1;
             stats.skipped += u64::from(skipped_since);

@@ -137,7 +137,6 @@ pub fn controller_step(
     cycles: u64,
     warmup: u64,
 ) -> Result<LatencyHistogram> {
-    #[allow(clippy::cast_precision_loss)]
     let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, platform)
         .scalar(scalar)
         .duration((cycles + warmup + 1) as f64 * 1e-3)
@@ -193,7 +192,6 @@ pub struct RtFigures {
 /// The run failed.
 pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool) -> Result<HilFigures> {
     std::fs::create_dir_all(dir)?;
-    #[allow(clippy::cast_precision_loss)]
     let duration = format!("{}", cycles as f64 * 1e-3);
     let name = format!("latency-{}-{}", std::process::id(), mode.as_str());
     let log = std::fs::File::create(dir.join("log.txt"))?;
@@ -269,7 +267,6 @@ pub struct Benchmark {
     pub second_clock: Vec<(String, SecondClock)>,
 }
 
-#[allow(clippy::cast_precision_loss)]
 fn ratio(a: u64, b: u64) -> f64 {
     if b == 0 {
         f64::NAN

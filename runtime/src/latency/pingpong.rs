@@ -361,7 +361,6 @@ pub struct SecondClock {
 
 impl SecondClock {
     /// The samples' share of the batch (0 for an empty batch).
-    #[allow(clippy::cast_precision_loss)]
     pub fn share(&self) -> f64 {
         if self.batch_raw_ns == 0 {
             0.0

@@ -30,27 +30,22 @@ fn e<E: std::fmt::Debug>(err: E) -> anyhow::Error {
 fn log_bins(h: &LatencyHistogram) -> Vec<(f64, f64)> {
     let mut bins: std::collections::BTreeMap<i64, u64> = std::collections::BTreeMap::new();
     for (v, c) in h.buckets() {
-        #[allow(clippy::cast_precision_loss, clippy::cast_possible_truncation)]
         let k = ((v.max(1) as f64).log10() * BINS_PER_DECADE).floor() as i64;
         *bins.entry(k).or_default() += c;
     }
-    #[allow(clippy::cast_precision_loss)]
     bins.into_iter().map(|(k, c)| (10f64.powf((k as f64 + 0.5) / BINS_PER_DECADE) / 1e3, c as f64)).collect()
 }
 
 /// `(nines, µs)`: the value at quantile `1 − 10^(−nines)`, up to the resolution of the sample.
 fn spectrum(h: &LatencyHistogram) -> Vec<(f64, f64)> {
-    #[allow(clippy::cast_precision_loss)]
     let top = (h.count().max(1) as f64).log10();
     let mut out = Vec::new();
     let mut x = 0.0;
     while x <= top + 1e-9 {
         let q = 1.0 - 10f64.powf(-x);
-        #[allow(clippy::cast_precision_loss)]
         out.push((x, h.quantile(q).max(1) as f64 / 1e3));
         x += 0.05;
     }
-    #[allow(clippy::cast_precision_loss)]
     out.push((top, h.quantile(1.0).max(1) as f64 / 1e3));
     out
 }
@@ -70,13 +65,11 @@ pub fn latency_svg(
     let root = root.titled(title, ("sans-serif", 20)).map_err(e)?;
     let (upper, lower) = root.split_vertically(390);
     let nonempty: Vec<_> = series.iter().filter(|(_, h)| h.count() > 0).collect();
-    #[allow(clippy::cast_precision_loss)]
     let max_us = nonempty
         .iter()
         .map(|(_, h)| h.quantile(1.0) as f64 / 1e3)
         .fold(deadline_ns.map_or(1.0, |d| d as f64 / 1e3), f64::max)
         * 1.5;
-    #[allow(clippy::cast_precision_loss)]
     let min_us =
         nonempty.iter().map(|(_, h)| h.percentiles().min.max(1) as f64 / 1e3).fold(f64::INFINITY, f64::min);
     let min_us = if min_us.is_finite() { (min_us / 1.5).max(0.01) } else { 0.01 };
@@ -103,7 +96,6 @@ pub fn latency_svg(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
     }
     if let Some(d) = deadline_ns {
-        #[allow(clippy::cast_precision_loss)]
         let d = d as f64 / 1e3;
         hist.draw_series(LineSeries::new(vec![(d, 0.8), (d, max_count)], BLACK.mix(0.6).stroke_width(1)))
             .map_err(e)?
@@ -112,7 +104,6 @@ pub fn latency_svg(
     }
     hist.configure_series_labels().background_style(WHITE.mix(0.85)).border_style(BLACK).draw().map_err(e)?;
 
-    #[allow(clippy::cast_precision_loss)]
     let max_nines = nonempty.iter().map(|(_, h)| (h.count().max(1) as f64).log10()).fold(1.0, f64::max);
     let mut spec = ChartBuilder::on(&lower)
         .caption(
@@ -124,7 +115,6 @@ pub fn latency_svg(
         .y_label_area_size(60)
         .build_cartesian_2d(0f64..max_nines.ceil(), (min_us..max_us).log_scale())
         .map_err(e)?;
-    #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
     let ticks = max_nines.ceil() as usize + 1;
     spec.configure_mesh()
         .x_labels(ticks)
@@ -149,7 +139,6 @@ pub fn latency_svg(
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c.stroke_width(2)));
     }
     if let Some(d) = deadline_ns {
-        #[allow(clippy::cast_precision_loss)]
         let d = d as f64 / 1e3;
         spec.draw_series(LineSeries::new(
             vec![(0.0, d), (max_nines.ceil(), d)],

@@ -159,7 +159,6 @@ fn side_view(file: &Path, name: &str, rows: &[SpatialRecord]) -> Plot {
     let (x0, x1) = bounds(pts.iter().map(|p| p[0]));
     let (z0, z1) = bounds(pts.iter().map(|p| p[2]).chain([0.0]));
     // Equal scales: the plot is W × H pixels.
-    #[allow(clippy::cast_precision_loss)]
     let aspect = f64::from(H - 60) / f64::from(W - 70);
     let span = (x1 - x0).max((z1 - z0) / aspect);
     let cx = (x0 + x1) / 2.0;
@@ -228,7 +227,6 @@ fn velocities(file: &Path, name: &str, rows: &[SpatialRecord]) -> Plot {
 
 fn joints(file: &Path, name: &str, rows: &[SpatialRecord], limits: &[(f64, f64)]) -> Plot {
     let n = limits.len();
-    #[allow(clippy::cast_possible_truncation)]
     let height = 60 + 110 * n as u32;
     let root: Area<'_> = SVGBackend::new(file, (W, height)).into_drawing_area();
     root.fill(&WHITE)?;

@@ -226,14 +226,12 @@ impl McapRecorder {
         if !(f.t.is_finite() && f.t >= 0.0 && f.t < 4.0e9) {
             bail!("{}: a frame's time must be in [0, 4e9) s, got {}", self.path.display(), f.t);
         }
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let ns = (f.t * 1e9).round() as u64;
         let stamp = Stamp::of(ns);
         let messages = Messages { f, l: &self.layout, stamp };
         for (k, &channel_id) in self.channels.iter().enumerate() {
             self.buf.clear();
             messages.write(k, &mut self.buf).context("formatting a replay message")?;
-            #[allow(clippy::cast_possible_truncation)]
             let header = ::mcap::records::MessageHeader {
                 channel_id,
                 sequence: self.frames as u32,
@@ -275,7 +273,6 @@ struct Stamp {
 
 impl Stamp {
     fn of(ns: u64) -> Self {
-        #[allow(clippy::cast_possible_truncation)]
         Self { sec: (ns / 1_000_000_000) as u32, nsec: (ns % 1_000_000_000) as u32 }
     }
 }

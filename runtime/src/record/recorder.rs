@@ -89,7 +89,6 @@ impl Log {
     /// The folder or file cannot be created.
     pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self> {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-        #[allow(clippy::cast_possible_truncation)]
         let rows = (s.steps() / s.log_every) as usize + 2;
         Self::create(dir, s.controller.platform, s.log_every, rows)
     }

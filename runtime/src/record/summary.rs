@@ -239,7 +239,6 @@ impl SummaryAccumulator {
     /// The summary so far, with the wall time.
     pub fn finish(&self, wall_time_s: f64) -> Summary {
         let mut s = self.s.clone();
-        #[allow(clippy::cast_precision_loss)]
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         } else {
@@ -249,7 +248,6 @@ impl SummaryAccumulator {
         s.steps_after_20s = self.after20;
         s.wall_time_s = wall_time_s;
         s.trajectory_digest = self.digest.hex();
-        #[allow(clippy::cast_precision_loss)]
         if s.steps > 0 {
             s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();
             s.rms_omega = (self.sum_w2 / s.steps as f64).sqrt();

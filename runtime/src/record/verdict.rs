@@ -158,7 +158,6 @@ pub enum Failure {
     },
 }
 
-#[allow(clippy::cast_precision_loss)]
 fn percent(n: u64, of: u64) -> f64 {
     if of == 0 {
         0.0
@@ -199,7 +198,6 @@ impl Failure {
 /// The rejection failure of a run of `steps` steps, if it rejected more than `limit` of them.
 pub fn rejection_failure(r: &Rejections, steps: u64, first_at_s: Option<f64>, limit: f64) -> Option<Failure> {
     let n = r.total();
-    #[allow(clippy::cast_precision_loss)]
     let too_many = n > 0 && (steps == 0 || n as f64 > limit * steps as f64);
     too_many.then(|| Failure::Rejected { rejected_steps: n, steps, limit, first_at_s, reasons: r.describe() })
 }
@@ -228,7 +226,6 @@ pub fn deadline_failures(f: &DeadlineFigures, first_stop_at_s: Option<f64>, limi
             first_at_s: first_stop_at_s,
         });
     }
-    #[allow(clippy::cast_precision_loss)]
     if f.deadline_misses as f64 > limit * f.cycles as f64 {
         out.push(Failure::DeadlinesMissed { deadline_misses: f.deadline_misses, cycles: f.cycles, limit });
     }

@@ -180,7 +180,6 @@ pub fn short(x: f64) -> String {
 
 /// `1.5 GB`, `20 MB`, `512 kB`, `300 bytes`.
 pub fn human_bytes(b: u64) -> String {
-    #[allow(clippy::cast_precision_loss)]
     let x = b as f64;
     if b >= 1_000_000_000 {
         format!("{:.1} GB", x / 1e9)
@@ -389,7 +388,6 @@ impl ScenarioBuilder {
         if self.log_every == 0 {
             return Err(ScenarioError::LogEvery);
         }
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
         let steps = (duration / dt).round() as u64;
         let rows = steps / self.log_every + 2;
         let bytes = rows.saturating_mul(BYTES_PER_ROW);
@@ -444,7 +442,6 @@ impl ScenarioBuilder {
                 bound: params.period_bound(),
             });
         }
-        #[allow(clippy::cast_precision_loss)]
         let max_delay = params.max_delay.min(dt * companion_core::HISTORY as f64);
         if !(self.delay.is_finite() && self.delay >= 0.0 && self.delay <= max_delay) {
             return Err(ScenarioError::Delay { delay: self.delay, max: max_delay });
@@ -523,9 +520,7 @@ impl Scenario {
 
     /// The number of control periods (the run logs steps `0..=steps`).
     pub fn steps(&self) -> u64 {
-        #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
-        let n = (self.duration / self.dt).round() as u64;
-        n
+        (self.duration / self.dt).round() as u64
     }
 
     /// Whether this is one of the paper's eight runs (unicycle, trajectory 1 or 2, f64, no

@@ -302,7 +302,6 @@ impl SpatialAccumulator {
     /// rejection failure if more than `max_rejected` of the steps were rejected.
     pub fn finish(&self, wall_time_s: f64, ended_early: bool, max_rejected: f64) -> SpatialSummary {
         let mut s = self.s.clone();
-        #[allow(clippy::cast_precision_loss)]
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
@@ -320,7 +319,6 @@ impl SpatialAccumulator {
         s.wall_time_s = wall_time_s;
         s.ended_early = ended_early;
         let n = s.rejected_steps;
-        #[allow(clippy::cast_precision_loss)]
         if n > 0 && (s.steps == 0 || n as f64 > max_rejected * s.steps as f64) {
             s.failures.push(Failure::Rejected {
                 rejected_steps: n,

@@ -230,7 +230,6 @@ impl Tuning {
     /// The design's shift: one uniform number per knob from the seed.
     fn shift(&self) -> Vec<f64> {
         let mut rng = ChaCha12Rng::seed_from_u64(self.seed);
-        #[allow(clippy::cast_precision_loss)]
         (0..self.space.len()).map(|_| (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64).collect()
     }
 
@@ -276,7 +275,6 @@ impl Tuning {
             };
         }
         let runs: Vec<RunScore> = self.runs.par_iter().map(|r| score(r, &values)).collect();
-        #[allow(clippy::cast_precision_loss)]
         let n = runs.len() as f64;
         let tracked = runs.iter().map(|r| r.tracked).sum::<f64>() / n;
         let effort = runs.iter().map(|r| r.rms_v).sum::<f64>() / n;
@@ -423,7 +421,6 @@ pub fn halton(i: usize, shift: &[f64]) -> Vec<f64> {
         .map(|(d, s)| {
             let b = PRIMES[d % PRIMES.len()];
             let (mut f, mut r, mut n) = (1.0, 0.0, i);
-            #[allow(clippy::cast_precision_loss)]
             while n > 0 {
                 f /= b as f64;
                 r += f * (n % b) as f64;

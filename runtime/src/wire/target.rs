@@ -169,7 +169,6 @@ mod tests {
     #[test]
     fn a_planar_target_round_trips_bit_for_bit() {
         for (k, th) in angles().into_iter().enumerate() {
-            #[allow(clippy::cast_precision_loss)]
             let x = k as f64 * 1e-3 - 3.7;
             let pose = Pose::new(x, 0.1 - x / 3.0, th);
             let u = Vector3::new(-th / 20.0, x, th.sin());
@@ -200,7 +199,6 @@ mod tests {
             let q = so3::to_quaternion(&r);
             by_quaternion += usize::from((2.0 * q[2].atan2(q[3])).to_bits() != th.to_bits());
         }
-        #[allow(clippy::cast_precision_loss)]
         let frac = |n: usize| n as f64 / inside.len() as f64;
         println!(
             "of {} angles in (−π, π]: {:.1} % not recovered from R, {:.1} % not from the quaternion",
