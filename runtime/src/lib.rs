@@ -30,6 +30,8 @@
 //! a cycle, in every crate of the workspace.
 
 pub mod arm;
+#[cfg(feature = "zenoh")]
+pub mod certs;
 pub mod clock;
 pub mod controller;
 pub mod explore;
@@ -58,3 +60,5 @@ pub mod tune;
 pub mod wire;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_link;
+#[cfg(feature = "zenoh")]
+pub mod zenoh_log;

@@ -16,6 +16,10 @@ pub enum PeerState {
     Alive(i32),
     /// The peer's process died without cleaning up (pid).
     Dead(i32),
+    /// The peer's session ended without a closed connection (pid): its lease ran out with
+    /// nothing heard (Zenoh over QUIC, where a killed process closes nothing). Dead, or
+    /// unreachable across the network: the two look the same.
+    Expired(i32),
     /// No node of the peer exists (it has not started, or it exited cleanly).
     Absent,
 }

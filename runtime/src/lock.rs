@@ -7,6 +7,13 @@
 //! then one demo's controller could drive the other's plant. A lock has no such window: of
 //! two processes asking for it at once, exactly one gets it.
 //!
+//! The lock files are owner-only (`0600`: another user can neither read the holder's pid nor
+//! take the lock first) and removed when their holder ends cleanly (dropping the lock), so
+//! that they do not pile up one per demo name. Removing a file another process may have
+//! opened is safe because a lock counts only on the file that is at the path: after `flock`
+//! succeeds, the holder checks that the path still names the file it locked, and starts over
+//! if not (the previous holder removed it in between).
+//!
 //! `companion hil` takes both roles' locks before it starts its plant (which runs under its
 //! parent's locks), so a second `hil`, `plant` or `control` with that name stops at once with
 //! [`NameInUse`]; `companion plant` and `companion control` each take their own.
@@ -15,6 +22,7 @@
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, Write};
 use std::os::fd::AsRawFd;
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt, PermissionsExt};
 use std::path::PathBuf;
 
 use anyhow::{anyhow, Context, Result};
@@ -27,7 +35,7 @@ pub const LOCK_DIR: &str = "/tmp/companion";
 /// A held lock on one role of a demo name (released when dropped).
 #[derive(Debug)]
 pub struct NameLock {
-    _file: File,
+    file: File,
     /// The demo's name.
     pub name: String,
     /// The role.
@@ -64,23 +72,35 @@ impl NameLock {
         crate::ipc::validate_name(name)?;
         std::fs::create_dir_all(LOCK_DIR).with_context(|| format!("creating {LOCK_DIR}"))?;
         let p = path(name, role);
-        let mut file = OpenOptions::new()
-            .read(true)
-            .write(true)
-            .create(true)
-            .truncate(false)
-            .open(&p)
-            .with_context(|| format!("opening the lock file {}", p.display()))?;
-        if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
-            let pid = holder_of(&mut file).unwrap_or(0);
-            return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
-        }
+        let mut file = loop {
+            let mut file = OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .mode(0o600)
+                .open(&p)
+                .with_context(|| format!("opening the lock file {}", p.display()))?;
+            if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
+                let pid = holder_of(&mut file).unwrap_or(0);
+                return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
+            }
+            // The previous holder may have removed the file between our open and our lock:
+            // then the lock is on a file nobody else will find; take the one at the path.
+            let here = file.metadata().with_context(|| format!("reading {}", p.display()))?;
+            if std::fs::metadata(&p).is_ok_and(|m| m.ino() == here.ino() && m.dev() == here.dev()) {
+                break file;
+            }
+        };
+        // A file left by an older version (0644) becomes owner-only too.
+        file.set_permissions(std::fs::Permissions::from_mode(0o600))
+            .with_context(|| format!("making {} owner-only", p.display()))?;
         // The holder's pid, for the message of whoever finds the lock taken.
         file.set_len(0)
             .and_then(|()| file.rewind())
             .and_then(|()| write!(file, "{}", std::process::id()))
             .with_context(|| format!("writing {}", p.display()))?;
-        Ok(Self { _file: file, name: name.to_string(), role })
+        Ok(Self { file, name: name.to_string(), role })
     }
 
     /// The pid written in the lock file of `role` in demo `name` (its holder's, or the last
@@ -91,6 +111,21 @@ impl NameLock {
     pub fn holder(name: &str, role: Role) -> Result<i32> {
         let mut f = File::open(path(name, role))?;
         holder_of(&mut f).ok_or_else(|| anyhow!("no pid in the lock file"))
+    }
+}
+
+impl Drop for NameLock {
+    /// Removes the lock file, still locked (see the module's doc for why that is safe), then
+    /// releases the lock by closing it.
+    fn drop(&mut self) {
+        let p = path(&self.name, self.role);
+        let ours = match (self.file.metadata(), std::fs::metadata(&p)) {
+            (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+            _ => false,
+        };
+        if ours {
+            let _ = std::fs::remove_file(&p);
+        }
     }
 }
 
@@ -116,12 +151,24 @@ mod tests {
         assert_eq!(NameLock::holder(&name, Role::Plant).unwrap(), n.pid);
         // The other role is another lock.
         let b = NameLock::acquire(&name, Role::Control).unwrap();
+        // Owner-only.
+        let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
         drop(a);
+        // Removed when released.
+        assert!(!path(&name, Role::Plant).exists());
         let a = NameLock::acquire(&name, Role::Plant).unwrap();
         drop((a, b));
         for role in [Role::Plant, Role::Control] {
-            let _ = std::fs::remove_file(path(&name, role));
+            assert!(!path(&name, role).exists(), "{role:?}");
         }
+        // A file left 0644 by an older version is made owner-only.
+        std::fs::write(path(&name, Role::Plant), "1").unwrap();
+        std::fs::set_permissions(path(&name, Role::Plant), std::fs::Permissions::from_mode(0o644)).unwrap();
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        drop(a);
         assert!(NameLock::acquire("bad/name", Role::Plant).is_err());
     }
 }

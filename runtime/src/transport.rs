@@ -28,9 +28,9 @@ pub enum Transport {
     /// iceoryx2 shared memory (one machine).
     #[default]
     Iceoryx2,
-    /// Zenoh over TCP: this side listens or connects.
+    /// Zenoh over TLS (or plain TCP with `--insecure`): this side listens or connects.
     #[cfg(feature = "zenoh")]
-    Zenoh(crate::zenoh_link::ZenohLink),
+    Zenoh(crate::zenoh_link::ZenohLink, crate::zenoh_link::Security),
 }
 
 impl Transport {
@@ -39,55 +39,129 @@ impl Transport {
         match self {
             Self::Iceoryx2 => "iceoryx2".into(),
             #[cfg(feature = "zenoh")]
-            Self::Zenoh(l) => format!("zenoh ({l})"),
+            Self::Zenoh(l, sec) => format!("zenoh ({l}, {})", sec.describe()),
+        }
+    }
+
+    /// Whether this run's link lets anyone in (Zenoh with `--insecure`).
+    pub fn insecure(&self) -> bool {
+        match self {
+            Self::Iceoryx2 => false,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(_, sec) => *sec == crate::zenoh_link::Security::Insecure,
+        }
+    }
+
+    /// Whether this is zenoh's TLS-over-TCP link (`tls/`), which zenoh#2557 makes fail
+    /// under load ([`Scheme`](crate::zenoh_link::Scheme)).
+    pub fn tls_over_tcp(&self) -> bool {
+        match self {
+            Self::Iceoryx2 => false,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(l, _) => l.endpoint().scheme == crate::zenoh_link::Scheme::Tls,
         }
     }
 }
 
-/// The Zenoh transport from `--listen`/`--connect` (exactly one).
+/// The Zenoh link's security as the command line gives it.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SecurityFlags {
+    /// `--tls-ca`.
+    pub ca: Option<std::path::PathBuf>,
+    /// `--tls-cert`.
+    pub cert: Option<std::path::PathBuf>,
+    /// `--tls-key`.
+    pub key: Option<std::path::PathBuf>,
+    /// `--tls-peer` (comma-separated names).
+    pub peer: Option<String>,
+    /// `--insecure`.
+    pub insecure: bool,
+}
+
+/// The Zenoh transport from `--listen`/`--connect` (exactly one) and the TLS flags: TLS with
+/// every file and the peer's name, or `--insecure` with a `tcp/` endpoint.
 ///
 /// # Errors
-/// Both or neither given, a malformed endpoint, or a build without the feature
-/// ([`BUILD_WITH_ZENOH`]).
-pub fn zenoh(listen: Option<&str>, connect: Option<&str>) -> Result<Transport> {
+/// Both or neither endpoint given, a malformed endpoint, a `tcp/` endpoint without
+/// `--insecure`, a missing TLS flag, or a build without the feature ([`BUILD_WITH_ZENOH`]).
+pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -> Result<Transport> {
     #[cfg(feature = "zenoh")]
     {
-        use crate::zenoh_link::{TcpEndpoint, ZenohLink};
-        match (listen, connect) {
-            (Some(l), None) => Ok(Transport::Zenoh(ZenohLink::Listen(TcpEndpoint::parse(l)?))),
-            (None, Some(c)) => Ok(Transport::Zenoh(ZenohLink::Connect(TcpEndpoint::parse(c)?))),
+        use crate::zenoh_link::{Security, TcpEndpoint, TlsFiles, ZenohLink};
+        let link = match (listen, connect) {
+            (Some(l), None) => ZenohLink::Listen(TcpEndpoint::parse(l)?),
+            (None, Some(c)) => ZenohLink::Connect(TcpEndpoint::parse(c)?),
             (Some(_), Some(_)) => bail!("--transport zenoh: give --listen or --connect, not both"),
             (None, None) => bail!(
-                "--transport zenoh needs an endpoint: --listen tcp/ADDR:PORT (usually the plant) or --connect \
-                 tcp/ADDR:PORT (usually the controller)"
+                "--transport zenoh needs an endpoint: --listen quic/ADDR:PORT (usually the plant) or --connect \
+                 quic/ADDR:PORT (usually the controller)"
             ),
-        }
+        };
+        let tls_given = sec.ca.is_some() || sec.cert.is_some() || sec.key.is_some() || sec.peer.is_some();
+        let security = if sec.insecure {
+            if tls_given {
+                bail!("--insecure turns TLS off: drop it, or drop --tls-ca, --tls-cert, --tls-key and --tls-peer");
+            }
+            Security::Insecure
+        } else if link.endpoint().scheme == crate::zenoh_link::Scheme::Tcp {
+            return Err(crate::zenoh_link::plaintext_refused(link.endpoint()));
+        } else {
+            let need = |v: &Option<std::path::PathBuf>, flag: &str, what: &str| {
+                v.clone().ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--transport zenoh over TLS needs {flag} FILE ({what}; `companion certs --out DIR --hosts \
+                         plant.local,ctrl.local` makes them)"
+                    )
+                })
+            };
+            let ca = need(&sec.ca, "--tls-ca", "the deployment's CA certificate, ca.pem")?;
+            let cert = need(&sec.cert, "--tls-cert", "this host's certificate, HOST.pem")?;
+            let key = need(&sec.key, "--tls-key", "this host's private key, HOST.key")?;
+            let Some(peer) = &sec.peer else {
+                bail!(
+                    "--transport zenoh over TLS needs --tls-peer NAME: the name on the certificate of the peer \
+                     this side may serve (e.g. ctrl.local on the plant, plant.local on the controller)"
+                );
+            };
+            let peer_names = peer.split(',').map(|n| n.trim().to_string()).collect();
+            Security::Tls(TlsFiles { ca, cert, key, peer_names })
+        };
+        security.check(link.endpoint())?;
+        Ok(Transport::Zenoh(link, security))
     }
     #[cfg(not(feature = "zenoh"))]
     {
-        let _ = (listen, connect);
+        let _ = (listen, connect, sec);
         bail!("--transport zenoh: {BUILD_WITH_ZENOH}")
     }
 }
 
-/// `tcp/127.0.0.1:PORT` with a port that was free a moment ago (the kernel's pick): where
-/// `companion hil --transport zenoh` lets its plant listen.
+/// `quic/127.0.0.1:PORT` (`tcp/…` if `insecure`) with a port that was free a moment ago (the
+/// kernel's pick): where `companion hil --transport zenoh` lets its plant listen.
 ///
 /// # Errors
 /// No local TCP port can be bound.
-pub fn free_local_endpoint() -> Result<String> {
-    let l = std::net::TcpListener::bind(("127.0.0.1", 0))
-        .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?;
-    let port = l.local_addr().map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?.port();
-    Ok(format!("tcp/127.0.0.1:{port}"))
+pub fn free_local_endpoint(insecure: bool) -> Result<String> {
+    let port = if insecure {
+        let l = std::net::TcpListener::bind(("127.0.0.1", 0));
+        l.and_then(|l| l.local_addr())
+            .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?
+            .port()
+    } else {
+        let s = std::net::UdpSocket::bind(("127.0.0.1", 0));
+        s.and_then(|s| s.local_addr())
+            .map_err(|e| anyhow::anyhow!("finding a free local UDP port: {e}"))?
+            .port()
+    };
+    Ok(format!("{}/127.0.0.1:{port}", if insecure { "tcp" } else { "quic" }))
 }
 
 /// The transport that connects where `t` listens (`t` itself otherwise).
 pub fn listen_to_connect(t: &Transport) -> Transport {
     match t {
         #[cfg(feature = "zenoh")]
-        Transport::Zenoh(crate::zenoh_link::ZenohLink::Listen(e)) => {
-            Transport::Zenoh(crate::zenoh_link::ZenohLink::Connect(e.clone()))
+        Transport::Zenoh(crate::zenoh_link::ZenohLink::Listen(e), sec) => {
+            Transport::Zenoh(crate::zenoh_link::ZenohLink::Connect(e.clone()), sec.clone())
         }
         other => other.clone(),
     }
@@ -112,7 +186,8 @@ pub type PlantEndpoint = Endpoint<MeasurementMsg, CommandMsg>;
 pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
 
 /// Opens `role`'s side of demo `name` on `transport`; `events`: iceoryx2's event services
-/// too (Zenoh always wakes a waiting receiver).
+/// too (Zenoh always wakes a waiting receiver); `peer_timeout`: the loops' `--peer-timeout`
+/// (over Zenoh's QUIC it sets the lease, [`crate::zenoh_link::quic_lease`]).
 ///
 /// # Errors
 /// As [`ipc::Endpoint::open`] or [`crate::zenoh_link::ZenohEndpoint::open`].
@@ -121,19 +196,22 @@ pub fn open<Tx: Message, Rx: Message>(
     name: &str,
     role: Role,
     events: bool,
+    peer_timeout: Duration,
 ) -> Result<Endpoint<Tx, Rx>> {
     let what = if role == Role::Plant {
         "opening the plant's transport"
     } else {
         "opening the controller's transport"
     };
+    #[cfg(not(feature = "zenoh"))]
+    let _ = peer_timeout;
     match transport {
         Transport::Iceoryx2 => {
             Ok(Endpoint::Iceoryx2(anyhow::Context::context(ipc::Endpoint::open(name, role, events), what)?))
         }
         #[cfg(feature = "zenoh")]
-        Transport::Zenoh(l) => Ok(Endpoint::Zenoh(anyhow::Context::context(
-            crate::zenoh_link::ZenohEndpoint::open(name, role, l.clone()),
+        Transport::Zenoh(l, sec) => Ok(Endpoint::Zenoh(anyhow::Context::context(
+            crate::zenoh_link::ZenohEndpoint::open(name, role, l.clone(), sec, peer_timeout),
             what,
         )?)),
     }
@@ -151,6 +229,34 @@ impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
             Self::Iceoryx2(e) => e.wait_for_peer(timeout, abort),
             #[cfg(feature = "zenoh")]
             Self::Zenoh(e) => e.wait_for_peer(timeout, abort),
+        }
+    }
+
+    /// Peers refused since the last call, each named and with the reason (Zenoh over TLS;
+    /// iceoryx2 refuses nobody: only the same Unix user can open its shared memory).
+    pub fn take_refusals(&self) -> Vec<String> {
+        match self {
+            Self::Iceoryx2(_) => Vec::new(),
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.take_refusals(),
+        }
+    }
+
+    /// The last refusal so far, shown by [`Self::take_refusals`] or not.
+    pub fn last_refusal(&self) -> Option<String> {
+        match self {
+            Self::Iceoryx2(_) => None,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.last_refusal(),
+        }
+    }
+
+    /// Peers refused so far, in all (0 on iceoryx2).
+    pub fn refusals(&self) -> u64 {
+        match self {
+            Self::Iceoryx2(_) => 0,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => e.refusals(),
         }
     }
 

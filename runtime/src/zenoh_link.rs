@@ -1,13 +1,15 @@
 //! The Zenoh transport of the HIL loop (cargo feature `zenoh`): the same two wire messages,
-//! byte for byte, between two processes on one machine or two, over a TCP link.
+//! byte for byte, between two processes on one machine or two, over QUIC under mutual TLS
+//! 1.3 by default ([`Scheme`]).
 //!
 //! ## Endpoints
 //!
-//! One side listens (`--listen tcp/ADDR:PORT`, by default the plant), the other connects
-//! (`--connect tcp/ADDR:PORT`, by default the controller). Both are Zenoh *peers* with
+//! One side listens (`--listen quic/ADDR:PORT`, by default the plant), the other connects
+//! (`--connect quic/ADDR:PORT`, by default the controller). Both are Zenoh *peers* with
 //! multicast scouting and gossip off: they meet only through the endpoint given, never
 //! another program's Zenoh network. The connecting side retries until its peer listens, so
-//! either may start first; a listening side whose port is taken fails at once.
+//! either may start first; a listening side whose port is taken fails at once. `tls/` (TLS
+//! over TCP) is accepted with a warning; `tcp/` only with `--insecure` ([`Security`]).
 //!
 //! ## Key expressions (protocol version 4)
 //!
@@ -37,10 +39,11 @@
 //! Each side declares a liveliness token after its subscriber, so seeing the peer's token
 //! means the peer can hear us; [`ZenohEndpoint::wait_for_peer`] waits for it and for our
 //! publisher to match the peer's subscriber. The token disappears when the peer's session
-//! ends — its process exited or was killed (the TCP connection closes at once) or the link
-//! stayed silent past Zenoh's lease (10 s) — and [`ZenohEndpoint::peer_state`] then reports
-//! the peer [`PeerState::Dead`] (across a network a killed process and a cut link look the
-//! same). A peer that stays connected but silent is alive: the loops call it hung after
+//! ends — its process exited, or was killed and its TCP connection closed at once, or the
+//! link stayed silent past the lease the peer announced (10 s over TCP; over QUIC, where a
+//! killed process closes nothing, half the peer's `--peer-timeout`: [`quic_lease`]) — and
+//! [`ZenohEndpoint::peer_state`] then reports the peer [`PeerState::Dead`] (over QUIC
+//! [`PeerState::Expired`]: across a network a killed process and a cut link look the same). A peer that stays connected but silent is alive: the loops call it hung after
 //! `--peer-timeout`, as on iceoryx2.
 //!
 //! ## Mismatched peers
@@ -55,6 +58,7 @@
 //! by the handshake, as on iceoryx2.
 
 use std::marker::PhantomData;
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicI32, AtomicU64, AtomicU8, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::Thread;
@@ -72,47 +76,160 @@ use crate::wire::{CommandMsg, MeasurementMsg, PROTOCOL_VERSION};
 /// Received messages waiting for the loop (allocated once).
 pub const RING: usize = 16;
 
-/// A Zenoh TCP endpoint, `tcp/HOST:PORT`, checked.
+/// A link's protocol: QUIC under mutual TLS 1.3 (the default), TLS over TCP, or plain TCP
+/// (only with `--insecure`).
+///
+/// QUIC is the default because zenoh 1.10's TLS-over-TCP link is not sound: it reads and
+/// writes one rustls connection from its receiving and its sending task at once through an
+/// `UnsafeCell` (eclipse-zenoh/zenoh#2557, open). Measured here: every 20 s `companion hil
+/// --transport zenoh` run over `tls/` on the loaded 2-CPU machine (3 of 3) lost its link within
+/// 3–19 s ("TX task failed: handshake not complete", rustls's state seen mid-update by the
+/// other task), and both sides then reported the other dead; over `quic/` (quinn: separate
+/// send and receive streams) 0 of 3. `tls/` stays accepted, for networks that pass no UDP, with
+/// a warning at start.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Scheme {
+    /// `tls/`: TCP under mutual TLS (zenoh#2557: warned at start).
+    Tls,
+    /// `quic/`: QUIC (UDP) under mutual TLS 1.3; the default.
+    Quic,
+    /// `tcp/`: plain TCP, neither authenticated nor encrypted.
+    Tcp,
+}
+
+impl Scheme {
+    /// `tls` or `tcp`, as in the endpoint.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Tls => "tls",
+            Self::Quic => "quic",
+            Self::Tcp => "tcp",
+        }
+    }
+}
+
+/// A Zenoh endpoint, `quic/HOST:PORT`, `tls/HOST:PORT` or `tcp/HOST:PORT`, checked.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct TcpEndpoint {
-    /// The host (a name or an address; IPv6 in brackets).
+    /// TLS or plain TCP.
+    pub scheme: Scheme,
+    /// The host (a name or an address; IPv6 in brackets). Over TLS the connecting side
+    /// checks that the listener's certificate is valid for this name or address.
     pub host: String,
     /// The port.
     pub port: u16,
 }
 
 impl TcpEndpoint {
-    /// Parses `tcp/HOST:PORT`.
+    /// Parses `quic/HOST:PORT`, `tls/HOST:PORT` or `tcp/HOST:PORT`.
     ///
     /// # Errors
     /// Another protocol, no host, or no valid port.
     pub fn parse(s: &str) -> Result<Self> {
-        let Some(rest) = s.strip_prefix("tcp/") else {
+        let (scheme, rest) = if let Some(rest) = s.strip_prefix("tls/") {
+            (Scheme::Tls, rest)
+        } else if let Some(rest) = s.strip_prefix("quic/") {
+            (Scheme::Quic, rest)
+        } else if let Some(rest) = s.strip_prefix("tcp/") {
+            (Scheme::Tcp, rest)
+        } else {
             bail!(
-                "endpoint {s:?}: expected tcp/HOST:PORT, e.g. tcp/192.168.1.20:7447 (only TCP is built in)"
+                "endpoint {s:?}: expected quic/HOST:PORT, e.g. quic/192.168.1.20:7447 (tls/HOST:PORT for TLS over \
+                 TCP, or tcp/HOST:PORT with --insecure)"
             );
         };
+        let p = scheme.as_str();
         let Some((host, port)) = rest.rsplit_once(':') else {
-            bail!("endpoint {s:?}: no port; expected tcp/HOST:PORT, e.g. tcp/127.0.0.1:7447");
+            bail!("endpoint {s:?}: no port; expected {p}/HOST:PORT, e.g. {p}/127.0.0.1:7447");
         };
         let port: u16 = port.parse().map_err(|_| {
             anyhow!(
-                "endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected tcp/HOST:PORT"
+                "endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected {p}/HOST:PORT"
             )
         })?;
         let bad_host = host.is_empty()
             || !host.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._:[]".contains(&b))
             || host.contains(':') && !(host.starts_with('[') && host.ends_with(']'));
         if bad_host {
-            bail!("endpoint {s:?}: bad host {host:?}; expected tcp/HOST:PORT (an IPv6 address in brackets)");
+            bail!("endpoint {s:?}: bad host {host:?}; expected {p}/HOST:PORT (an IPv6 address in brackets)");
         }
-        Ok(Self { host: host.to_string(), port })
+        Ok(Self { scheme, host: host.to_string(), port })
     }
 }
 
 impl std::fmt::Display for TcpEndpoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "tcp/{}:{}", self.host, self.port)
+        write!(f, "{}/{}:{}", self.scheme.as_str(), self.host, self.port)
+    }
+}
+
+/// The TLS material of one side: the deployment's CA, this side's certificate and key (PEM
+/// files, as `companion certs` writes them), and the names the peer's certificate may carry.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TlsFiles {
+    /// The CA certificate both sides' certificates are checked against (`--tls-ca`).
+    pub ca: PathBuf,
+    /// This side's certificate, signed by the CA (`--tls-cert`).
+    pub cert: PathBuf,
+    /// This side's private key (`--tls-key`; owner-only, `0600`).
+    pub key: PathBuf,
+    /// The common names (CN) a peer's certificate must carry to be served (`--tls-peer`);
+    /// a peer with another certificate of the same CA is refused by Zenoh's access control.
+    pub peer_names: Vec<String>,
+}
+
+/// Why a `tcp/` endpoint is refused without `--insecure`, and what to do instead.
+pub fn plaintext_refused(endpoint: &TcpEndpoint) -> anyhow::Error {
+    anyhow!(
+        "{endpoint} is plain TCP: whoever reaches that port could drive the robot, and anyone on the path read \
+         and alter its traffic. Use quic/{}:{} with --tls-ca, --tls-cert, --tls-key and --tls-peer (make them \
+         with `companion certs --out DIR --hosts plant.local,ctrl.local`), or pass --insecure to accept that risk",
+        endpoint.host,
+        endpoint.port
+    )
+}
+
+/// Who may join this side's demo.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Security {
+    /// Mutual TLS: only a peer with a certificate of the CA and one of the expected names.
+    Tls(TlsFiles),
+    /// `--insecure`: plain TCP, anyone who reaches the port; nothing is encrypted.
+    Insecure,
+}
+
+impl Security {
+    /// `mutual TLS (peer ctrl.local)` or `INSECURE plain TCP`.
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Tls(t) => format!("mutual TLS, peer certificate {}", t.peer_names.join(" or ")),
+            Self::Insecure => "INSECURE plain TCP (--insecure)".into(),
+        }
+    }
+
+    /// Checks that the endpoint's scheme matches (`tls/` with TLS, `tcp/` only when
+    /// insecure), the files can be read and the names are not empty.
+    ///
+    /// # Errors
+    /// A message saying what to change.
+    pub fn check(&self, endpoint: &TcpEndpoint) -> Result<()> {
+        match (self, endpoint.scheme) {
+            (Self::Insecure, Scheme::Tcp) => Ok(()),
+            (Self::Insecure, Scheme::Tls | Scheme::Quic) => {
+                bail!("--insecure is for plain tcp/ endpoints; {endpoint} is TLS: drop --insecure")
+            }
+            (Self::Tls(_), Scheme::Tcp) => Err(plaintext_refused(endpoint)),
+            (Self::Tls(t), Scheme::Tls | Scheme::Quic) => {
+                for (flag, p) in [("--tls-ca", &t.ca), ("--tls-cert", &t.cert), ("--tls-key", &t.key)] {
+                    std::fs::metadata(p)
+                        .with_context(|| format!("{flag} {}: cannot read it", p.display()))?;
+                }
+                if t.peer_names.is_empty() || t.peer_names.iter().any(|n| n.trim().is_empty()) {
+                    bail!("--tls-peer: the name on the peer's certificate, e.g. ctrl.local (not empty)");
+                }
+                Ok(())
+            }
+        }
     }
 }
 
@@ -123,6 +240,15 @@ pub enum ZenohLink {
     Listen(TcpEndpoint),
     /// Connect to the endpoint (retried until the peer listens).
     Connect(TcpEndpoint),
+}
+
+impl ZenohLink {
+    /// The endpoint listened on or connected to.
+    pub fn endpoint(&self) -> &TcpEndpoint {
+        match self {
+            Self::Listen(e) | Self::Connect(e) => e,
+        }
+    }
 }
 
 impl std::fmt::Display for ZenohLink {
@@ -160,7 +286,21 @@ struct Shared {
     rival: AtomicI32,
     /// A process of another protocol version on the same demo.
     other: Mutex<Option<OtherVersion>>,
+    /// Peers refused for their certificate's name, not yet taken (at most [`KEEP_REFUSED`]).
+    refused: Mutex<Vec<String>>,
+    /// Every peer refused for its certificate's name.
+    refused_names: AtomicU64,
+    /// The last refusal taken (for the message of a startup timeout).
+    last_refusal: Mutex<Option<String>>,
+    /// Refusals returned by [`ZenohEndpoint::take_refusals`] so far.
+    shown: AtomicU64,
 }
+
+/// Refusals [`ZenohEndpoint::take_refusals`] returns in all (the rest are counted).
+pub const SHOWN_REFUSALS: u64 = 10;
+
+/// Refusals kept until taken ([`ZenohEndpoint::take_refusals`]; more are only counted).
+const KEEP_REFUSED: usize = 16;
 
 /// What a liveliness token of demo `name` says: (version, role, pid), from
 /// `companion/NAME/vK/alive/ROLE/PID`.
@@ -199,6 +339,24 @@ pub struct ZenohEndpoint<Tx, Rx> {
     _tx: PhantomData<fn(&Tx)>,
 }
 
+/// The longest wait for Zenoh to close a session when an endpoint is dropped.
+///
+/// Zenoh's own is 10 s, and over QUIC a session whose peer was killed takes all of it (its
+/// connector keeps trying the dead peer's address): measured, a controller that found its
+/// killed plant 1 012 ms after the last measurement printed so only 11.6 s after the kill.
+/// A close cut short leaves nothing that outlives the process; the peer, if alive, ends its
+/// side by its lease.
+pub const CLOSE_WAIT: Duration = Duration::from_millis(500);
+
+impl<Tx, Rx> Drop for ZenohEndpoint<Tx, Rx> {
+    fn drop(&mut self) {
+        // (zenoh's `timeout` is behind its `internal` feature, for this.)
+        if let Err(e) = self.session.close().timeout(CLOSE_WAIT).wait() {
+            tracing::debug!("closing the zenoh session of demo {}: {e}", self.name);
+        }
+    }
+}
+
 impl<Tx, Rx> std::fmt::Debug for ZenohEndpoint<Tx, Rx> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("ZenohEndpoint")
@@ -218,13 +376,80 @@ fn zerr(e: zenoh::Error) -> anyhow::Error {
     anyhow!("{e}")
 }
 
-/// The Zenoh configuration of one side: a peer that meets only the given endpoint.
-fn config(link: &ZenohLink) -> Result<zenoh::Config> {
+/// A JSON string (a path or a name, quoted and escaped).
+fn json(s: &str) -> String {
+    serde_json::Value::String(s.to_string()).to_string()
+}
+
+/// Every kind of message Zenoh's access control knows: a peer of the right name may do
+/// anything on this demo's keys, any other nothing.
+const ACL_MESSAGES: &str = "[\"put\", \"delete\", \"declare_subscriber\", \"query\", \"declare_queryable\", \
+                            \"reply\", \"liveliness_token\", \"declare_liveliness_subscriber\", \"liveliness_query\"]";
+
+/// The lease this side announces over QUIC: half the loops' `--peer-timeout`, within
+/// [[`MIN_QUIC_LEASE`], 10 s] (zenoh's default, which TCP keeps).
+///
+/// Over TCP a killed peer's kernel closes the connection and its session ends at once (the
+/// peer is found dead within ~20 ms). A killed QUIC peer sends nothing — UDP has no
+/// connection for the kernel to close — so its session ends only when its lease runs out
+/// with no message (zenoh sends keep-alives four times per lease). Under 10 s the loops
+/// would first call the dead peer hung (`--peer-timeout`, 2 s by default: measured "alive
+/// but silent for 2014 ms"); at half the peer timeout it is found dead first (measured: a
+/// killed controller found dead 514 ms after its last command at a 500 ms lease, 1 007 ms
+/// at 1 s). The peer expires *our* session by the lease *we* announce, so each side's
+/// `--peer-timeout` sets how soon the other finds it dead.
+pub fn quic_lease(peer_timeout: Duration) -> Duration {
+    (peer_timeout / 2).clamp(MIN_QUIC_LEASE, Duration::from_secs(10))
+}
+
+/// The shortest QUIC lease: keep-alives every 125 ms at most.
+pub const MIN_QUIC_LEASE: Duration = Duration::from_millis(500);
+
+/// The Zenoh configuration of one side: a peer that meets only the given endpoint; with
+/// TLS, mutual authentication by the CA and access control by the peer certificate's name;
+/// over QUIC, the lease of [`quic_lease`].
+fn config(
+    name: &str,
+    link: &ZenohLink,
+    security: &Security,
+    peer_timeout: Duration,
+) -> Result<zenoh::Config> {
     let mut c = zenoh::Config::default();
     let mut set = |k: &str, v: &str| c.insert_json5(k, v).map_err(|e| anyhow!("zenoh config {k} = {v}: {e}"));
     set("mode", "\"peer\"")?;
+    if let Security::Tls(t) = security {
+        let path = |p: &PathBuf| json(&p.to_string_lossy());
+        set("transport/link/tls/root_ca_certificate", &path(&t.ca))?;
+        // Both pairs: zenoh presents the listen pair on accepted links, the connect pair on
+        // the links it opens.
+        set("transport/link/tls/listen_certificate", &path(&t.cert))?;
+        set("transport/link/tls/listen_private_key", &path(&t.key))?;
+        set("transport/link/tls/connect_certificate", &path(&t.cert))?;
+        set("transport/link/tls/connect_private_key", &path(&t.key))?;
+        set("transport/link/tls/enable_mtls", "true")?;
+        set("transport/link/tls/verify_name_on_connect", "true")?;
+        // Zenoh gives the application no certificate, only its common name (in link events
+        // and to its access control): the name check is an access-control policy, default
+        // deny, allowing the expected names everything on this demo's keys, both ways.
+        let names: Vec<String> = t.peer_names.iter().map(|n| json(n)).collect();
+        let acl = format!(
+            "{{ enabled: true, default_permission: \"deny\", \
+               rules: [{{ id: \"demo\", messages: {ACL_MESSAGES}, flows: [\"egress\", \"ingress\"], \
+                          permission: \"allow\", key_exprs: [{}, {}] }}], \
+               subjects: [{{ id: \"peer\", cert_common_names: [{}] }}], \
+               policies: [{{ rules: [\"demo\"], subjects: [\"peer\"] }}] }}",
+            json(&format!("companion/{name}")),
+            json(&format!("companion/{name}/**")),
+            names.join(", ")
+        );
+        set("access_control", &acl)?;
+    }
     set("scouting/multicast/enabled", "false")?;
     set("scouting/gossip/enabled", "false")?;
+    if link.endpoint().scheme == Scheme::Quic {
+        let ms = quic_lease(peer_timeout).as_millis().to_string();
+        set("transport/link/tx/lease", &ms)?;
+    }
     // Zenoh's low-latency transport (`transport/unicast/lowlatency` with QoS off) was tried:
     // loopback p50 34 µs against 58 µs, but p99.9 4.1 ms against 0.17 ms in the same hour on the
     // loaded 2-CPU machine (README, "Two machines"); not taken.
@@ -258,22 +483,33 @@ where
 {
     /// Opens `role`'s side of demo `name` over `link`: the session, a subscriber to the
     /// peer's messages, a publisher of ours, then our liveliness token and a watch on the
-    /// peer's.
+    /// peer's. `peer_timeout`: the loops' `--peer-timeout`, which sets the lease over QUIC
+    /// ([`quic_lease`]).
     ///
     /// # Errors
-    /// A bad name, or Zenoh cannot open the session (e.g. the port to listen on is taken).
-    pub fn open(name: &str, role: Role, link: ZenohLink) -> Result<Self> {
+    /// A bad name, an endpoint that `security` does not allow ([`Security::check`]), or Zenoh
+    /// cannot open the session (e.g. the port to listen on is taken, a TLS file is bad).
+    pub fn open(
+        name: &str,
+        role: Role,
+        link: ZenohLink,
+        security: &Security,
+        peer_timeout: Duration,
+    ) -> Result<Self> {
         crate::ipc::validate_name(name)?;
         let (tx, rx_what) = match role {
             Role::Plant => ("measurement", "command"),
             Role::Control => ("command", "measurement"),
         };
-        let session = zenoh::open(config(&link)?).wait().map_err(|e| match &link {
-            ZenohLink::Listen(ep) => anyhow!(
+        security.check(link.endpoint())?;
+        crate::zenoh_log::install();
+        let session =
+            zenoh::open(config(name, &link, security, peer_timeout)?).wait().map_err(|e| match &link {
+                ZenohLink::Listen(ep) => anyhow!(
                 "cannot listen on {ep}: {e} (is the port in use, or the address not one of this machine's?)"
             ),
-            ZenohLink::Connect(ep) => anyhow!("cannot open a Zenoh session to {ep}: {e}"),
-        })?;
+                ZenohLink::Connect(ep) => anyhow!("cannot open a Zenoh session to {ep}: {e}"),
+            })?;
         let shared = Arc::new(Shared::default());
         let (producer, consumer) = rtrb::RingBuffer::<Rx>::new(RING);
         // Only Zenoh's thread that delivers this subscriber's samples takes the lock.
@@ -344,6 +580,41 @@ where
             .wait()
             .map_err(zerr)
             .with_context(|| format!("watching {watch_key}"))?;
+        if let Security::Tls(t) = security {
+            // Name the peers access control refuses (zenoh gives their certificate's CN).
+            let (sh, expected) = (Arc::clone(&shared), t.peer_names.clone());
+            session
+                .info()
+                .link_events_listener()
+                .history(true)
+                .callback(move |ev: zenoh::session::LinkEvent| {
+                    if ev.kind() != SampleKind::Put {
+                        return;
+                    }
+                    let l = ev.link();
+                    let cn = l.auth_identifier();
+                    if cn.is_some_and(|cn| expected.iter().any(|e| e == cn)) {
+                        return;
+                    }
+                    let why = format!(
+                        "refused the peer at {} (zenoh id {}): its certificate's name is {}, not {} \
+                         (access control drops everything it sends)",
+                        l.dst(),
+                        l.zid(),
+                        cn.map_or_else(|| "absent".to_string(), |c| format!("{c:?}")),
+                        expected.iter().map(|e| format!("{e:?}")).collect::<Vec<_>>().join(" or "),
+                    );
+                    sh.refused_names.fetch_add(1, Ordering::Relaxed);
+                    let mut r = sh.refused.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                    if r.len() < KEEP_REFUSED {
+                        r.push(why);
+                    }
+                })
+                .background()
+                .wait()
+                .map_err(zerr)
+                .context("watching the links of the session")?;
+        }
         let own_key = key(name, &format!("alive/{}/{}", role.as_str(), own_pid()));
         let token = session
             .liveliness()
@@ -391,11 +662,14 @@ where
     }
 
     /// The peer's state, from its liveliness token: [`PeerState::Alive`] while it exists,
-    /// [`PeerState::Dead`] once it disappeared, [`PeerState::Absent`] before it was seen.
+    /// [`PeerState::Dead`] once it disappeared ([`PeerState::Expired`] over QUIC, where the
+    /// token of a killed peer goes only when its lease runs out), [`PeerState::Absent`] before
+    /// it was seen.
     pub fn peer_state(&self) -> PeerState {
         let pid = self.shared.peer_pid.load(Ordering::Relaxed);
         match self.shared.peer.load(Ordering::Acquire) {
             ALIVE => PeerState::Alive(pid),
+            LOST if self.link.endpoint().scheme == Scheme::Quic => PeerState::Expired(pid),
             LOST => PeerState::Dead(pid),
             _ => PeerState::Absent,
         }
@@ -409,6 +683,53 @@ where
     /// Messages dropped because the loop had not taken the [`RING`] before them.
     pub fn overflow(&self) -> u64 {
         self.shared.overflow.load(Ordering::Relaxed)
+    }
+
+    /// The refusals since the last call, oldest first: peers refused for their certificate's
+    /// name, and TLS handshakes the listener refused (no certificate, another CA, expired,
+    /// not TLS at all), in zenoh's words.
+    ///
+    /// At most [`SHOWN_REFUSALS`] are returned in all (a peer retrying, or a flood of
+    /// connections, would fill the log): the rest are only counted ([`Self::refusals`]).
+    pub fn take_refusals(&self) -> Vec<String> {
+        let mut out = self.drain_refusals();
+        let shown = self.shared.shown.load(Ordering::Relaxed);
+        let room = SHOWN_REFUSALS.saturating_sub(shown);
+        if out.len() as u64 > room {
+            out.truncate(room as usize);
+            if room > 0 {
+                out.push("further refusals are counted, not shown".to_string());
+            }
+        }
+        self.shared.shown.store(shown + out.len() as u64, Ordering::Relaxed);
+        out
+    }
+
+    /// Every refusal not yet taken; the last one kept for [`Self::last_refusal`].
+    fn drain_refusals(&self) -> Vec<String> {
+        let mut out: Vec<String> = std::mem::take(
+            &mut *self.shared.refused.lock().unwrap_or_else(std::sync::PoisonError::into_inner),
+        );
+        out.extend(
+            crate::zenoh_log::take_refused().into_iter().map(|e| format!("refused a TLS handshake: {e}")),
+        );
+        if let Some(last) = out.last() {
+            *self.shared.last_refusal.lock().unwrap_or_else(std::sync::PoisonError::into_inner) =
+                Some(last.clone());
+        }
+        out
+    }
+
+    /// The last refusal so far, shown or not.
+    pub fn last_refusal(&self) -> Option<String> {
+        let _ = self.drain_refusals();
+        self.shared.last_refusal.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone()
+    }
+
+    /// How many peers were refused so far: for their certificate's name, and at the TLS
+    /// handshake (this process's listeners).
+    pub fn refusals(&self) -> u64 {
+        self.shared.refused_names.load(Ordering::Relaxed) + crate::zenoh_log::refused()
     }
 
     /// Whether the peer is there and hears us: its token is seen and our publisher matches
@@ -451,9 +772,16 @@ where
                         self.name
                     ),
                 };
+                let last = self.last_refusal();
+                let refused = match (self.refusals(), &self.link) {
+                    (0, ZenohLink::Connect(_)) => crate::zenoh_log::last_connect_error()
+                        .map_or_else(String::new, |e| format!("; the last attempt: {e}")),
+                    (0, ZenohLink::Listen(_)) => String::new(),
+                    (n, _) => format!("; {n} connection(s) refused, the last: {}", last.unwrap_or_default()),
+                };
                 return Err(anyhow!(
-                    "no {peer} joined demo '{}' over Zenoh within {:.0} s: {hint}; key expressions {} and {}, \
-                     protocol version {PROTOCOL_VERSION}",
+                    "no {peer} joined demo '{}' over Zenoh within {:.0} s: {hint}{refused}; key expressions {} \
+                     and {}, protocol version {PROTOCOL_VERSION}",
                     self.name,
                     timeout.as_secs_f64(),
                     key(&self.name, "measurement"),
@@ -553,8 +881,13 @@ mod tests {
     fn endpoints_are_checked() {
         assert_eq!(
             TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap(),
-            TcpEndpoint { host: "127.0.0.1".into(), port: 7447 }
+            TcpEndpoint { scheme: Scheme::Tcp, host: "127.0.0.1".into(), port: 7447 }
         );
+        assert_eq!(
+            TcpEndpoint::parse("tls/plant.local:7447").unwrap(),
+            TcpEndpoint { scheme: Scheme::Tls, host: "plant.local".into(), port: 7447 }
+        );
+        assert_eq!(TcpEndpoint::parse("tls/[::1]:7447").unwrap().to_string(), "tls/[::1]:7447");
         assert_eq!(TcpEndpoint::parse("tcp/robot-1.local:0").unwrap().port, 0);
         assert_eq!(TcpEndpoint::parse("tcp/[::1]:7447").unwrap().to_string(), "tcp/[::1]:7447");
         for bad in [
@@ -565,9 +898,33 @@ mod tests {
             "tcp/h:99999",
             "tcp/h:x",
             "tcp/::1:5",
+            "tls/h:x",
+            "quic/h:1",
         ] {
             let e = TcpEndpoint::parse(bad).unwrap_err().to_string();
-            assert!(e.contains("tcp/HOST:PORT") || e.contains("port"), "{bad}: {e}");
+            assert!(e.contains("/HOST:PORT") || e.contains("port"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn security_and_scheme_must_agree() {
+        let tcp = TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap();
+        let tls = TcpEndpoint::parse("tls/127.0.0.1:7447").unwrap();
+        assert!(Security::Insecure.check(&tcp).is_ok());
+        let e = Security::Insecure.check(&tls).unwrap_err().to_string();
+        assert!(e.contains("drop --insecure"), "{e}");
+        let files = TlsFiles {
+            ca: "/nonexistent/ca.pem".into(),
+            cert: "/nonexistent/c.pem".into(),
+            key: "/nonexistent/c.key".into(),
+            peer_names: vec!["ctrl".into()],
+        };
+        let e = Security::Tls(files.clone()).check(&tcp).unwrap_err().to_string();
+        assert!(
+            e.contains("is plain TCP") && e.contains("--insecure") && e.contains("tls/127.0.0.1:7447"),
+            "{e}"
+        );
+        let e = format!("{:#}", Security::Tls(files).check(&tls).unwrap_err());
+        assert!(e.contains("--tls-ca /nonexistent/ca.pem"), "{e}");
     }
 }

@@ -298,13 +298,27 @@ fn the_zenoh_exchange_allocates_only_in_zenoh() {
     use std::sync::atomic::Ordering;
 
     use companion_runtime::ipc::Role;
-    use companion_runtime::zenoh_link::{TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant};
+    use companion_runtime::zenoh_link::{Security, TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant};
 
     let name = format!("noalloc-zenoh-{}", std::process::id());
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let ep = TcpEndpoint::parse(&format!("tcp/127.0.0.1:{port}")).unwrap();
-    let mut plant = ZenohPlant::open(&name, Role::Plant, ZenohLink::Listen(ep.clone())).unwrap();
-    let mut control = ZenohControl::open(&name, Role::Control, ZenohLink::Connect(ep)).unwrap();
+    let mut plant = ZenohPlant::open(
+        &name,
+        Role::Plant,
+        ZenohLink::Listen(ep.clone()),
+        &Security::Insecure,
+        Duration::from_secs(2),
+    )
+    .unwrap();
+    let mut control = ZenohControl::open(
+        &name,
+        Role::Control,
+        ZenohLink::Connect(ep),
+        &Security::Insecure,
+        Duration::from_secs(2),
+    )
+    .unwrap();
     plant.wait_for_peer(Duration::from_secs(10), || None).unwrap();
     control.wait_for_peer(Duration::from_secs(10), || None).unwrap();
     let m = measurement(0, 0);

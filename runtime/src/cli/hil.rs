@@ -29,7 +29,7 @@ use companion_runtime::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRA
 use companion_runtime::record::Failure;
 use companion_runtime::scenario::{short, Scenario, ScenarioBuilder};
 use companion_runtime::signals::termination_requested;
-use companion_runtime::transport::{self, Transport};
+use companion_runtime::transport::{self, SecurityFlags, Transport};
 
 use super::args::ScenarioArgs;
 use super::exit::{
@@ -91,7 +91,8 @@ const MAX_STARTUP_TIMEOUT_S: f64 = 86_400.0;
 pub enum TransportArg {
     /// iceoryx2 shared memory: both roles on one machine.
     Iceoryx2,
-    /// Zenoh over TCP: the roles on one machine or two (a build with `--features zenoh`).
+    /// Zenoh over mutual TLS (plain TCP with --insecure): the roles on one machine or two (a
+    /// build with `--features zenoh`).
     Zenoh,
 }
 
@@ -178,19 +179,41 @@ pub struct HilArgs {
     #[arg(long)]
     pub no_plots: bool,
     /// The transport between the two roles: iceoryx2 shared memory on one machine, or Zenoh
-    /// over TCP across machines (`companion plant --transport zenoh --listen tcp/ADDR:PORT`,
-    /// `companion control --transport zenoh --connect tcp/ADDR:PORT`; `companion hil` picks a
-    /// free local port). Zenoh needs a build with `--features zenoh`.
+    /// over mutual TLS across machines (`companion plant --transport zenoh --listen
+    /// quic/ADDR:PORT`, `companion control --transport zenoh --connect quic/ADDR:PORT`, each with
+    /// --tls-ca, --tls-cert, --tls-key and --tls-peer; `companion hil` picks a free local port
+    /// and makes throwaway certificates). Zenoh needs a build with `--features zenoh`.
     #[arg(long, value_enum, default_value = "iceoryx2")]
     pub transport: TransportArg,
-    /// Zenoh: listen on this endpoint, tcp/ADDR:PORT (usually the plant; 0.0.0.0 for every
-    /// interface).
-    #[arg(long, value_name = "tcp/ADDR:PORT")]
+    /// Zenoh: listen on this endpoint, quic/ADDR:PORT (usually the plant; 0.0.0.0 for every
+    /// interface; tcp/ADDR:PORT only with --insecure).
+    #[arg(long, value_name = "quic/ADDR:PORT")]
     pub listen: Option<String>,
-    /// Zenoh: connect to this endpoint, tcp/ADDR:PORT (usually the controller; retried until
-    /// the peer listens, up to --startup-timeout).
-    #[arg(long, value_name = "tcp/ADDR:PORT")]
+    /// Zenoh: connect to this endpoint, quic/ADDR:PORT (usually the controller; retried until
+    /// the peer listens, up to --startup-timeout). Over TLS the listener's certificate must be
+    /// valid for ADDR.
+    #[arg(long, value_name = "quic/ADDR:PORT")]
     pub connect: Option<String>,
+    /// Zenoh over TLS: the deployment's CA certificate, which the peer's certificate must be
+    /// signed by (PEM; `companion certs` writes it as ca.pem).
+    #[arg(long, value_name = "FILE")]
+    pub tls_ca: Option<PathBuf>,
+    /// Zenoh over TLS: this host's certificate, signed by the CA (PEM, HOST.pem).
+    #[arg(long, value_name = "FILE")]
+    pub tls_cert: Option<PathBuf>,
+    /// Zenoh over TLS: this host's private key (PEM, HOST.key, owner-only).
+    #[arg(long, value_name = "FILE")]
+    pub tls_key: Option<PathBuf>,
+    /// Zenoh over TLS: the name (common name) on the certificate of the only peer this side
+    /// serves, e.g. ctrl.local on the plant and plant.local on the controller; a peer with
+    /// another certificate of the same CA is refused and named in the log.
+    #[arg(long, value_name = "NAME[,NAME]")]
+    pub tls_peer: Option<String>,
+    /// Zenoh: plain TCP (tcp/ endpoints) with neither authentication nor encryption — anyone
+    /// who reaches the port can drive the robot and anyone on the path read and alter the
+    /// traffic. Warned at start and recorded in summary.json.
+    #[arg(long)]
+    pub insecure: bool,
     /// Lockstep only: the plant simulates a pure delay between a measurement and the moment
     /// its command takes effect (s, 0 to 8 periods and at most the law's max_delay), and
     /// announces it to the controller — the same run as `companion sim --delay`. In real
@@ -326,13 +349,37 @@ impl HilArgs {
                 Some(ChaosConfig { seed, epoch_ns: epoch.unwrap_or(0) })
             }
         };
+        let sec = SecurityFlags {
+            ca: self.tls_ca.clone(),
+            cert: self.tls_cert.clone(),
+            key: self.tls_key.clone(),
+            peer: self.tls_peer.clone(),
+            insecure: self.insecure,
+        };
         let transport = match self.transport {
             TransportArg::Iceoryx2 if self.listen.is_some() || self.connect.is_some() => {
                 bail!("--listen and --connect are endpoints of --transport zenoh")
             }
+            TransportArg::Iceoryx2 if sec != SecurityFlags::default() => {
+                bail!("--tls-ca, --tls-cert, --tls-key, --tls-peer and --insecure are for --transport zenoh")
+            }
             TransportArg::Iceoryx2 => Transport::Iceoryx2,
-            TransportArg::Zenoh => transport::zenoh(self.listen.as_deref(), self.connect.as_deref())?,
+            TransportArg::Zenoh => transport::zenoh(self.listen.as_deref(), self.connect.as_deref(), &sec)?,
         };
+        if transport.insecure() && !self.child {
+            eprintln!(
+                "warning: --insecure: plain TCP, no authentication, no encryption — anyone who reaches {} can \
+                 drive the robot and anyone on the path read and alter its traffic (recorded in summary.json)",
+                self.listen.as_deref().or(self.connect.as_deref()).unwrap_or("the port")
+            );
+        }
+        if transport.tls_over_tcp() && !self.child {
+            eprintln!(
+                "warning: tls/ is zenoh's TLS-over-TCP link, which reads and writes one TLS connection from two \
+                 tasks at once (eclipse-zenoh/zenoh#2557): under load it loses the link within seconds and the \
+                 run ends as a dead peer; use quic/ (the same mutual TLS over UDP) unless UDP cannot pass"
+            );
+        }
         let cfg = HilConfig {
             name: self.name.clone(),
             out: self.out.clone(),
@@ -461,6 +508,43 @@ fn code_of(st: Option<ExitStatus>) -> u8 {
     st.and_then(|s| s.code()).and_then(|c| u8::try_from(c).ok()).unwrap_or(EXIT_ERROR)
 }
 
+/// The TLS material `companion hil --transport zenoh` makes for its two roles (hosts `plant`,
+/// valid for 127.0.0.1, and `control`), removed when dropped.
+struct Throwaway {
+    dir: PathBuf,
+    ca: PathBuf,
+    /// (certificate, key) of the plant and of the controller.
+    plant: (PathBuf, PathBuf),
+    control: (PathBuf, PathBuf),
+}
+
+impl Throwaway {
+    fn make(name: &str) -> Result<Self> {
+        #[cfg(feature = "zenoh")]
+        {
+            use companion_runtime::certs::{make, Host, Validity};
+            let dir = std::env::temp_dir().join(format!("companion-tls-{name}-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&dir);
+            let mut m =
+                make(&dir, &Host::parse_list("plant=127.0.0.1+localhost,control")?, Validity::days(2))?;
+            let (_, cc, ck) = m.hosts.pop().expect("two hosts");
+            let (_, pc, pk) = m.hosts.pop().expect("two hosts");
+            Ok(Self { dir, ca: m.ca, plant: (pc, pk), control: (cc, ck) })
+        }
+        #[cfg(not(feature = "zenoh"))]
+        {
+            let _ = name;
+            bail!("--transport zenoh: {}", transport::BUILD_WITH_ZENOH)
+        }
+    }
+}
+
+impl Drop for Throwaway {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
 /// `companion hil`: takes the demo's name, starts the plant, runs the controller against it,
 /// waits for it.
 ///
@@ -475,11 +559,33 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     }
     // Zenoh on one machine: the plant listens on a free local port unless told where.
     let picked = (a.transport == TransportArg::Zenoh && a.listen.is_none())
-        .then(transport::free_local_endpoint)
+        .then(|| transport::free_local_endpoint(a.insecure))
         .transpose()?;
     let mut own = a.clone();
     if let Some(ep) = &picked {
         own.listen = Some(ep.clone());
+    }
+    // Zenoh over TLS on one machine without certificates given: a throwaway CA and a
+    // certificate per role, in an owner-only folder removed when the demo ends.
+    let throwaway = (a.transport == TransportArg::Zenoh
+        && !a.insecure
+        && a.tls_ca.is_none()
+        && a.tls_cert.is_none()
+        && a.tls_key.is_none()
+        && a.tls_peer.is_none())
+    .then(|| Throwaway::make(&a.name))
+    .transpose()?;
+    let mut plant_tls = Vec::new();
+    if let Some(t) = &throwaway {
+        let arg = |flag: &str, p: &std::path::Path| [flag.to_string(), p.display().to_string()];
+        plant_tls.extend(arg("--tls-ca", &t.ca));
+        plant_tls.extend(arg("--tls-cert", &t.plant.0));
+        plant_tls.extend(arg("--tls-key", &t.plant.1));
+        plant_tls.extend(["--tls-peer".to_string(), "control".to_string()]);
+        own.tls_ca = Some(t.ca.clone());
+        own.tls_cert = Some(t.control.0.clone());
+        own.tls_key = Some(t.control.1.clone());
+        own.tls_peer = Some("plant".to_string());
     }
     let (mut cfg, s) = own.resolve()?;
     let inject = a.injections()?;
@@ -516,6 +622,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         .arg("plant")
         .args(forwarded_args())
         .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
+        .args(&plant_tls)
         .arg("--child")
         .stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {

@@ -113,6 +113,9 @@ pub struct PeerArgs {
     /// The endpoint to connect to (zenoh).
     #[arg(long)]
     pub endpoint: Option<String>,
+    /// The TLS material of a `tls/` endpoint (zenoh).
+    #[arg(long)]
+    pub tls_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
     #[arg(long, allow_hyphen_values = true)]
     pub rt_cpu: Option<usize>,
@@ -132,6 +135,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
         name: a.name.clone(),
         socket_dir: a.socket_dir.clone(),
         endpoint: a.endpoint.clone(),
+        tls_dir: a.tls_dir.clone(),
         rt_cpu: a.rt_cpu,
     };
     peer(&opts, &Terminal::lines())

@@ -4,6 +4,7 @@
 //! chooses the exit code. Nothing below this layer parses a flag or prints.
 
 mod args;
+mod certs;
 mod exit;
 mod explore;
 mod hil;
@@ -56,6 +57,9 @@ enum Command {
     /// and the full HIL cycle in each wait mode.
     #[command(after_help = exit::help())]
     Latency(latency::LatencyArgs),
+    /// The TLS material of a deployment: a CA, and a certificate and key per host, for the
+    /// Zenoh transport's mutual TLS (`--hosts plant.local,ctrl.local`).
+    Certs(certs::CertsArgs),
     /// The echoing side of `companion latency`'s ping-pong (started by it).
     #[command(hide = true)]
     LatencyPeer(latency::PeerArgs),
@@ -72,6 +76,7 @@ pub fn main() -> ExitCode {
         Command::Explore(a) => explore::run(a),
         Command::Tune(a) => tune::run(a).map(|()| ExitCode::SUCCESS),
         Command::Latency(a) => latency::run(a).map(|()| ExitCode::SUCCESS),
+        Command::Certs(a) => certs::run(a).map(|()| ExitCode::SUCCESS),
         Command::LatencyPeer(a) => latency::run_peer(a).map(|()| ExitCode::SUCCESS),
     };
     match result {

@@ -82,9 +82,20 @@ pub fn session(
 ) -> Result<Session> {
     debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
     let opt = serve_options(cfg, s.base());
-    let ep: ControlEndpoint =
-        transport::open(&cfg.transport, &cfg.name, Role::Control, cfg.timing.wait.uses_events())?;
-    ep.wait_for_peer(cfg.startup_timeout, abort)?;
+    let ep: ControlEndpoint = transport::open(
+        &cfg.transport,
+        &cfg.name,
+        Role::Control,
+        cfg.timing.wait.uses_events(),
+        Duration::from_nanos(cfg.timing.peer_timeout_ns),
+    )?;
+    let mut abort = abort;
+    ep.wait_for_peer(cfg.startup_timeout, || {
+        for r in ep.take_refusals() {
+            observer.warn(&format!("controller: {r}"));
+        }
+        abort()
+    })?;
     let rt = cfg.rt_config(Role::Control).map(|c| crate::rt::apply(&c));
     if let Some(w) = rt.as_ref().and_then(|r| r.warning("controller")) {
         observer.warn(&w);

@@ -20,6 +20,8 @@ pub enum PlantEnd {
         cycle: u64,
         /// Silence before the finding (ns).
         silent_ns: u64,
+        /// Found by its session's lease running out (Zenoh over QUIC): dead, or unreachable.
+        expired: bool,
     },
     /// The controller's node is gone (it exited without waiting for the end of the run).
     ControllerGone {
@@ -44,9 +46,14 @@ impl PlantEnd {
         match self {
             Self::Completed => "completed".into(),
             Self::Interrupted { cycle } => format!("interrupted at cycle {cycle}"),
-            Self::ControllerDied { pid, cycle, silent_ns } => format!(
+            Self::ControllerDied { pid, cycle, silent_ns, expired: false } => format!(
                 "controller process {pid} died: found dead at cycle {cycle}, {:.1} ms after its last command; \
                  robot stopped",
+                ms(silent_ns)
+            ),
+            Self::ControllerDied { pid, cycle, silent_ns, expired: true } => format!(
+                "controller process {pid} died or is unreachable: its session's lease ran out, found at cycle \
+                 {cycle}, {:.1} ms after its last command; robot stopped",
                 ms(silent_ns)
             ),
             Self::ControllerGone { cycle } => {
@@ -74,6 +81,8 @@ pub enum ControlEnd {
         last_seq: Option<u64>,
         /// Time from the last measurement to the finding (ns).
         silent_ns: u64,
+        /// Found by its session's lease running out (Zenoh over QUIC): dead, or unreachable.
+        expired: bool,
     },
     /// The plant's node is gone.
     PlantGone {
@@ -102,8 +111,14 @@ impl ControlEnd {
         };
         match end {
             ControlEnd::EndOfRun => "end of run".into(),
-            ControlEnd::PlantDied { pid, last_seq, silent_ns } => format!(
+            ControlEnd::PlantDied { pid, last_seq, silent_ns, expired: false } => format!(
                 "the plant (pid {pid}) died {}; noticed {:.1} ms after its last measurement",
+                seq(last_seq),
+                ms(*silent_ns)
+            ),
+            ControlEnd::PlantDied { pid, last_seq, silent_ns, expired: true } => format!(
+                "the plant (pid {pid}) died or is unreachable {}: its session's lease ran out, noticed {:.1} ms \
+                 after its last measurement",
                 seq(last_seq),
                 ms(*silent_ns)
             ),

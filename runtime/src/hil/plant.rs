@@ -140,8 +140,13 @@ struct Opened {
 /// prepares `cfg.out`.
 fn open(cfg: &HilConfig, s: &Scenario, arm_hash: u64) -> Result<Opened> {
     let timing = cfg.timing;
-    let ep: PlantEndpoint =
-        transport::open(&cfg.transport, &cfg.name, Role::Plant, timing.wait.uses_events())?;
+    let ep: PlantEndpoint = transport::open(
+        &cfg.transport,
+        &cfg.name,
+        Role::Plant,
+        timing.wait.uses_events(),
+        Duration::from_nanos(timing.peer_timeout_ns),
+    )?;
     let mut announced = if timing.lockstep { flags::LOCKSTEP } else { 0 };
     if ep.notifies() {
         announced |= flags::NOTIFIES;
@@ -199,7 +204,21 @@ impl Opened {
             self.stamp.scenario_hash,
             crate::wire::canonical::describe_arm(self.stamp.arm_hash)
         ));
-        self.ep.wait_for_peer(cfg.startup_timeout, || None)
+        // Peers refused on the way (their certificate, their name) are named as they come.
+        self.ep.wait_for_peer(cfg.startup_timeout, || {
+            for r in self.ep.take_refusals() {
+                observer.warn(&format!("plant: {r}"));
+            }
+            None
+        })
+    }
+}
+
+/// What `summary.json` records of the link.
+fn link_record(cfg: &HilConfig) -> crate::record::summary::LinkRecord {
+    crate::record::summary::LinkRecord {
+        transport: cfg.transport.describe(),
+        insecure: cfg.transport.insecure(),
     }
 }
 
@@ -218,6 +237,10 @@ fn after_loop(ep: &PlantEndpoint, stats: &PlantStats, end: &PlantEnd, observer: 
     let dropped = ep.transport_malformed();
     if dropped > 0 {
         observer.warn(&format!("plant: {dropped} messages of the wrong size dropped by the transport"));
+    }
+    // Peers refused while the run went on (a rogue, a flood of connections): never served.
+    if let Some(last) = ep.last_refusal() {
+        observer.warn(&format!("plant: {} connection(s) refused in all; the last: {last}", ep.refusals()));
     }
     if stats.event_fallback {
         observer.warn(
@@ -367,6 +390,7 @@ fn run_planar(
         cfg.acceptance.max_rejected,
     ));
     summary.failures.extend(real_time_failures(cfg, &stats, &end));
+    summary.link = Some(link_record(cfg));
     write_summary(dir, s, &summary)?;
     let latency = write_latency(
         cfg,
@@ -492,6 +516,7 @@ where
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
     outcome.summary.wall_time_s = wall_s;
+    outcome.summary.link = Some(link_record(cfg));
     for f in real_time_failures(cfg, &stats, &end) {
         outcome.summary.fail(f);
     }

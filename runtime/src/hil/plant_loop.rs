@@ -201,7 +201,9 @@ const GOODBYE_NS: u64 = 1_000_000_000;
 
 fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
     match loss {
-        PeerLoss::Died { pid, silent_ns } => PlantEnd::ControllerDied { pid, cycle, silent_ns },
+        PeerLoss::Died { pid, silent_ns, expired } => {
+            PlantEnd::ControllerDied { pid, cycle, silent_ns, expired }
+        }
         PeerLoss::Gone => PlantEnd::ControllerGone { cycle },
         PeerLoss::Hung { silent_ns } => PlantEnd::ControllerHung { cycle, silent_ns },
     }

@@ -241,8 +241,8 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
         let now = clock.now_ns();
         let limit = if last_seq.is_some() { opt.peer_timeout_ns } else { opt.startup_timeout_ns };
         match watch.check(now, limit, link)? {
-            Some(PeerLoss::Died { pid, silent_ns }) => {
-                return Ok(ControlEnd::PlantDied { pid, last_seq, silent_ns })
+            Some(PeerLoss::Died { pid, silent_ns, expired }) => {
+                return Ok(ControlEnd::PlantDied { pid, last_seq, silent_ns, expired })
             }
             Some(PeerLoss::Gone) => return Ok(ControlEnd::PlantGone { last_seq }),
             Some(PeerLoss::Hung { silent_ns }) => return Ok(ControlEnd::PlantHung { silent_ns }),

@@ -16,6 +16,9 @@ pub enum PeerLoss {
         pid: i32,
         /// Silence before the finding (ns).
         silent_ns: u64,
+        /// Found by its session's lease running out ([`PeerState::Expired`]): dead, or
+        /// unreachable.
+        expired: bool,
     },
     /// The peer's node is gone (it exited).
     Gone,
@@ -72,7 +75,8 @@ impl PeerWatch {
         }
         self.last_check_ns = now_ns;
         Ok(match link.peer_state()? {
-            PeerState::Dead(pid) => Some(PeerLoss::Died { pid, silent_ns }),
+            PeerState::Dead(pid) => Some(PeerLoss::Died { pid, silent_ns, expired: false }),
+            PeerState::Expired(pid) => Some(PeerLoss::Died { pid, silent_ns, expired: true }),
             PeerState::Absent => Some(PeerLoss::Gone),
             PeerState::Alive(_) if silent_ns >= timeout_ns => Some(PeerLoss::Hung { silent_ns }),
             PeerState::Alive(_) => None,
@@ -119,7 +123,10 @@ mod tests {
         w.heard(150);
         assert_eq!(w.check(160, 50, &mut alive).unwrap(), None);
         let mut dead = Peer(PeerState::Dead(9), 0);
-        assert_eq!(w.check(170, 50, &mut dead).unwrap(), Some(PeerLoss::Died { pid: 9, silent_ns: 20 }));
+        assert_eq!(
+            w.check(170, 50, &mut dead).unwrap(),
+            Some(PeerLoss::Died { pid: 9, silent_ns: 20, expired: false })
+        );
         let mut gone = Peer(PeerState::Absent, 0);
         assert_eq!(w.check(190, 50, &mut gone).unwrap(), Some(PeerLoss::Gone));
     }

@@ -346,19 +346,36 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
     #[cfg(feature = "zenoh")]
-    let zenoh_p50 = {
+    let (zenoh_p50, zenoh_tls_p50) = {
         observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
-        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, observer)?;
+        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, None, observer)?;
         checked("zenoh ping-pong, tcp loopback", c);
         let p50 = z.percentiles().p50;
         push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
+        observer.note(&format!(
+            "(3) Zenoh ping-pong over loopback QUIC with mutual TLS (the default link), {} round trips",
+            a.cycles
+        ));
+        let tls = zenoh::Tls::make()?;
+        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, Some(&tls), observer)?;
+        checked("zenoh ping-pong, quic+mtls loopback", c);
+        let tls_p50 = z.percentiles().p50;
+        push("3", "zenoh ping-pong, quic+mtls loopback, blocking".into(), z, &mut rows);
+        observer.note("(3) Zenoh session set-up on loopback (connect until the peer is seen), 20 times each");
+        push("3", "zenoh session set-up, tcp loopback".into(), zenoh::session_setup(20, None)?, &mut rows);
+        push(
+            "3",
+            "zenoh session set-up, quic+mtls loopback".into(),
+            zenoh::session_setup(20, Some(&tls))?,
+            &mut rows,
+        );
         match zenoh::Veth::create() {
             Ok(v) => {
                 observer.note(&format!(
                     "(3) Zenoh ping-pong across a veth pair into network namespace {}, {} round trips",
                     v.netns, a.cycles
                 ));
-                let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), observer)?;
+                let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), None, observer)?;
                 checked("zenoh ping-pong, tcp across network namespaces", c);
                 push("3", "zenoh ping-pong, tcp across network namespaces, blocking".into(), z, &mut rows);
             }
@@ -366,7 +383,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                 "(3) Zenoh across network namespaces skipped: {e:#} (needs root and `ip netns`)"
             )),
         }
-        p50
+        (p50, tls_p50)
     };
     let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
     let mut hil = Vec::new();
@@ -406,6 +423,11 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     ];
     #[cfg(feature = "zenoh")]
     ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
+    #[cfg(feature = "zenoh")]
+    ratios.push((
+        "zenoh quic+mtls / zenoh tcp (aim: at most 1.3)".to_string(),
+        ratio(zenoh_tls_p50, zenoh_p50),
+    ));
     for (mode, _, f) in hil.iter().filter(|h| h.1 == Load::Idle) {
         ratios.push((
             format!("HIL {} / iceoryx2 busy-poll", mode.as_str()),
@@ -477,7 +499,7 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
         #[cfg(feature = "zenoh")]
         Transport::Zenoh => {
             let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
-            zenoh::peer(&a.name, ep)
+            zenoh::peer(&a.name, ep, a.tls_dir.as_deref())
         }
         #[cfg(not(feature = "zenoh"))]
         Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),

@@ -68,6 +68,8 @@ pub struct PeerOptions {
     pub socket_dir: Option<PathBuf>,
     /// The endpoint to connect to (zenoh).
     pub endpoint: Option<String>,
+    /// The TLS material of a `tls/` endpoint (zenoh; `ca.pem`, `control.pem`, `control.key`).
+    pub tls_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
     pub rt_cpu: Option<usize>,
 }
@@ -128,7 +130,7 @@ pub(super) fn peer_iox(name: &str, events: bool) -> Result<()> {
         }
         let now = rt::monotonic_ns();
         if now - silent_since > 2_000_000_000 {
-            if matches!(ep.peer_state()?, PeerState::Dead(_) | PeerState::Absent) {
+            if matches!(ep.peer_state()?, PeerState::Dead(_) | PeerState::Expired(_) | PeerState::Absent) {
                 bail!("the benchmark process is gone");
             }
             silent_since = now;

@@ -1,11 +1,13 @@
 //! Zenoh ping-pong (cargo feature `zenoh`): the same messages as the other transports
-//! between two processes over a Zenoh TCP session on loopback, both sides sleeping until the
+//! between two processes over a Zenoh session on loopback, over plain TCP and over mutual TLS
+//! (the default across machines; [`Tls`]), with the session set-up's time too
+//! ([`session_setup`]), both sides sleeping until the
 //! message arrives ([`crate::zenoh_link`]'s wait) — the transport of two-machine HIL runs,
 //! measured next to iceoryx2 and the Unix socket — and, where network namespaces are
 //! permitted (root), the same across a veth pair into a namespace of its own ([`Veth`]): the
 //! path of two machines without the wire.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::{bail, Result};
@@ -17,14 +19,68 @@ use crate::link::PeerState;
 use crate::observe::Observer;
 use crate::rt;
 use crate::wire::flags;
-use crate::zenoh_link::{TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant};
+use crate::zenoh_link::{Security, TcpEndpoint, TlsFiles, ZenohControl, ZenohLink, ZenohPlant};
 
-/// The echoing side: connects to `endpoint`, answers until the end-of-run flag.
+/// The benchmark's sessions' peer timeout (the HIL's default): over QUIC it sets the lease
+/// ([`crate::zenoh_link::quic_lease`]).
+const BENCH_PEER_TIMEOUT: Duration = Duration::from_secs(2);
+
+/// A throwaway CA and certificates for the benchmark's TLS runs (hosts `plant`, valid for
+/// 127.0.0.1, and `control`), in an owner-only folder removed when dropped.
+#[derive(Debug)]
+pub struct Tls {
+    dir: PathBuf,
+}
+
+impl Tls {
+    /// Makes them.
+    ///
+    /// # Errors
+    /// The folder or the certificates cannot be made.
+    pub fn make() -> Result<Self> {
+        let dir = std::env::temp_dir().join(format!("companion-latency-tls-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let hosts = crate::certs::Host::parse_list("plant=127.0.0.1,control")?;
+        crate::certs::make(&dir, &hosts, crate::certs::Validity::days(1))?;
+        Ok(Self { dir })
+    }
+
+    /// The folder (handed to the peer process).
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+}
+
+impl Drop for Tls {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// `role`'s security with the material in `dir` (`None`: plain TCP).
+fn security(dir: Option<&Path>, role: Role) -> Security {
+    let Some(dir) = dir else { return Security::Insecure };
+    let (own, peer) = match role {
+        Role::Plant => ("plant", "control"),
+        Role::Control => ("control", "plant"),
+    };
+    Security::Tls(TlsFiles {
+        ca: dir.join("ca.pem"),
+        cert: dir.join(format!("{own}.pem")),
+        key: dir.join(format!("{own}.key")),
+        peer_names: vec![peer.to_string()],
+    })
+}
+
+/// The echoing side: connects to `endpoint` (over TLS with the material in `tls`), answers
+/// until the end-of-run flag.
 ///
 /// # Errors
 /// A bad endpoint, a Zenoh failure, or the benchmark gone.
-pub fn peer(name: &str, endpoint: &str) -> Result<()> {
-    let mut ep = ZenohControl::open(name, Role::Control, ZenohLink::Connect(TcpEndpoint::parse(endpoint)?))?;
+pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>) -> Result<()> {
+    let link = ZenohLink::Connect(TcpEndpoint::parse(endpoint)?);
+    let mut ep =
+        ZenohControl::open(name, Role::Control, link, &security(tls, Role::Control), BENCH_PEER_TIMEOUT)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
     loop {
@@ -41,7 +97,7 @@ pub fn peer(name: &str, endpoint: &str) -> Result<()> {
         ep.wait_event(Duration::from_millis(100));
         let now = rt::monotonic_ns();
         if now - silent_since > 2_000_000_000 {
-            if matches!(ep.peer_state(), PeerState::Dead(_) | PeerState::Absent) {
+            if matches!(ep.peer_state(), PeerState::Dead(_) | PeerState::Expired(_) | PeerState::Absent) {
                 bail!("the benchmark process is gone");
             }
             silent_since = now;
@@ -101,9 +157,9 @@ impl Drop for Veth {
     }
 }
 
-/// Round trips over Zenoh on TCP, `warmup` unrecorded first; both sides sleep until the
-/// message arrives. On loopback, or with `veth` the peer in its namespace, connecting across
-/// the pair.
+/// Round trips over Zenoh on TCP (over mutual TLS with `tls`), `warmup` unrecorded first;
+/// both sides sleep until the message arrives. On loopback, or with `veth` the peer in its
+/// namespace, connecting across the pair (plain TCP).
 ///
 /// # Errors
 /// The peer could not be started or stopped answering.
@@ -113,18 +169,27 @@ pub fn round_trips(
     warmup: u64,
     use_rt: bool,
     veth: Option<&Veth>,
+    tls: Option<&Tls>,
     observer: &dyn Observer,
 ) -> Result<(LatencyHistogram, SecondClock)> {
+    let tls_dir = tls.map(Tls::dir);
     let endpoint = match veth {
-        None => crate::transport::free_local_endpoint()?,
+        None => crate::transport::free_local_endpoint(tls.is_none())?,
         Some(v) => {
             let l = std::net::TcpListener::bind((v.here.as_str(), 0))
                 .map_err(|e| anyhow::anyhow!("a free port on {}: {e}", v.here))?;
             format!("tcp/{}:{}", v.here, l.local_addr()?.port())
         }
     };
-    let name = format!("latency-{}-zenoh{}", std::process::id(), if veth.is_some() { "-netns" } else { "" });
-    let mut ep = ZenohPlant::open(&name, Role::Plant, ZenohLink::Listen(TcpEndpoint::parse(&endpoint)?))?;
+    let name = format!(
+        "latency-{}-zenoh{}{}",
+        std::process::id(),
+        if veth.is_some() { "-netns" } else { "" },
+        if tls.is_some() { "-tls" } else { "" }
+    );
+    let link = ZenohLink::Listen(TcpEndpoint::parse(&endpoint)?);
+    let mut ep =
+        ZenohPlant::open(&name, Role::Plant, link, &security(tls_dir, Role::Plant), BENCH_PEER_TIMEOUT)?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
         "--transport".to_string(),
@@ -136,6 +201,9 @@ pub fn round_trips(
     ];
     if use_rt {
         args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
+    }
+    if let Some(d) = tls_dir {
+        args.extend(["--tls-dir".to_string(), d.display().to_string()]);
     }
     let mut child = spawn_peer_in(veth.map(|v| v.netns.as_str()), exe, &args)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
@@ -164,4 +232,45 @@ pub fn round_trips(
     drop(_rt);
     child.finish(Duration::from_secs(5))?;
     Ok(samples.finish())
+}
+
+/// The time from opening a connecting session to seeing the listening peer and being heard
+/// by it (TCP connect, the TLS handshake with `tls`, Zenoh's own session handshake, the
+/// declarations both ways), `n` times in this process against one listening session.
+///
+/// # Errors
+/// A session cannot be opened, or the peer is not seen within 10 s.
+pub fn session_setup(n: u32, tls: Option<&Tls>) -> Result<LatencyHistogram> {
+    let tls_dir = tls.map(Tls::dir);
+    let endpoint = TcpEndpoint::parse(&crate::transport::free_local_endpoint(tls.is_none())?)?;
+    let name = format!("latency-{}-setup{}", std::process::id(), if tls.is_some() { "-tls" } else { "" });
+    let plant = ZenohPlant::open(
+        &name,
+        Role::Plant,
+        ZenohLink::Listen(endpoint.clone()),
+        &security(tls_dir, Role::Plant),
+        BENCH_PEER_TIMEOUT,
+    )?;
+    let mut h = LatencyHistogram::new();
+    for _ in 0..n {
+        let t0 = rt::monotonic_ns();
+        let c = ZenohControl::open(
+            &name,
+            Role::Control,
+            ZenohLink::Connect(endpoint.clone()),
+            &security(tls_dir, Role::Control),
+            BENCH_PEER_TIMEOUT,
+        )?;
+        // (Not `wait_for_peer`, which waits 50 ms more for rivals' tokens.)
+        while !c.peer_connected() {
+            if rt::monotonic_ns() - t0 > 10_000_000_000 {
+                bail!("no session to {endpoint} within 10 s");
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        h.record(rt::monotonic_ns() - t0);
+        drop(c);
+    }
+    drop(plant);
+    Ok(h)
 }

@@ -76,6 +76,20 @@ pub struct Summary {
     pub ended_early: bool,
     /// Why the run failed (empty: it did what a run must; see `record::verdict`).
     pub failures: Vec<Failure>,
+    /// HIL runs: the link between the plant and the controller (absent from `sim`'s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link: Option<LinkRecord>,
+}
+
+/// The link of a HIL run, as `summary.json` records it.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct LinkRecord {
+    /// The transport, its endpoint and security, e.g. `zenoh (listening on tls/0.0.0.0:7447,
+    /// mutual TLS, peer certificate ctrl.local)`.
+    pub transport: String,
+    /// Whether the link let anyone in (`--insecure`: plain TCP, neither authenticated nor
+    /// encrypted).
+    pub insecure: bool,
 }
 
 /// The speed below which `v` has no sign for counting sign changes (m/s).

@@ -197,6 +197,9 @@ pub struct SpatialSummary {
     pub failures: Vec<Failure>,
     /// `ok`, or `failed` with the reasons in `failures`.
     pub verdict: String,
+    /// HIL runs: the link between the plant and the controller (absent from `sim`'s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link: Option<crate::record::summary::LinkRecord>,
 }
 
 /// Accumulates a [`SpatialSummary`] over every step.

@@ -1,12 +1,16 @@
 //! The HIL demo over Zenoh (cargo feature `zenoh`): lockstep determinism, a peer killed, a
 //! partition, and bad endpoints — the same exit codes and reports as over iceoryx2. Faults
 //! across a network are injected by a forwarding proxy on loopback ([`proxy`]); the tests
-//! start and stop everything they use.
+//! start and stop everything they use. `companion hil` and the namespace tests run over TLS
+//! (the default); the tests of the link's faults between `plant` and `control` over plain TCP
+//! (`--insecure`), whose failures are the same; [`tls`] tests who is refused.
 
 #[path = "over_zenoh/netns.rs"]
 mod netns;
 #[path = "over_zenoh/proxy.rs"]
 mod proxy;
+#[path = "over_zenoh/tls.rs"]
+mod tls;
 
 use std::net::TcpListener;
 use std::sync::Arc;
@@ -47,8 +51,17 @@ fn lockstep_over_zenoh_is_byte_identical_to_sim() {
         // ... and two, the controller connecting before the plant listens.
         let ep = free_endpoint();
         let td = two_dir.to_str().unwrap();
-        let mut common =
-            vec!["--transport", "zenoh", "--lockstep", "--duration", "3", "--no-plots", "--name", &n];
+        let mut common = vec![
+            "--transport",
+            "zenoh",
+            "--insecure",
+            "--lockstep",
+            "--duration",
+            "3",
+            "--no-plots",
+            "--name",
+            &n,
+        ];
         common.extend(extra);
         let mut control = common.clone();
         control.extend(["--connect", &ep]);
@@ -213,7 +226,8 @@ fn through_proxy(tag: &str, delay: Duration, extra: &[&str]) -> (Proxy, Demo, De
     let proxy = Proxy::start(upstream, delay);
     let pe = proxy.endpoint();
     let out = d.to_str().unwrap();
-    let mut common = vec!["--transport", "zenoh", "--no-plots", "--quiet", "--log-every", "1", "--name", &n];
+    let mut common =
+        vec!["--transport", "zenoh", "--insecure", "--no-plots", "--quiet", "--log-every", "1", "--name", &n];
     common.extend(extra);
     let plant = spawn(&[&["plant", "--listen", &ep, "--out", out], &common[..]].concat());
     let control = spawn(&[&["control", "--connect", &pe], &common[..]].concat());
@@ -286,6 +300,7 @@ fn bad_endpoints_are_clear_errors() {
         "plant",
         "--transport",
         "zenoh",
+        "--insecure",
         "--name",
         &n,
         "--listen",
@@ -301,8 +316,18 @@ fn bad_endpoints_are_clear_errors() {
     // Nobody listens: an error naming the endpoint within the startup timeout.
     // (That it gives up rather than hangs is the harness's watchdog; how soon is not asserted.)
     let ep = free_endpoint();
-    let (st, _, err) =
-        run(&["control", "--transport", "zenoh", "--name", &n, "--connect", &ep, "--startup-timeout", "2"]);
+    let (st, _, err) = run(&[
+        "control",
+        "--transport",
+        "zenoh",
+        "--insecure",
+        "--name",
+        &n,
+        "--connect",
+        &ep,
+        "--startup-timeout",
+        "2",
+    ]);
     assert_eq!(st.code(), Some(2), "{err}");
     assert!(err.contains("nothing answered at") && err.contains(&ep), "{err}");
 }
@@ -314,10 +339,21 @@ fn a_plant_of_another_scenario_over_zenoh_is_refused_and_both_sides_say_why() {
     let n = name("zrefused");
     let ep = free_endpoint();
     let out = d.to_str().unwrap();
-    let plant = ["--transport", "zenoh", "--listen", &ep, "--lockstep", "--choice", "b", "--duration", "1"];
+    let plant = [
+        "--transport",
+        "zenoh",
+        "--insecure",
+        "--listen",
+        &ep,
+        "--lockstep",
+        "--choice",
+        "b",
+        "--duration",
+        "1",
+    ];
     let (plant, control) = two_roles(
         &[&plant[..], &["--no-plots", "--name", &n, "--out", out]].concat(),
-        &["--transport", "zenoh", "--connect", &ep, "--name", &n, "--choice", "a"],
+        &["--transport", "zenoh", "--insecure", "--connect", &ep, "--name", &n, "--choice", "a"],
     );
     scenario_refused(&d, plant, control);
 }
@@ -372,6 +408,7 @@ fn a_peer_of_another_protocol_version_over_zenoh_is_named() {
         "control",
         "--transport",
         "zenoh",
+        "--insecure",
         "--connect",
         &ep,
         "--name",
@@ -402,7 +439,7 @@ fn a_second_controller_over_zenoh_is_refused_and_the_run_goes_on() {
     let n = name("zsecond");
     let ep = free_endpoint();
     let out = d.to_str().unwrap();
-    let common = ["--transport", "zenoh", "--no-plots", "--quiet", "--name", &n];
+    let common = ["--transport", "zenoh", "--insecure", "--no-plots", "--quiet", "--name", &n];
     let rt = ["--hold-periods", LOADED_HOLD, "--max-miss-fraction", "1"];
     let plant =
         spawn(&[&["plant", "--listen", &ep, "--duration", "4", "--out", out], &rt[..], &common[..]].concat());
@@ -414,7 +451,7 @@ fn a_second_controller_over_zenoh_is_refused_and_the_run_goes_on() {
     assert!(err.contains("is already running"), "{err}");
     let (fst, fseen) = first.wait(Duration::from_secs(20));
     let (pst, pseen) = plant.wait(Duration::from_secs(20));
-    assert!(fst.success(), "first controller: {fseen:#?}");
+    assert!(fst.success(), "first controller: {fseen:#?}\nplant: {pseen:#?}");
     assert!(pst.success(), "plant: {pseen:#?}");
     let lat = json(&d.join("latency.json"));
     assert_eq!(lat["invalid_total"], 0, "no command of the second controller reached the plant: {lat:#}");
@@ -536,19 +573,36 @@ fn in_namespace(ns: &str, args: &[&str]) -> Demo {
 }
 
 /// The plant in one namespace listening on its veth address, the controller in the other
-/// connecting to it: the two-machine setup on one machine.
+/// connecting to it over mutual TLS: the two-machine setup of the README on one machine, its
+/// certificates made by `companion certs` as the README says.
 fn across_namespaces(pair: &NetnsPair, tag: &str, extra: &[&str]) -> (Demo, Demo, PathBuf) {
     let d = dir(tag);
     let n = name(tag);
-    let ep = format!("tcp/{}:7447", pair.addr_a);
+    let certs = d.join("certs");
+    let hosts = format!("plant.local={},ctrl.local", pair.addr_a);
+    let (st, out, err) = run(&["certs", "--out", certs.to_str().unwrap(), "--hosts", &hosts]);
+    assert!(st.success(), "{out}\n{err}");
+    let f = |x: &str| certs.join(x).display().to_string();
+    let (ca, pc, pk, cc, ck) =
+        (f("ca.pem"), f("plant.local.pem"), f("plant.local.key"), f("ctrl.local.pem"), f("ctrl.local.key"));
+    let ep = format!("quic/{}:7447", pair.addr_a);
     let mut common = vec!["--transport", "zenoh", "--no-plots", "--quiet", "--log-every", "1", "--name", &n];
     common.extend(extra);
+    let plant_tls = ["--tls-ca", &ca, "--tls-cert", &pc, "--tls-key", &pk, "--tls-peer", "ctrl.local"];
+    let control_tls = ["--tls-ca", &ca, "--tls-cert", &cc, "--tls-key", &ck, "--tls-peer", "plant.local"];
+    let out = d.join("out");
     let plant = in_namespace(
         &pair.a,
-        &[&["plant", "--listen", &ep, "--out", d.to_str().unwrap()], &common[..]].concat(),
+        &[
+            &["plant", "--listen", "quic/0.0.0.0:7447", "--out", out.to_str().unwrap()],
+            &plant_tls[..],
+            &common[..],
+        ]
+        .concat(),
     );
-    let control = in_namespace(&pair.b, &[&["control", "--connect", &ep], &common[..]].concat());
-    (plant, control, d)
+    let control =
+        in_namespace(&pair.b, &[&["control", "--connect", &ep], &control_tls[..], &common[..]].concat());
+    (plant, control, out)
 }
 
 #[test]
@@ -570,8 +624,11 @@ fn plant_and_controller_in_two_network_namespaces() {
     drop(pair);
 }
 
+/// Over QUIC (the default) a link taken down ends each side's session when the peer's lease
+/// (half its `--peer-timeout`) runs out with nothing heard: found dead or unreachable (exit
+/// 3), before the loops would call it hung (exit 4, after `--peer-timeout`).
 #[test]
-fn a_link_down_between_namespaces_is_a_hung_peer_hold_stop_report() {
+fn a_link_down_between_namespaces_is_an_unreachable_peer_hold_stop_report() {
     let _g = serial();
     let Some(pair) = namespaces(2) else { return };
     let (plant, control, d) = across_namespaces(
@@ -583,8 +640,11 @@ fn a_link_down_between_namespaces_is_a_hung_peer_hold_stop_report() {
     pair.link_down().unwrap();
     let (cst, cseen) = control.wait(Duration::from_secs(20));
     let (pst, pseen) = plant.wait(Duration::from_secs(20));
-    assert_eq!(cst.code(), Some(4), "controller: {cseen:#?}");
-    assert_eq!(pst.code(), Some(4), "plant: {pseen:#?}");
+    assert_eq!(cst.code(), Some(3), "controller: {cseen:#?}");
+    assert_eq!(pst.code(), Some(3), "plant: {pseen:#?}");
+    assert!(cseen.iter().any(|l| l.contains("died or is unreachable")), "{cseen:#?}");
+    let reason = json(&d.join("latency.json"))["end"].as_str().unwrap().to_string();
+    assert!(reason.contains("died or is unreachable") && reason.contains("robot stopped"), "{reason}");
     held_then_stopped(&csv_statuses(&d.join("timeseries.csv")), 5);
     drop(pair);
 }

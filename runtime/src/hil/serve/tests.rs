@@ -150,8 +150,8 @@ fn a_dead_plant_is_noticed_after_the_silence_threshold() {
     link.inbox.push_back((0, meas_msg(&s, 0, 0)));
     let (end, _) = run(&mut link, clock.as_ref(), &s, &options());
     match end.unwrap() {
-        ControlEnd::PlantDied { pid, last_seq, silent_ns } => {
-            assert_eq!((pid, last_seq), (4242, Some(0)));
+        ControlEnd::PlantDied { pid, last_seq, silent_ns, expired } => {
+            assert_eq!((pid, last_seq, expired), (4242, Some(0), false));
             assert!((20_000_000..21_000_000).contains(&silent_ns), "{silent_ns}");
         }
         e => panic!("{e:?}"),
