@@ -21,6 +21,9 @@ pub const EXIT_DEADLINES: u8 = 7;
 /// Exit code: a `--chaos` run whose observed counts do not match what was injected, or whose
 /// files are incomplete.
 pub const EXIT_CHAOS_MISMATCH: u8 = 8;
+/// Exit code: `explore` refused to start because another process is running on its `--out`
+/// folder (it holds the folder's lock).
+pub const EXIT_FOLDER_BUSY: u8 = 9;
 /// Exit code: a panic (Rust's own code for it).
 pub const EXIT_PANIC: u8 = 101;
 /// Exit code: ended early by SIGINT or SIGTERM (files are written).
@@ -91,6 +94,12 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
         commands: &["hil"],
         meaning: "--chaos: the counts observed do not match what was injected, or files are missing",
         key: "--chaos",
+    },
+    ExitCodeDoc {
+        code: EXIT_FOLDER_BUSY,
+        commands: &["explore"],
+        meaning: "not started: another process is running in the same --out folder (it holds the folder's lock)",
+        key: "--out folder",
     },
     ExitCodeDoc { code: EXIT_PANIC, commands: &[], meaning: "a panic: a bug, please report it", key: "panic" },
     ExitCodeDoc {

@@ -9,7 +9,7 @@ use companion_runtime::explore::{self, Exploration, Shard, SpaceFile};
 use companion_runtime::signals;
 
 use super::args::ScenarioArgs;
-use super::exit::EXIT_INTERRUPTED;
+use super::exit::{EXIT_FOLDER_BUSY, EXIT_INTERRUPTED};
 use super::terminal::Terminal;
 
 /// `companion explore` flags.
@@ -107,7 +107,20 @@ pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
     let mine = shard.samples(a.samples).count() as u64;
     let term = Terminal::bar_of(mine, "samples", a.quiet);
-    let outcome = pool.install(|| exploration.run(&out, shard, &term, &signals::termination_requested))?;
+    let outcome = match pool.install(|| exploration.run(&out, shard, &term, &signals::termination_requested))
+    {
+        Ok(o) => o,
+        Err(e) => {
+            term.finish();
+            return match e.downcast_ref::<explore::Busy>() {
+                Some(busy) => {
+                    eprintln!("error: {busy}");
+                    Ok(ExitCode::from(EXIT_FOLDER_BUSY))
+                }
+                None => Err(e),
+            };
+        }
+    };
     term.finish();
     for n in &outcome.notes {
         eprintln!("note: {n}");

@@ -30,7 +30,12 @@
 //! **Shardable.** `--shard K/N` runs the samples `i` with `i mod N = K − 1` into its own
 //! folder; [`merge`] checks that the shards are of the same exploration, complete and
 //! intact, and writes the same files an unsharded run writes.
+//!
+//! **One process per folder.** A run locks its folder ([`lock`]); a second run on the same
+//! folder is refused at once with [`Busy`] (the CLI's exit code 9), and [`merge`] tells a
+//! shard still running (locked) from one that ended unfinished (run its command again).
 
+pub mod lock;
 mod plots;
 pub mod results;
 pub mod space;
@@ -38,7 +43,7 @@ pub mod summary;
 
 use std::collections::BTreeMap;
 use std::fs::OpenOptions;
-use std::io::Write as _;
+use std::io::{Read as _, Seek as _, SeekFrom, Write as _};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -51,6 +56,8 @@ use rand::{Rng as _, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;
 
+pub use self::lock::Busy;
+use self::lock::Lock;
 pub use self::results::{Class, Record};
 pub use self::space::{Space, SpaceFile, Value};
 pub use self::summary::ExploreSummary;
@@ -252,7 +259,8 @@ impl Exploration {
     /// the results. Stops early, with the journal kept, when `stop()` says so.
     ///
     /// # Errors
-    /// `out` holds another exploration, its journal is corrupt, or a file cannot be written.
+    /// Another process is running in `out` ([`Busy`], at once, before anything is read), `out`
+    /// holds another exploration, its journal is corrupt, or a file cannot be written.
     pub fn run(
         &self,
         out: &Path,
@@ -273,22 +281,50 @@ impl Exploration {
                 out.display()
             )
         };
+        let mut notes = Vec::new();
         let manifest_path = out.join("explore.json");
         let shard_path = out.join("shard.json");
-        if manifest_path.exists() {
-            let old_shard = std::fs::read_to_string(&shard_path).ok();
-            if std::fs::read_to_string(&manifest_path)? != manifest || old_shard != shard_json {
-                return Err(another());
-            }
-        } else {
-            std::fs::write(&manifest_path, &manifest).context("writing explore.json")?;
+        // Locked before anything else is read, held until this function returns (`lock`).
+        let mut manifest_file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&manifest_path)
+            .with_context(|| format!("opening {}", manifest_path.display()))?;
+        match lock::try_lock(&manifest_file, true)
+            .with_context(|| format!("locking {}", manifest_path.display()))?
+        {
+            Lock::Held => {}
+            Lock::Busy => return Err(Busy { folder: out.to_path_buf() }.into()),
+            Lock::Unsupported => notes.push(format!(
+                "{}'s file system does not support locks: nothing stops a second process on this folder",
+                out.display()
+            )),
+        }
+        let mut old = String::new();
+        manifest_file
+            .read_to_string(&mut old)
+            .with_context(|| format!("reading {}", manifest_path.display()))?;
+        // Empty: a new folder. A proper beginning of this manifest and nothing else in the
+        // folder: a first run killed while writing it.
+        let unwritten = old.is_empty()
+            || (old.len() < manifest.len()
+                && manifest.starts_with(&old)
+                && !out.join("journal.csv").exists()
+                && !out.join("results.csv").exists());
+        if unwritten {
+            manifest_file.set_len(0).context("writing explore.json")?;
+            manifest_file.seek(SeekFrom::Start(0)).context("writing explore.json")?;
+            manifest_file.write_all(manifest.as_bytes()).context("writing explore.json")?;
             if let Some(sj) = &shard_json {
                 std::fs::write(&shard_path, sj).context("writing shard.json")?;
             }
+        } else if old != manifest || std::fs::read_to_string(&shard_path).ok() != shard_json {
+            return Err(another());
         }
         let layout = self.layout();
         let header = &layout.header;
-        let mut notes = Vec::new();
         let mut done: BTreeMap<u64, String> = BTreeMap::new();
         // A finished run's results count as done (running the command again rewrites them).
         let results_path = out.join("results.csv");
@@ -452,7 +488,8 @@ struct ShardFile {
 /// run writes (byte for byte).
 ///
 /// # Errors
-/// A folder is not a finished shard, the shards are of different explorations, shards are
+/// A shard is still running (its lock is held), a folder is not a finished shard (the message
+/// says whether to rerun it), the shards are of different explorations, shards are
 /// missing or repeated, or a line is corrupt.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
     if dirs.is_empty() {
@@ -463,9 +500,33 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
     let mut seen = BTreeMap::new();
     let mut done = BTreeMap::new();
     let mut layout: Option<Layout> = None;
+    let mut held = Vec::with_capacity(dirs.len());
     for dir in dirs {
         let path = dir.join("explore.json");
-        let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+        let mut file = std::fs::File::open(&path).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                anyhow::anyhow!(
+                    "{}: no explore.json: not an exploration's folder, or its shard has not started \
+                     (run its command)",
+                    dir.display()
+                )
+            } else {
+                anyhow::Error::from(e).context(format!("reading {}", path.display()))
+            }
+        })?;
+        // Shared: a run's exclusive lock conflicts; held until the merge is written, so that no
+        // run starts on a shard while it is read.
+        if lock::try_lock(&file, false).with_context(|| format!("locking {}", path.display()))? == Lock::Busy
+        {
+            bail!(
+                "{}: this shard is still running (a process holds the lock on its explore.json); \
+                 merge once it has ended",
+                dir.display()
+            );
+        }
+        let mut text = String::new();
+        file.read_to_string(&mut text).with_context(|| format!("reading {}", path.display()))?;
+        held.push(file);
         match &manifest {
             None => {
                 let m: ManifestIn = serde_json::from_str(&text)
@@ -529,16 +590,25 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
         }
         let path = dir.join("results.csv");
         let what = path.display().to_string();
-        let text = std::fs::read_to_string(&path).with_context(|| {
-            format!("{what}: missing; is the shard finished? (run its command again to resume it)")
-        })?;
+        let expected = shard.samples(layout.samples).count();
+        let Ok(text) = std::fs::read_to_string(&path) else {
+            // Not running (the lock was free): killed, failed or cancelled before the end.
+            let journal = std::fs::read_to_string(dir.join("journal.csv")).unwrap_or_default();
+            let in_journal = journal.lines().skip(1).filter(|l| !l.is_empty()).count();
+            bail!(
+                "{}: shard {}/{} is unfinished and no process is running it ({in_journal} of its {expected} \
+                 samples are in its journal.csv): run its command again to resume it, then merge",
+                dir.display(),
+                shard.index,
+                shard.count
+            );
+        };
         let (lines, cut) = results::read_lines(&text, &layout.header, &what)?;
         if cut.is_some() {
             bail!("{what}: ends in a cut line; not merged");
         }
         let n = lines.len();
         layout.take(&mut done, lines, shard, &what)?;
-        let expected = shard.samples(layout.samples).count();
         if n != expected {
             bail!("{what}: {n} samples, but shard {}/{} has {expected}", shard.index, shard.count);
         }
@@ -551,7 +621,9 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
     }
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     std::fs::write(out.join("explore.json"), manifest).context("writing explore.json")?;
-    layout.finish(out, &done)
+    let summary = layout.finish(out, &done)?;
+    drop(held); // the shards' locks, held to here
+    Ok(summary)
 }
 
 #[cfg(test)]

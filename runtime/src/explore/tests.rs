@@ -1,5 +1,5 @@
-//! Determinism across thread counts and shards, resuming after a kill, corrupt files, and
-//! bad spaces refused before anything runs.
+//! Determinism across thread counts and shards, resuming after a kill, one process per
+//! folder, corrupt files, and bad spaces refused before anything runs.
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -135,6 +135,52 @@ fn a_killed_exploration_resumes_and_loses_nothing() {
     assert!(err.contains("another exploration"), "{err}");
     let _ = std::fs::remove_dir_all(&whole);
     let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn a_second_process_on_a_folder_is_refused_and_merge_tells_running_from_unfinished() {
+    let e = exploration(6);
+    let shards: Vec<PathBuf> = (1..=2).map(|k| dir(&format!("lock{k}"))).collect();
+    let (one, two) = (Shard { index: 1, count: 2 }, Shard { index: 2, count: 2 });
+    run_with_threads(&e, &shards[1], two, 1);
+    // Shard 1 stopped after two of its three samples; then "running" (its lock held, as the
+    // process running it holds it; flock locks conflict between two opens in one process too).
+    let started = AtomicUsize::new(0);
+    let stop = || started.fetch_add(1, Ordering::SeqCst) >= 2;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    assert!(pool.install(|| e.run(&shards[0], one, &Silent, &stop)).unwrap().summary.is_none());
+    let holder = std::fs::File::open(shards[0].join("explore.json")).unwrap();
+    assert_eq!(lock::try_lock(&holder, true).unwrap(), Lock::Held);
+    let journal = read(&shards[0], "journal.csv");
+    let err = e.run(&shards[0], one, &Silent, &never).unwrap_err();
+    assert_eq!(err.downcast_ref::<Busy>(), Some(&Busy { folder: shards[0].clone() }), "{err:#}");
+    assert!(read(&shards[0], "journal.csv") == journal, "the refused run touched the journal");
+    let err = merge(&shards, &dir("lock-m1")).unwrap_err().to_string();
+    assert!(err.contains("still running"), "{err}");
+    // The holder gone (killed): unfinished, not running, and how far it got.
+    drop(holder);
+    let err = merge(&shards, &dir("lock-m2")).unwrap_err().to_string();
+    assert!(
+        err.contains("shard 1/2 is unfinished and no process is running it (2 of its 3 samples"),
+        "{err}"
+    );
+    assert_eq!(run_with_threads(&e, &shards[0], one, 1).ran, 1);
+    let merged = dir("lock-m3");
+    merge(&shards, &merged).unwrap();
+    // A first run killed while writing explore.json: the folder is taken as new.
+    let whole = dir("lock-whole");
+    run_with_threads(&e, &whole, Shard::WHOLE, 1);
+    let cut = dir("lock-cut");
+    std::fs::create_dir_all(&cut).unwrap();
+    std::fs::write(cut.join("explore.json"), &read(&whole, "explore.json")[..40]).unwrap();
+    run_with_threads(&e, &cut, Shard::WHOLE, 1);
+    for f in FILES {
+        assert!(read(&whole, f) == read(&merged, f), "{f}: merge differs from the unsharded run");
+        assert!(read(&whole, f) == read(&cut, f), "{f}: the run over a cut explore.json differs");
+    }
+    for d in shards.iter().chain([&merged, &whole, &cut]) {
+        let _ = std::fs::remove_dir_all(d);
+    }
 }
 
 #[test]
