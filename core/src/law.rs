@@ -29,18 +29,20 @@
 
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
-use crate::arm_law::ArmLaw;
+use crate::arm_law::{ArmLaw, ArmStep};
 use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
 use crate::hold::{self, advance_inside, Start};
 use crate::measurement::Measurement;
 use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
 use crate::platform::{Platform, PlatformKind};
-use crate::platform_law::{Hold, PlatformLaw, PlatformPoint};
+use crate::platform_law::{Hold, PlatformLaw, PlatformPoint, PlatformStep};
 use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
-use crate::secondary::{bounded_filter_rate, psi_tilde, psi_tilde_value, rest_cost, sigma_tilde_joint};
+use crate::secondary::{
+    bounded_filter_rate, psi_tilde, psi_tilde_value, rest_cost, sigma_tilde_joint, RestCost,
+};
 use crate::space::{Space, Vector};
 use crate::state::{wrap_alpha, Sent, State, HISTORY};
 use crate::task::{Manipulator, TaskPoint};
@@ -470,12 +472,21 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     }
 
     /// One step from `state`, which is written only at the end, once everything is known to
-    /// be finite.
+    /// be finite: the phases 2–6 of the module docs in turn, each a function of its own
+    /// (inlined here) that takes what it needs and returns what it found.
     ///
     /// Never inlined: it is the whole law, and the step, the first step and the recovery
     /// share this one copy. Inlined into each (and into every caller of `step`), it was
     /// four copies per law instance in a firmware image (15–35 kB each in `f32` on a
     /// Cortex-M4F), and their merged stack frames made the step's stack 5 kB.
+    ///
+    /// The phases are `#[inline(always)]`, and the structs they hand on cost nothing once
+    /// inlined — as long as no reference into one reaches a function that is not inlined
+    /// (`psi_tilde`, `tracking_cost_sc`, the spatial arm's law; in `f64` most of the
+    /// arithmetic): the compiler keeps a struct in registers only if no pointer into it
+    /// escapes, and otherwise keeps all of it in memory for the whole step. Such a field is
+    /// handed on as a copy (`&{ pred.start.q }`): without the copy of `r_bd` alone, an
+    /// `f64` step on the Cortex-M4F took ~720 instructions and 270 B of stack more.
     #[inline(never)]
     fn compute(
         &self,
@@ -486,18 +497,41 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         first_guess: Option<&Sent<T, N>>,
     ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         let st: &St<T, A, N> = state;
-        let prm = &self.params;
-        let lim = &prm.joint_limits;
-        let p = &prm.primary;
-        let sec = &prm.secondary;
-        let half_t = T::of(0.5);
-        let measured_delay = delay;
-        let (half, delay) = if self.midpoint { (h * half_t, delay) } else { (T::zero(), T::zero()) };
-        let is_car = P::KIND == PlatformKind::Car;
+        let pred = self.predict(st, meas, h, delay, first_guess)?;
+        let filters = self.filters_at_te(st, &pred);
+        let platform = self.platform_at_te(st, &pred, &filters)?;
+        let arm = self.arm_at_te(st, &pred, &filters, &platform.step)?;
+        let found = Phases { pred: &pred, filters: &filters, platform: &platform, arm: &arm };
+        let diagnostics = self.diagnostics(st, meas, &found);
+        let update = self.state_after(st, meas, &found);
+        let command = arm.command;
+        if !all_finite(&command, &update, &diagnostics) {
+            return Err(StepError::NumericalFailure.into());
+        }
+        update.commit(state);
+        Ok(Output { command, diagnostics })
+    }
 
-        // 2. Prediction: the robot when the command starts (t_k + τ), the target at t_e.
-        let (trend, quotient) =
-            if self.midpoint { self.target_rate(st, meas) } else { (TargetTrend::held(), Vector::zeros()) };
+    /// Phase 2, prediction: the robot when the command starts (`t_k + τ`), the target at `t_e`,
+    /// and the hold they are predicted over: `t_e = t_k + τ + h/2`, the middle of the hold
+    /// ([`Discretisation::Midpoint`]), or the measurement itself and `t_e = t_k`
+    /// ([`Discretisation::Sampled`], which uses the delay in the joint guard only).
+    ///
+    /// # Errors
+    /// [`StepError::TargetYawUndefined`] when the target's projection on the plane has none.
+    #[inline(always)]
+    fn predict(
+        &self,
+        st: &St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        h: T,
+        delay: T,
+        first_guess: Option<&Sent<T, N>>,
+    ) -> Result<Prediction<T, N, A::Space>, StepError> {
+        let lim = &self.params.joint_limits;
+        let measured_delay = delay;
+        let (half, delay) = if self.midpoint { (h * T::of(0.5), delay) } else { (T::zero(), T::zero()) };
+        let target = self.target_at_te(st, meas, delay + half)?;
         let start = if self.midpoint {
             hold::in_flight::<T, P, A::Space, N>(st, meas, delay, lim)
         } else {
@@ -511,151 +545,311 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         } else {
             start.q
         };
-        // The previous command (or, on a first step's second pass, the first pass's).
-        let guess = first_guess.copied().unwrap_or_else(|| st.last_sent());
+        Ok(Prediction {
+            hold: Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w },
+            start,
+            q_guard,
+            guess: first_guess.copied().unwrap_or_else(|| st.last_sent()),
+            target,
+            t_e: (meas.t - st.t0 + delay + half).max(T::zero()),
+        })
+    }
+
+    /// Phase 2, prediction of the target: `r_bd` and `u_d` `s` seconds after the measurement (at
+    /// `t_e`), extrapolated with the target's trend ([`Self::target_rate`]) by the midpoint
+    /// law, as measured by the sampled one, and their projection on the plane (§5).
+    ///
+    /// ```text
+    /// u_d(t_k + s) = u_d + s u̇_d + s²/2 ü_d,    r_bd(t_k + s) = r_bd exp(s ū_d),
+    /// ū_d = u_d + s/2 u̇_d + s²/6 ü_d (the mean velocity over [t_k, t_k + s])
+    /// ```
+    ///
+    /// # Errors
+    /// [`StepError::TargetYawUndefined`] when the projection has no yaw.
+    #[inline(always)]
+    fn target_at_te(
+        &self,
+        st: &St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        s: T,
+    ) -> Result<TargetAtTe<T, A::Space>, StepError> {
+        let (trend, quotient) =
+            if self.midpoint { self.target_rate(st, meas) } else { (TargetTrend::held(), Vector::zeros()) };
         let sc_b = meas.base.theta.sincos();
         let r_bd = A::Space::relative(&meas.base, sc_b, &meas.target);
-        let s_target = delay + half;
         let u_d0 = &meas.target_velocity;
-        let r_bd_target = if self.midpoint {
-            A::Space::advance(&r_bd, &trend.mean_velocity(u_d0, s_target), s_target)
-        } else {
-            r_bd
+        let r_bd =
+            if self.midpoint { A::Space::advance(&r_bd, &trend.mean_velocity(u_d0, s), s) } else { r_bd };
+        let u_d = trend.velocity_after(u_d0, s);
+        let Some((plane_r_bd, plane_u_d)) = A::Space::project(&r_bd, &u_d) else {
+            return Err(StepError::TargetYawUndefined);
         };
-        let u_d = trend.velocity_after(u_d0, s_target);
-        // The platform works on the target's projection on the plane (§5).
-        let Some((plane_bd, plane_u_d)) = A::Space::project(&r_bd_target, &u_d) else {
-            return Err(StepError::TargetYawUndefined.into());
-        };
-        let t_e = (meas.t - st.t0 + delay + half).max(T::zero());
+        Ok(TargetAtTe { quotient, sc_b, r_bd, u_d, plane_r_bd, plane_u_d })
+    }
 
-        // 3. The filters at t_e: half an explicit step from t_k + τ.
-        let q_hat_rate0 = filter_rate(&st.q_hat, &start.q, p.filter_sigma, p.filter_xi);
-        let q_hat_e = st.q_hat + q_hat_rate0 * half;
-        let w0 = self.weight_at(st.psi, &st.sigma, &start.q, &st.q_hat, &q_hat_rate0);
-        let (psi_e, sigma_e, psi_rate_e) = match &sec.weight {
-            Weight::FromFilteredJoints { .. } => (
-                self.weight_at(T::zero(), &st.sigma, &start.q, &q_hat_e, &q_hat_rate0).psi,
-                st.sigma,
-                w0.psi_rate,
-            ),
+    /// Phase 3, the filters at `t_e`: half an explicit step from `t_k + τ`, kept in `[0, 1]`.
+    ///
+    /// ```text
+    /// q̂(t_e) = q̂ + h/2 q̂̇(t_k + τ),    Ψ(t_e) = Ψ + h/2 Ψ̇(t_k + τ)  (or the σᵢ likewise)
+    /// ```
+    #[inline(always)]
+    fn filters_at_te(&self, st: &St<T, A, N>, pred: &Prediction<T, N, A::Space>) -> FiltersAtTe<T, N> {
+        let p = &self.params.primary;
+        let (q, half) = (&{ pred.start.q }, pred.hold.half);
+        let q_hat_rate = filter_rate(&st.q_hat, q, p.filter_sigma, p.filter_xi);
+        let q_hat = st.q_hat + q_hat_rate * half;
+        let w0 = self.weight_at(st.psi, &st.sigma, q, &st.q_hat, &q_hat_rate);
+        let (psi, sigma) = match &self.params.secondary.weight {
+            Weight::FromFilteredJoints { .. } => {
+                (self.weight_at(T::zero(), &st.sigma, q, &q_hat, &q_hat_rate).psi, st.sigma)
+            }
             Weight::PerJoint { .. } => {
                 let sigma = (st.sigma + w0.sigma_rate * half).map(|x| clamp(x, T::zero(), T::one()));
-                (sigma.dot(&sigma) / T::of(N as f64), sigma, w0.psi_rate)
+                (sigma.dot(&sigma) / T::of(N as f64), sigma)
             }
-            _ => (clamp(w0.psi + w0.psi_rate * half, T::zero(), T::one()), st.sigma, w0.psi_rate),
+            _ => (clamp(w0.psi + w0.psi_rate * half, T::zero(), T::one()), st.sigma),
         };
+        FiltersAtTe { q_hat, psi, sigma, psi_rate: w0.psi_rate }
+    }
 
-        // 4. The platform law at t_e, evaluated where the previous command would take it.
-        let alpha_e = st.alpha + P::alpha_rate(&st.last_w) * half;
+    /// Phase 4, the platform law at `t_e`, evaluated where the previous command would take it: the
+    /// companion frame at `α_e = α + h/2 α̇_prev`, the target seen from the base moved by the
+    /// previous command, the rest cost at `t_e` and, for the car, the steering error when the
+    /// command starts.
+    ///
+    /// # Errors
+    /// [`StepError::NumericalFailure`] when the companion frame cannot be computed.
+    #[inline(always)]
+    fn platform_at_te(
+        &self,
+        st: &St<T, A, N>,
+        pred: &Prediction<T, N, A::Space>,
+        filters: &FiltersAtTe<T, N>,
+    ) -> Result<PlatformAtTe<T>, StepError> {
+        let (start, half) = (&pred.start, pred.hold.half);
+        let alpha_rate_prev = P::alpha_rate(&st.last_w);
+        let alpha_e = st.alpha + alpha_rate_prev * half;
         let frame = if self.midpoint {
             self.platform.companion_with_derivative(&alpha_e)
         } else {
             self.platform.companion(&alpha_e)
         };
         let Some(frame) = frame else {
-            return Err(StepError::NumericalFailure.into());
+            return Err(StepError::NumericalFailure);
         };
-        let r_bd_guess = if half > T::zero() {
-            let xi_mean = start.xi + guess.platform.v_xi * half * half_t;
-            let base = start.base.compose(&PoseSc::exp(&P::body_velocity_of(&guess.platform, xi_mean), half));
-            base.inverse().compose(&plane_bd)
+        let r_bd = if half > T::zero() {
+            let guess = &pred.guess.platform;
+            let base = Self::base_at_te(start, guess.v_xi, half, |xi| P::body_velocity_of(guess, xi));
+            base.inverse().compose(&pred.target.plane_r_bd)
         } else {
-            plane_bd
+            pred.target.plane_r_bd
         };
-        let rest = if self.rest_needed {
-            let r0 = rest_cost(&st.r_tilde, &sec.rest_sigma, sec.rest_xi, sec.gamma_2);
-            if half > T::zero() {
-                let rate = r0.drift - r0.q * st.last_u_bar;
-                let r = &st.r_tilde;
-                let r_e = Pose::new(r.x + rate[0] * half, r.y + rate[1] * half, r.theta + rate[2] * half);
-                Some(rest_cost(&r_e, &sec.rest_sigma, sec.rest_xi, sec.gamma_2))
-            } else {
-                Some(r0)
-            }
-        } else {
-            None
-        };
-        let xi_error = if is_car {
+        let rest = self.rest_at_te(st, half);
+        let xi_error = if P::KIND == PlatformKind::Car {
             // ξ_f when the command starts: ξ_f(α_e) less its change over the first half.
-            start.xi - (frame.xi_f - frame.dxi_f.dot(&P::alpha_rate(&st.last_w)) * half)
+            start.xi - (frame.xi_f - frame.dxi_f.dot(&alpha_rate_prev) * half)
         } else {
             T::zero()
         };
         let point = PlatformPoint {
-            r_bd: &r_bd_guess,
+            r_bd: &r_bd,
             frame: &frame,
-            u_d: &plane_u_d,
-            psi: psi_e,
-            psi_rate: psi_rate_e,
+            u_d: &{ pred.target.plane_u_d },
+            psi: filters.psi,
+            psi_rate: filters.psi_rate,
             rest: rest.as_ref(),
             xi_error,
             xi: start.xi,
         };
-        let platform_law =
-            PlatformLaw { params: prm, platform: &self.platform, r_star_inv: &self.r_star_inv };
-        let hold = Hold { period: h, half, guess_u_bar: st.last_u_bar, guess_w: st.last_w };
-        let plat = platform_law.platform_step(&point, &hold);
+        let law =
+            PlatformLaw { params: &self.params, platform: &self.platform, r_star_inv: &self.r_star_inv };
+        let step = law.platform_step(&point, &pred.hold);
+        Ok(PlatformAtTe { step, alpha_rate: P::alpha_rate(&step.w), rest, det_h: frame.det_h })
+    }
 
-        // 5. The arm law at t_e, along the new platform command.
+    /// The base at `t_e` relative to the measurement, moved from `t_k + τ` over `h/2` by a
+    /// command whose body velocity at steering `ξ` is `u_b(ξ)`, taken at the steering's mean
+    /// over that half:
+    ///
+    /// ```text
+    /// E_e = E_τ exp(h/2 u_b(ξ + h/4 v_ξ))
+    /// ```
+    #[inline(always)]
+    fn base_at_te(start: &Start<T, N>, v_xi: T, half: T, u_b: impl Fn(T) -> Vector3<T>) -> PoseSc<T> {
+        let xi_mean = start.xi + v_xi * half * T::of(0.5);
+        start.base.compose(&PoseSc::exp(&u_b(xi_mean), half))
+    }
+
+    /// The rest filter's cost at `t_e` (phase 4), when `Ψ ≢ 1`: at `r̃_b` half an explicit
+    /// step on, with the previous command's `ū_b` (eq. (28)).
+    ///
+    /// ```text
+    /// r̃_b(t_e) = r̃_b + h/2 (drift − Q ū_b,prev)
+    /// ```
+    #[inline(always)]
+    fn rest_at_te(&self, st: &St<T, A, N>, half: T) -> Option<RestCost<T>> {
+        if !self.rest_needed {
+            return None;
+        }
+        let sec = &self.params.secondary;
+        let r0 = rest_cost(&st.r_tilde, &sec.rest_sigma, sec.rest_xi, sec.gamma_2);
+        if half > T::zero() {
+            let rate = r0.drift - r0.q * st.last_u_bar;
+            let r = &st.r_tilde;
+            let r_e = Pose::new(r.x + rate[0] * half, r.y + rate[1] * half, r.theta + rate[2] * half);
+            Some(rest_cost(&r_e, &sec.rest_sigma, sec.rest_xi, sec.gamma_2))
+        } else {
+            Some(r0)
+        }
+    }
+
+    /// Phase 5, the arm law at `t_e`, along the new platform command `plat`: the law (30) with the
+    /// base and the target where that command takes them, the joints where the guessed joint
+    /// command takes them, and the joint guard; and the command the two laws make.
+    ///
+    /// # Errors
+    /// What the arm law rejects (see `arm_law`).
+    #[inline(always)]
+    fn arm_at_te(
+        &self,
+        st: &St<T, A, N>,
+        pred: &Prediction<T, N, A::Space>,
+        filters: &FiltersAtTe<T, N>,
+        plat: &PlatformStep<T>,
+    ) -> Result<ArmAtTe<T, N, A::Space>, StepError> {
+        let p = &self.params.primary;
+        let (start, half) = (&pred.start, pred.hold.half);
         let xi_mid = start.xi + plat.v_xi * half;
         let u_b = P::body_velocity(&plat.w, xi_mid);
-        let base_e = if half > T::zero() {
-            let xi_mean = start.xi + plat.v_xi * half * half_t;
-            start.base.compose(&PoseSc::exp(&P::body_velocity(&plat.w, xi_mean), half))
+        let base = if half > T::zero() {
+            Self::base_at_te(start, plat.v_xi, half, |xi| P::body_velocity(&plat.w, xi))
         } else {
             start.base
         };
-        let r_bd_e =
-            if self.midpoint { A::Space::seen_from_moved_base(&base_e, &r_bd_target) } else { r_bd_target };
-        // The joint command's guess: the last one, plus its answer to the change of the
-        // platform's velocity (`∂u_q/∂u_b` of the last step). The feed-forward
-        // `∂e_m/∂r_bd ṙ_bd` depends on q, so the joints' midpoint must be accurate when the
-        // platform manoeuvres quickly (T2 (a) at 10 ms: 71 % tracked with the last command
-        // alone, 99 % with this).
-        let guess_joints = if half > T::zero() {
-            guess.joints + st.last_sensitivity * (u_b - P::body_velocity_of(&guess.platform, start.xi))
+        let r_bd = if self.midpoint {
+            A::Space::seen_from_moved_base(&base, &{ pred.target.r_bd })
         } else {
-            guess.joints
+            pred.target.r_bd
         };
-        let q_e = if half > T::zero() {
-            advance_inside(&start.q, &(guess_joints * half), lim, half_t)
-        } else {
-            start.q
-        };
-        let gamma = if p.regularisation_gain > T::zero() {
-            p.regularisation_gain * (-p.regularisation_decay * t_e).exponential()
-        } else {
-            T::zero()
-        };
-        let q_hat_rate_e = filter_rate(&q_hat_e, &q_e, p.filter_sigma, p.filter_xi);
-        let arm_law = ArmLaw { params: prm, arm: &self.arm, star: &self.star };
-        let arm = arm_law.arm_step(
+        let joints = self.joints_at_te(st, pred, &u_b);
+        let gamma = self.regularisation(pred.t_e);
+        let (q_hat, u_d) = (filters.q_hat, pred.target.u_d);
+        let q_hat_rate = filter_rate(&q_hat, &joints.q, p.filter_sigma, p.filter_xi);
+        let law = ArmLaw { params: &self.params, arm: &self.arm, star: &self.star };
+        let step = law.arm_step(
             &TaskPoint {
-                q: &q_e,
-                r_bd: &r_bd_e,
+                q: &joints.q,
+                r_bd: &r_bd,
                 u_d: &u_d,
                 u_b: &u_b,
                 gamma,
                 gamma_rate: -p.regularisation_decay * gamma,
-                q_hat: &q_hat_e,
-                q_hat_rate: &q_hat_rate_e,
-                guess: &guess_joints,
+                q_hat: &q_hat,
+                q_hat_rate: &q_hat_rate,
+                guess: &joints.guess,
             },
-            &q_guard,
-            h,
+            &pred.q_guard,
+            pred.hold.period,
             half,
         )?;
-        let u_q = arm.task.u_q;
-        let command = Command { platform: P::command(&plat.w, plat.v_xi, xi_mid), joints: u_q };
+        let command = Command { platform: P::command(&plat.w, plat.v_xi, xi_mid), joints: step.task.u_q };
+        Ok(ArmAtTe { step, command, base, q_hat_rate })
+    }
 
-        // 6. The state after the period: α exactly (its rate is held), the filters by the
-        // midpoint rule (their rates at t_e; with `Sampled`, explicit Euler).
-        let alpha_rate = P::alpha_rate(&plat.w);
-        let q_mid = start.q + u_q * half;
-        let q_hat = st.q_hat + q_hat_rate_e * h;
-        let w_mid = self.weight_at(psi_e, &sigma_e, &q_mid, &q_hat_e, &q_hat_rate_e);
-        let (psi, sigma) = match &sec.weight {
+    /// The joint command's guess and the joints at `t_e` (phase 5), for a platform moving at
+    /// `u_b`: the last joint command plus its answer to the change of the platform's
+    /// velocity (`∂u_q/∂u_b` of the last step), and the joints it takes over `h/2`, kept
+    /// inside their limits. The feed-forward `∂e_m/∂r_bd ṙ_bd` depends on q, so the joints'
+    /// midpoint must be accurate when the platform manoeuvres quickly (T2 (a) at 10 ms: 71 %
+    /// tracked with the last command alone, 99 % with this).
+    ///
+    /// ```text
+    /// u_q,guess = u_q,prev + ∂u_q/∂u_b (u_b − u_b,prev),    q(t_e) = q(t_k + τ) + h/2 u_q,guess
+    /// ```
+    #[inline(always)]
+    fn joints_at_te(
+        &self,
+        st: &St<T, A, N>,
+        pred: &Prediction<T, N, A::Space>,
+        u_b: &Vector3<T>,
+    ) -> JointsAtTe<T, N> {
+        let (start, half, guess) = (&pred.start, pred.hold.half, &pred.guess);
+        let guess = if half > T::zero() {
+            guess.joints + st.last_sensitivity * (u_b - P::body_velocity_of(&guess.platform, start.xi))
+        } else {
+            guess.joints
+        };
+        let q = if half > T::zero() {
+            advance_inside(&{ start.q }, &(guess * half), &self.params.joint_limits, T::of(0.5))
+        } else {
+            start.q
+        };
+        JointsAtTe { guess, q }
+    }
+
+    /// `γ(t_e) = γ₀ e^{−λ_Γ t_e}` of `Γ(t) = γ(t) I` in (22), `t_e` seconds after the run's
+    /// first step (phase 5).
+    #[inline(always)]
+    fn regularisation(&self, t_e: T) -> T {
+        let p = &self.params.primary;
+        if p.regularisation_gain > T::zero() {
+            p.regularisation_gain * (-p.regularisation_decay * t_e).exponential()
+        } else {
+            T::zero()
+        }
+    }
+
+    /// Phase 6, the state after the period: `α` exactly (its rate is held), the filters by the
+    /// midpoint rule (their rates at `t_e`; with `Sampled`, explicit Euler), the commands and
+    /// the measurement remembered for the next step.
+    #[inline(always)]
+    fn state_after(
+        &self,
+        st: &St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        found: &Phases<'_, T, N, A::Space>,
+    ) -> Update<T, N, A::Space> {
+        let Phases { pred, filters, platform, arm } = *found;
+        let h = pred.hold.period;
+        let after = self.filters_after(st, pred, filters, arm);
+        let plat = &platform.step;
+        Update {
+            alpha: wrap_alpha(st.alpha + platform.alpha_rate * h),
+            q_hat: after.q_hat,
+            psi: after.psi,
+            sigma: after.sigma,
+            r_tilde: self.rest_after(st, platform, h),
+            w: plat.w,
+            u_bar: plat.u_bar,
+            sensitivity: arm.step.task.sensitivity,
+            t: meas.t,
+            target_velocity: meas.target_velocity,
+            target_rate: pred.target.quotient,
+            sent: Sent { platform: arm.command.platform, joints: arm.command.joints, period: h },
+        }
+    }
+
+    /// The filters after the period (phase 6) by the midpoint rule: their rates at `t_e`,
+    /// with the joints `q(t_e) = q(t_k + τ) + h/2 u_q` of the new command; `q̂` kept within
+    /// the joint limits, `Ψ` (or the `σᵢ`) in `[0, 1]`.
+    ///
+    /// ```text
+    /// q̂⁺ = q̂ + h q̂̇(t_e),    Ψ⁺ = Ψ + h Ψ̇(t_e)  (or the σᵢ likewise)
+    /// ```
+    #[inline(always)]
+    fn filters_after(
+        &self,
+        st: &St<T, A, N>,
+        pred: &Prediction<T, N, A::Space>,
+        filters: &FiltersAtTe<T, N>,
+        arm: &ArmAtTe<T, N, A::Space>,
+    ) -> FiltersAfter<T, N> {
+        let lim = &self.params.joint_limits;
+        let (h, half) = (pred.hold.period, pred.hold.half);
+        let q_mid = pred.start.q + arm.command.joints * half;
+        let q_hat = st.q_hat + arm.q_hat_rate * h;
+        let w_mid = self.weight_at(filters.psi, &filters.sigma, &q_mid, &{ filters.q_hat }, &arm.q_hat_rate);
+        let (psi, sigma) = match &self.params.secondary.weight {
             Weight::Filtered { .. } => (clamp(st.psi + w_mid.psi_rate * h, T::zero(), T::one()), st.sigma),
             Weight::PerJoint { .. } => {
                 let sigma = (st.sigma + w_mid.sigma_rate * h).map(|x| clamp(x, T::zero(), T::one()));
@@ -663,65 +857,182 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             }
             Weight::Constant(_) | Weight::FromFilteredJoints { .. } => (st.psi, st.sigma),
         };
-        let r_tilde = match &rest {
-            Some(rest) => {
-                let rate = rest.drift - rest.q * plat.u_bar_actual;
-                let r = &st.r_tilde;
-                let reach = sec.rest_reach;
-                Pose::new(
-                    clamp(r.x + rate[0] * h, -reach, reach),
-                    clamp(r.y + rate[1] * h, -reach, reach),
-                    wrap_angle(r.theta + rate[2] * h),
-                )
-            }
-            // Not part of the law when Ψ ≡ 1: kept at its initial value.
-            None => Pose::identity(),
-        };
-        let update = Update {
-            alpha: wrap_alpha(st.alpha + alpha_rate * h),
+        FiltersAfter {
             q_hat: SVector::from_fn(|i, _| clamp(q_hat[i], lim.lower[i], lim.upper[i])),
             psi,
             sigma,
-            r_tilde,
-            w: plat.w,
-            u_bar: plat.u_bar,
-            sensitivity: arm.task.sensitivity,
-            t: meas.t,
-            target_velocity: meas.target_velocity,
-            target_rate: quotient,
-            sent: Sent { platform: command.platform, joints: u_q, period: h },
-        };
+        }
+    }
 
-        let prim = &arm.task;
-        let diagnostics = Diagnostics {
+    /// `r̃_b` after the period (phase 6): an explicit step of (28) with the rates at `t_e`
+    /// and the platform's actual `ū_b`, its position kept within `±rest_reach`, its angle
+    /// wrapped. Not part of the law when `Ψ ≡ 1`: kept at its initial value.
+    ///
+    /// ```text
+    /// r̃_b⁺ = r̃_b + h (drift − Q ū_b,actual)
+    /// ```
+    #[inline(always)]
+    fn rest_after(&self, st: &St<T, A, N>, platform: &PlatformAtTe<T>, h: T) -> Pose<T> {
+        let Some(rest) = &platform.rest else {
+            return Pose::identity();
+        };
+        let rate = rest.drift - rest.q * platform.step.u_bar_actual;
+        let r = &st.r_tilde;
+        let reach = self.params.secondary.rest_reach;
+        Pose::new(
+            clamp(r.x + rate[0] * h, -reach, reach),
+            clamp(r.y + rate[1] * h, -reach, reach),
+            wrap_angle(r.theta + rate[2] * h),
+        )
+    }
+
+    /// What the step reports: the terms of both laws at `t_e`, the filter's weight there,
+    /// `α` and its rate, and the companion frame `r_b E_e f(α)⁻¹` in the world.
+    #[inline(always)]
+    fn diagnostics(
+        &self,
+        st: &St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        found: &Phases<'_, T, N, A::Space>,
+    ) -> Diagnostics<T, N, A::Space> {
+        let Phases { pred, filters, platform, arm } = *found;
+        let (plat, prim) = (&platform.step, &arm.step.task);
+        let sc_b = pred.target.sc_b;
+        Diagnostics {
             e_p: prim.e_p,
             e_m: prim.e_m,
             h_s: plat.h_s,
             h_s1: plat.h_s1,
             h_s2: plat.h_s2,
-            psi: psi_e,
+            psi: filters.psi,
             joint_penalty: prim.h_l,
             saturation: plat.saturation,
-            joint_scale: arm.joint_scale,
-            det_h: frame.det_h,
+            joint_scale: arm.step.joint_scale,
+            det_h: platform.det_h,
             condition: prim.condition,
             alpha: st.alpha,
-            alpha_rate,
+            alpha_rate: platform.alpha_rate,
             u_bar: plat.u_bar,
             companion: if self.midpoint {
-                PoseSc { pose: meas.base, sc: sc_b }.compose(&base_e).compose(&plat.f_inv).pose
+                PoseSc { pose: meas.base, sc: sc_b }.compose(&arm.base).compose(&plat.f_inv).pose
             } else {
                 meas.base.compose_sc(&plat.f_inv.pose, sc_b.0, sc_b.1)
             },
             implicitness: plat.theta,
             recovered: false,
-        };
-        if !all_finite(&command, &update, &diagnostics) {
-            return Err(StepError::NumericalFailure.into());
         }
-        update.commit(state);
-        Ok(Output { command, diagnostics })
     }
+}
+
+/// What phase 2 predicts: the hold, the robot when the command starts to act (`t_k + τ`),
+/// the target at `t_e`.
+#[derive(Clone, Copy, Debug)]
+struct Prediction<T: Real, const N: usize, S: Space<T>> {
+    /// The hold: its period `h` (s), the point `h/2` into it (0 with `Sampled`), the previous
+    /// command's `ū_b` and `w`.
+    hold: Hold<T>,
+    /// The robot at `t_k + τ` (the measurement itself with `Sampled`).
+    start: Start<T, N>,
+    /// The joint guard's reference: the joints when the command starts to act (also with
+    /// `Sampled`).
+    q_guard: SVector<T, N>,
+    /// The previous command (or, on a first step's second pass, the first pass's).
+    guess: Sent<T, N>,
+    /// The target at `t_e`.
+    target: TargetAtTe<T, S>,
+    /// `t_e − t₀ ≥ 0` (s): the time since the run's first step, which `Γ` decays with.
+    t_e: T,
+}
+
+/// The target at `t_e` (phase 2), seen from the base as measured.
+#[derive(Clone, Copy, Debug)]
+struct TargetAtTe<T: Real, S: Space<T>> {
+    /// `(u_d,k − u_d,k−1)/(t_k − t_{k−1})`, remembered for the next step's trend (zero with
+    /// `Sampled`).
+    quotient: S::Vector,
+    /// `(sin θ_b, cos θ_b)` of the measured base.
+    sc_b: (T, T),
+    /// `r_bd(t_e)`.
+    r_bd: S::Relative,
+    /// `u_d(t_e)`.
+    u_d: S::Vector,
+    /// `r_bd(t_e)` projected on the plane (§5).
+    plane_r_bd: PoseSc<T>,
+    /// `u_d(t_e)` projected on the plane.
+    plane_u_d: Vector3<T>,
+}
+
+/// What phases 2–5 of a step found, as phase 6 and the diagnostics read it.
+#[derive(Clone, Copy, Debug)]
+struct Phases<'a, T: Real, const N: usize, S: Space<T>> {
+    /// Phase 2: the hold, the robot when the command starts, the target at `t_e`.
+    pred: &'a Prediction<T, N, S>,
+    /// Phase 3: the filters at `t_e`.
+    filters: &'a FiltersAtTe<T, N>,
+    /// Phase 4: the platform law at `t_e`.
+    platform: &'a PlatformAtTe<T>,
+    /// Phase 5: the arm law at `t_e` and the command.
+    arm: &'a ArmAtTe<T, N, S>,
+}
+
+/// The filters at `t_e` (phase 3).
+#[derive(Clone, Copy, Debug)]
+struct FiltersAtTe<T, const N: usize> {
+    /// `q̂(t_e)`.
+    q_hat: SVector<T, N>,
+    /// `Ψ(t_e)`.
+    psi: T,
+    /// The `σᵢ(t_e)` (the state's unless the weight is per joint).
+    sigma: SVector<T, N>,
+    /// `Ψ̇(t_k + τ)`.
+    psi_rate: T,
+}
+
+/// The platform law at `t_e` (phase 4).
+#[derive(Clone, Copy, Debug)]
+struct PlatformAtTe<T> {
+    /// The new platform command and the terms of its law.
+    step: PlatformStep<T>,
+    /// `α̇` of the new command (held over the period).
+    alpha_rate: Vector2<T>,
+    /// The rest filter's cost at `t_e` (when `Ψ ≢ 1`).
+    rest: Option<RestCost<T>>,
+    /// `det H(α_e)` of the companion frame.
+    det_h: T,
+}
+
+/// The arm law at `t_e` (phase 5) and the command of the step.
+#[derive(Clone, Copy, Debug)]
+struct ArmAtTe<T: Real, const N: usize, S: Space<T>> {
+    /// The arm law after the joint guard.
+    step: ArmStep<T, N, S>,
+    /// The command: the new platform command and `u_q`.
+    command: Command<T, N>,
+    /// `E_e = r_b⁻¹ r_b(t_e)`: the base at `t_e` along the new platform command, relative to
+    /// the measurement.
+    base: PoseSc<T>,
+    /// `q̂̇(t_e)`: the filter's rate at `q̂(t_e)`, `q(t_e)`.
+    q_hat_rate: SVector<T, N>,
+}
+
+/// The joints the arm law is evaluated at (phase 5).
+#[derive(Clone, Copy, Debug)]
+struct JointsAtTe<T, const N: usize> {
+    /// The joint command's guess (rad/s or m/s).
+    guess: SVector<T, N>,
+    /// `q(t_e)`: the joints at `t_k + τ` moved by the guess over `h/2`.
+    q: SVector<T, N>,
+}
+
+/// The filters after the period (phase 6).
+#[derive(Clone, Copy, Debug)]
+struct FiltersAfter<T, const N: usize> {
+    /// `q̂⁺`, within the joint limits.
+    q_hat: SVector<T, N>,
+    /// `Ψ⁺`.
+    psi: T,
+    /// The `σᵢ⁺`.
+    sigma: SVector<T, N>,
 }
 
 /// What an accepted step changes in the state (small, so that the state is written in
