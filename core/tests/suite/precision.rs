@@ -9,10 +9,22 @@
 //! condition number `κ` the law reports, and `H̄(α)` (unicycle: `|det H| ≥ 0.037`, so
 //! `κ(H̄) ≲ 10²`; the test car: `|det H| ≥ ε⁵/6 ≈ 1.7e−3`, `κ(H̄) ≲ 10⁴`). A backward-stable evaluation gives a relative forward error of a few
 //! `κ u`; we allow `|Δ| ≤ 200 · u · κ_eff · max(|c|, 1)` per command vector (joints;
-//! platform), with `κ_eff = κ(∂e_m/∂q) + κ(H̄)`. Over 2 000 random points the worst case
-//! measured is 11 `u κ_eff`: the factor 200 leaves ~20× for f32 elementary functions a few
-//! ulps less accurate than `libm`'s, and is far below the O(1) error of an f32-only bug
-//! (a constant rounded to the wrong value, a lost branch).
+//! platform), with `κ_eff = max(κ(∂e_m/∂q) + κ(H̄), κ_f64)`.
+//!
+//! `κ(∂e_m/∂q) + κ(H̄)` alone misses the platform law (37): it forms `K a` with
+//! `K = H̄ K̄ H̄ᵀ` (`K̄ = diag(1, 1, 100)`), whose condition is up to `κ(H̄)² · 100`, and where
+//! the gradient `a` lies near `K`'s weak direction `K a` loses that many digits in any
+//! precision. Seed `d90fa727…` (car, run (b), `α = (−0.880, −2.883)`, `det H̄ = 4.9e−3`): a
+//! command of 406 m/s, f32 off by 1.57e−3 relative against a bound of 1.10e−3 from
+//! `κ_eff = 91`, yet the f64 law itself moves by 4e−3 when its inputs move by `u`
+//! (`κ(K) = 2.3e4`). So `κ_f64` is measured: the f64 law's own spread, relative, over `u`,
+//! when every input and state value moves by `±u` (see [`f64_spread`]) — what a
+//! backward-stable f32 evaluation must be allowed. Over 20 000 points per platform the worst
+//! case is 4.0 `u κ_eff` (old bound: 495 and 267 at the two car points that failed it, 1 in
+//! 20 000); the factor 200 still leaves ~50× for f32 elementary functions a few ulps less
+//! accurate than `libm`'s, and stays below the O(1) error of an f32-only bug (a constant
+//! rounded to the wrong value, a lost branch) wherever `κ_eff < 8e4` — every point measured
+//! (largest `κ_f64`: 6.8e4, the seed above).
 //!
 //! Closed loop, 2 s of runs (a) and (c) from the paper's start, unicycle and
 //! omnidirectional platform: these runs are robust (SPEC §4: a 1e−10 perturbation stays
@@ -59,6 +71,7 @@ fn compare_step<P64: Platform<f64>, P32: Platform<f32>>(
     let meas64: Measurement<f64, 3> = measurement_as(&meas32);
     let mut st32 = state_f32(&pt.state);
     let mut st64 = state_f64(&st32);
+    let spread = f64_spread(law64, &meas64, &st64);
     let o64 = law64
         .step(&mut st64, &meas64, 1e-3)
         .map_err(|r| TestCaseError::fail(format!("f64 {:?}", r.error)))?;
@@ -68,7 +81,7 @@ fn compare_step<P64: Platform<f64>, P32: Platform<f32>>(
     let c64 = o64.command;
     let c32 = command_f64(&o32.command);
     let frame = law64.platform().companion(&st64.alpha).expect("transverse");
-    let kappa = o64.diagnostics.condition + one_norm(&frame.hbar) * one_norm(&frame.hbar_inv);
+    let kappa = (o64.diagnostics.condition + one_norm(&frame.hbar) * one_norm(&frame.hbar_inv)).max(spread);
     let bound = 200.0 * U32 * kappa;
     let mut worst: f64 = 0.0;
     for (name, a, b) in
@@ -82,6 +95,48 @@ fn compare_step<P64: Platform<f64>, P32: Platform<f32>>(
         );
     }
     Ok(worst)
+}
+
+/// The f64 law's sensitivity to rounding its inputs to f32: every measured value and every
+/// state value the step reads moved by `±u` relative (16 fixed pseudo-random sign patterns),
+/// the largest relative change of either command vector, over `u`.
+fn f64_spread<P64: Platform<f64>>(
+    law64: &ControlLaw<f64, P64, Rpr<f64>, 3>,
+    m: &Measurement<f64, 3>,
+    st: &State<f64, 3>,
+) -> f64 {
+    let Ok(base) = law64.step(&mut st.clone(), m, 1e-3) else { return 0.0 };
+    let base = base.command;
+    let mut seed: u64 = 0x9e37_79b9_7f4a_7c15;
+    let mut nudge = |x: &mut f64| {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        *x *= if seed >> 63 == 0 { 1.0 + U32 } else { 1.0 - U32 };
+    };
+    let mut worst: f64 = 0.0;
+    for _ in 0..16 {
+        let (mut m, mut s) = (*m, *st);
+        for p in [&mut m.base, &mut m.target, &mut s.r_tilde] {
+            nudge(&mut p.x);
+            nudge(&mut p.y);
+            nudge(&mut p.theta);
+        }
+        nudge(&mut m.steering);
+        nudge(&mut s.psi);
+        for i in 0..3 {
+            nudge(&mut m.joints[i]);
+            nudge(&mut m.target_velocity[i]);
+            nudge(&mut s.q_hat[i]);
+            nudge(&mut s.sigma[i]);
+        }
+        nudge(&mut s.alpha[0]);
+        nudge(&mut s.alpha[1]);
+        let Ok(o) = law64.step(&mut s, &m, 1e-3) else { continue };
+        let c = o.command;
+        for (a, b) in [(c.joints, base.joints), (platform_vec(&c), platform_vec(&base))] {
+            worst = worst.max((a - b).amax() / b.amax().max(1.0) / U32);
+        }
+    }
+    worst
 }
 
 fn run(k: usize) -> PaperRun {
