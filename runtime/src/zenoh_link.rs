@@ -889,6 +889,8 @@ mod tests {
         );
         assert_eq!(TcpEndpoint::parse("tls/[::1]:7447").unwrap().to_string(), "tls/[::1]:7447");
         assert_eq!(TcpEndpoint::parse("tcp/robot-1.local:0").unwrap().port, 0);
+        let quic = TcpEndpoint::parse("quic/plant.local:7447").unwrap();
+        assert_eq!((quic.scheme, quic.to_string()), (Scheme::Quic, "quic/plant.local:7447".to_string()));
         assert_eq!(TcpEndpoint::parse("tcp/[::1]:7447").unwrap().to_string(), "tcp/[::1]:7447");
         for bad in [
             "127.0.0.1:7447",
@@ -899,7 +901,8 @@ mod tests {
             "tcp/h:x",
             "tcp/::1:5",
             "tls/h:x",
-            "quic/h:1",
+            "quic/h",
+            "quic/h:x",
         ] {
             let e = TcpEndpoint::parse(bad).unwrap_err().to_string();
             assert!(e.contains("/HOST:PORT") || e.contains("port"), "{bad}: {e}");
@@ -921,7 +924,7 @@ mod tests {
         };
         let e = Security::Tls(files.clone()).check(&tcp).unwrap_err().to_string();
         assert!(
-            e.contains("is plain TCP") && e.contains("--insecure") && e.contains("tls/127.0.0.1:7447"),
+            e.contains("is plain TCP") && e.contains("--insecure") && e.contains("quic/127.0.0.1:7447"),
             "{e}"
         );
         let e = format!("{:#}", Security::Tls(files).check(&tls).unwrap_err());
