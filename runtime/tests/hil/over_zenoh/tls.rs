@@ -207,44 +207,38 @@ fn control_in_background(args: Vec<String>) -> Box<dyn FnOnce()> {
     })
 }
 
-#[test]
-fn a_controller_of_another_ca_is_refused() {
-    let b = &pki().b;
-    refused_by_the_plant("tls-other-ca", &["refused a TLS handshake", "UnknownIssuer"], |ep, n| {
-        // It trusts A's CA (so it would accept the plant), but its own certificate is B's.
+/// A controller with `file`'s certificate from `cert_ca`'s folder, trusting deployment A's CA,
+/// refused by deployment A's plant with every one of `why` in the plant's message.
+fn refused_controller(tag: &str, why: &[&str], cert_ca: &Path, file: &str) {
+    refused_by_the_plant(tag, why, |ep, n| {
         control_in_background(control_with(
             ep,
             n,
-            &tls_flags(&pki().a, b, "ctrl", "plant"),
+            &tls_flags(&pki().a, cert_ca, file, "plant"),
             &["--startup-timeout", "4"],
         ))
     });
+}
+
+#[test]
+fn a_controller_of_another_ca_is_refused() {
+    // It trusts A's CA (so it would accept the plant), but its own certificate is B's.
+    refused_controller("tls-other-ca", &["refused a TLS handshake", "UnknownIssuer"], &pki().b, "ctrl");
 }
 
 #[test]
 fn an_expired_controller_certificate_is_refused() {
-    let a = &pki().a;
-    refused_by_the_plant("tls-expired", &["refused a TLS handshake", "xpired"], |ep, n| {
-        control_in_background(control_with(
-            ep,
-            n,
-            &tls_flags(a, a, "expired", "plant"),
-            &["--startup-timeout", "4"],
-        ))
-    });
+    refused_controller("tls-expired", &["refused a TLS handshake", "xpired"], &pki().a, "expired");
 }
 
 #[test]
 fn a_controller_with_the_right_ca_and_the_wrong_name_is_refused_and_named() {
-    let a = &pki().a;
-    refused_by_the_plant("tls-wrong-name", &["refused the peer at", "\"rogue\", not \"ctrl\""], |ep, n| {
-        control_in_background(control_with(
-            ep,
-            n,
-            &tls_flags(a, a, "rogue", "plant"),
-            &["--startup-timeout", "4"],
-        ))
-    });
+    refused_controller(
+        "tls-wrong-name",
+        &["refused the peer at", "\"rogue\", not \"ctrl\""],
+        &pki().a,
+        "rogue",
+    );
 }
 
 #[test]
