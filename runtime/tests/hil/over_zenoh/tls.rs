@@ -256,47 +256,50 @@ fn a_controller_without_a_certificate_is_refused() {
     refused_by_the_plant("tls-no-cert", &["refused a TLS handshake", "no certificate"], |ep, _| {
         // A TLS client that checks the plant against A's CA but presents no certificate
         // (the companion command line cannot be told to: it always presents one).
-        use zenoh::Wait;
-        let mut c = zenoh::Config::default();
-        let ca = serde_json::Value::String(pki().a.join("ca.pem").display().to_string()).to_string();
-        for (k, v) in [
-            ("mode", "\"peer\"".to_string()),
-            ("scouting/multicast/enabled", "false".into()),
-            ("listen/endpoints", "[]".into()),
-            ("connect/endpoints", format!("[\"{ep}\"]")),
-            ("connect/timeout_ms", "-1".into()),
-            ("connect/exit_on_failure", "false".into()),
+        let ca = json_path(pki().a.join("ca.pem"));
+        let tls = [
             ("transport/link/tls/root_ca_certificate", ca),
             ("transport/link/tls/enable_mtls", "false".into()),
-        ] {
-            c.insert_json5(k, &v).unwrap();
-        }
-        let s = zenoh::open(c).wait().unwrap();
+        ];
+        let s = raw_session(ep, &tls);
         Box::new(move || drop(s))
     });
 }
 
-/// A raw Zenoh session of deployment A connecting to `ep` with the pair `file`.
-fn session_of_a(ep: &str, file: &str) -> zenoh::Session {
+/// A path as a JSON string (for zenoh's configuration).
+fn json_path(p: PathBuf) -> String {
+    serde_json::Value::String(p.display().to_string()).to_string()
+}
+
+/// A raw Zenoh peer session connecting to `ep` (retrying in the background), with the TLS
+/// settings `tls` (key, JSON5 value).
+fn raw_session(ep: &str, tls: &[(&str, String)]) -> zenoh::Session {
     use zenoh::Wait;
-    let a = &pki().a;
-    let q = |p: PathBuf| serde_json::Value::String(p.display().to_string()).to_string();
     let mut c = zenoh::Config::default();
-    for (k, v) in [
+    let common = [
         ("mode", "\"peer\"".to_string()),
         ("scouting/multicast/enabled", "false".into()),
         ("listen/endpoints", "[]".into()),
         ("connect/endpoints", format!("[\"{ep}\"]")),
         ("connect/timeout_ms", "-1".into()),
         ("connect/exit_on_failure", "false".into()),
-        ("transport/link/tls/root_ca_certificate", q(a.join("ca.pem"))),
-        ("transport/link/tls/connect_certificate", q(a.join(format!("{file}.pem")))),
-        ("transport/link/tls/connect_private_key", q(a.join(format!("{file}.key")))),
-        ("transport/link/tls/enable_mtls", "true".into()),
-    ] {
-        c.insert_json5(k, &v).unwrap();
+    ];
+    for (k, v) in common.iter().chain(tls) {
+        c.insert_json5(k, v).unwrap();
     }
     zenoh::open(c).wait().unwrap()
+}
+
+/// A raw Zenoh session of deployment A connecting to `ep` with the pair `file`.
+fn session_of_a(ep: &str, file: &str) -> zenoh::Session {
+    let a = &pki().a;
+    let tls = [
+        ("transport/link/tls/root_ca_certificate", json_path(a.join("ca.pem"))),
+        ("transport/link/tls/connect_certificate", json_path(a.join(format!("{file}.pem")))),
+        ("transport/link/tls/connect_private_key", json_path(a.join(format!("{file}.key")))),
+        ("transport/link/tls/enable_mtls", "true".into()),
+    ];
+    raw_session(ep, &tls)
 }
 
 #[test]
