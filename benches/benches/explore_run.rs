@@ -14,8 +14,8 @@ use std::time::Duration;
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::explore::{Exploration, SpaceFile};
-use companion_runtime::scenario::{LimitsChoice, Scenario};
+use companion_runtime::domain::scenario::{LimitsChoice, Scenario};
+use companion_runtime::study::explore::{Exploration, SpaceFile};
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
 
 fn exploration(platform: PlatformKind, choice: PaperRun) -> Exploration {

@@ -14,11 +14,11 @@ use std::time::Duration;
 use companion_benches::{law, Config, TempDir, CHOICE_CONFIGS};
 use companion_core::{Command, PlatformKind, Rpr, State, Unicycle};
 use companion_plant::{PaperTrajectory, Plant};
-use companion_runtime::controller::{command_f64, measurement_in, JOINTS};
-use companion_runtime::observe::Silent;
-use companion_runtime::record::csv::CsvFile;
-use companion_runtime::record::{Row, SummaryAccumulator};
-use companion_runtime::sim::{build_plant, run_one, sample};
+use companion_runtime::domain::controller::{command_f64, measurement_in, JOINTS};
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::record::csv::CsvFile;
+use companion_runtime::domain::record::{Row, SummaryAccumulator};
+use companion_runtime::run::sim::{build_plant, run_one, sample};
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion};
 
 const SNAPSHOTS: usize = 2048;

@@ -1,5 +1,5 @@
 //! A whole simulated run in process, exactly as `companion sim` makes it
-//! (`companion_runtime::sim::run_one`): plant (RK4), controller and recording
+//! (`companion_runtime::run::sim::run_one`): plant (RK4), controller and recording
 //! (`timeseries.csv` every 10 steps, `summary.json`, the summary over every step), written
 //! into a temporary folder.
 //!
@@ -14,8 +14,8 @@ use std::time::Duration;
 
 use companion_benches::{TempDir, CHOICE_CONFIGS};
 use companion_plant::PaperTrajectory;
-use companion_runtime::observe::Silent;
-use companion_runtime::sim::run_one;
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::run::sim::run_one;
 use criterion::{criterion_group, criterion_main, Criterion, SamplingMode, Throughput};
 
 fn whole_run(c: &mut Criterion) {

@@ -38,10 +38,10 @@ use companion_core::{
     Unicycle,
 };
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::{
+use companion_runtime::domain::controller::{
     command_f64, measurement_in, platform_name, run_name, ControllerSpec, Scalar,
 };
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::scenario::Scenario;
 
 /// The arm's joint count (the paper's RPR arm).
 pub const JOINTS: usize = 3;
@@ -194,7 +194,7 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
         let s = config.scenario(trajectory);
         let law = law::<T, P>(&s);
         dt = T::of(s.dt);
-        let mut plant = companion_runtime::sim::build_plant(&s).expect("the paper's plant");
+        let mut plant = companion_runtime::run::sim::build_plant(&s).expect("the paper's plant");
         let steps = s.steps();
         let stride = (steps / per_trajectory.max(1) as u64).max(1);
         let mut state = State::new();
@@ -244,7 +244,7 @@ pub fn record<T: Real, P: BenchPlatform<T>>(config: Config, per_trajectory: usiz
 macro_rules! dispatch {
     ($config:expr, $f:ident ( $($arg:expr),* $(,)? )) => {{
         use $crate::companion_core::{CarLike, Omnidirectional, PlatformKind as __P, Unicycle};
-        use $crate::companion_runtime::controller::Scalar as __S;
+        use $crate::companion_runtime::domain::controller::Scalar as __S;
         let __config: $crate::Config = $config;
         match (__config.platform, __config.scalar) {
             (__P::Unicycle, __S::F64) => $f::<f64, Unicycle<f64>>($($arg),*),
@@ -322,7 +322,7 @@ mod tests {
         let p = s.controller.params::<f64>();
         assert_eq!(
             p.secondary.k_bar,
-            companion_core::nalgebra::Vector3::from(companion_runtime::controller::CAR_K_BAR)
+            companion_core::nalgebra::Vector3::from(companion_runtime::domain::controller::CAR_K_BAR)
         );
         assert_eq!(p.velocity_limits, companion_plant::realistic_limits());
         assert_eq!((s.dt, s.duration), (1e-3, 40.0));

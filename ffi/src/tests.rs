@@ -11,8 +11,8 @@ use std::vec::Vec;
 
 use companion_core::{Bound, Field, PaperRun, ParamError, PlatformKind, Rpr, Rule, StepError};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::Scalar as RuntimeScalar;
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::controller::Scalar as RuntimeScalar;
+use companion_runtime::domain::scenario::Scenario;
 
 use super::*;
 

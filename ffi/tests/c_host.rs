@@ -2,7 +2,7 @@
 //! `include/companion.h` and linked with `libcompanion_ffi.a`.
 //!
 //! `c_reproduces_companion_sim_bit_for_bit` runs `companion sim`'s own loop
-//! (`companion_runtime::sim::run_loop` with its plant, `build_plant`, on the paper's
+//! (`companion_runtime::run::sim::run_loop` with its plant, `build_plant`, on the paper's
 //! trajectory 1, 1 ms) with the C program as the controller that closes it, and `companion
 //! sim`'s in-process controller (`sim::InProcess`, what `run_one` steps) beside it on the
 //! same measurements: the first 1 000 commands (steps 0 to 999) must have the same bits, for
@@ -30,10 +30,10 @@ use anyhow::{bail, Context, Result};
 use companion_core::nalgebra::SVector;
 use companion_core::{Command as CoreCommand, Measurement, PaperRun, PlatformCommand, PlatformKind, Real};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::{measurement_in, Scalar, StepReport, JOINTS};
-use companion_runtime::observe::Silent;
-use companion_runtime::scenario::Scenario;
-use companion_runtime::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, JOINTS};
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::scenario::Scenario;
+use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
 
 /// Commands compared per case: steps 0..=999.
 const COMMANDS: usize = 1000;
@@ -311,7 +311,7 @@ fn c_commands_are_those_in_companion_sims_timeseries() {
             .expect("a valid scenario");
         let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("companion-ffi-sim-{}", scalar.name()));
         std::fs::create_dir_all(&dir).expect("an output directory");
-        companion_runtime::sim::run_one(&s, &dir, &Silent).expect("companion sim runs");
+        companion_runtime::run::sim::run_one(&s, &dir, &Silent).expect("companion sim runs");
         let csv = std::fs::read_to_string(dir.join("timeseries.csv")).expect("timeseries.csv");
         let mut lines = csv.lines();
         let header: Vec<&str> = lines.next().expect("a header").split(',').collect();

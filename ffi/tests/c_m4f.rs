@@ -24,10 +24,10 @@ use std::process::Command;
 use anyhow::Result;
 use companion_core::{Command as CoreCommand, Measurement, PaperRun, PlatformKind, Real};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::{measurement_in, Scalar, StepReport, JOINTS};
-use companion_runtime::observe::Silent;
-use companion_runtime::scenario::Scenario;
-use companion_runtime::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, JOINTS};
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::scenario::Scenario;
+use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
 
 const TARGET: &str = "thumbv7em-none-eabihf";
 const STEPS: usize = 1000;

@@ -261,23 +261,24 @@ fn rule_error(py: Python<'_>, msg: String, param: &str, joint: Option<u8>, rule:
 /// `ConfigError`, the rest as `ScenarioError`, with the whole chain of causes in the message.
 pub fn runtime_error(py: Python<'_>, e: &anyhow::Error) -> PyErr {
     for cause in e.chain() {
-        if let Some(companion_runtime::arm::ArmError::Invalid { field, rule }) =
-            cause.downcast_ref::<companion_runtime::arm::ArmError>()
+        if let Some(companion_runtime::domain::arm::ArmError::Invalid { field, rule }) =
+            cause.downcast_ref::<companion_runtime::domain::arm::ArmError>()
         {
             return rule_error(py, format!("{e:#}"), field, None, *rule);
         }
         if let Some(p) = cause.downcast_ref::<CoreParamError>() {
             return param_error(py, *p);
         }
-        if let Some(companion_runtime::scenario::ScenarioError::Param(p)) =
-            cause.downcast_ref::<companion_runtime::scenario::ScenarioError>()
+        if let Some(companion_runtime::domain::scenario::ScenarioError::Param(p)) =
+            cause.downcast_ref::<companion_runtime::domain::scenario::ScenarioError>()
         {
             return param_error(py, *p);
         }
     }
     let msg = format!("{e:#}");
     let file = e.chain().any(|c| {
-        c.is::<companion_runtime::scenario::ConfigError>() || c.is::<companion_runtime::arm::ArmError>()
+        c.is::<companion_runtime::domain::scenario::ConfigError>()
+            || c.is::<companion_runtime::domain::arm::ArmError>()
     });
     if file {
         ConfigError::new_err(msg)

@@ -18,12 +18,12 @@ use std::sync::Mutex;
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
 use companion_core::{Manipulator, Measurement, PaperRun, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::PaperTrajectory;
-use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::controller::{
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::controller::{
     boxed_spatial_controller, AnyController, DiscretisationConfig, Scalar, SpatialStep, StepReport, JOINTS,
 };
-use companion_runtime::scenario::{ConfigFile, LimitsChoice, Options, Target};
-use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
+use companion_runtime::domain::scenario::{ConfigFile, LimitsChoice, Options, Target};
+use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -239,7 +239,7 @@ pub fn config_file(py: Python<'_>, path: Option<&PathBuf>) -> PyResult<ConfigFil
 }
 
 fn spatial_inner<const N: usize>(
-    spec: &companion_runtime::controller::ControllerSpec,
+    spec: &companion_runtime::domain::controller::ControllerSpec,
     arm: &SpatialArmSpec,
 ) -> anyhow::Result<Box<dyn SpatialStep<N> + Send>>
 where

@@ -3,10 +3,10 @@
 //! The Python package `companion`: researchers who apply the controller to a robot prototype
 //! in Python reach the law and the simulator without the wire protocol. Nothing here is a
 //! second implementation: [`law`] builds the runtime's controllers from the CLI's presets and
-//! `--config` files (`companion_runtime::scenario::Options`), [`plant`] is the simulator's plant
+//! `--config` files (`companion_runtime::domain::scenario::Options`), [`plant`] is the simulator's plant
 //! for a loop written in Python, [`batch`] steps many of them in
-//! one call, [`simulate`] runs `companion sim`'s own loop (`companion_runtime::sim`,
-//! `companion_runtime::spatial`). Errors are Python exceptions named after companion-core's
+//! one call, [`simulate`] runs `companion sim`'s own loop (`companion_runtime::run::sim`,
+//! `companion_runtime::run::spatial`). Errors are Python exceptions named after companion-core's
 //! `StepError` and `ParamError` variants ([`errors`]); no Rust panic crosses the boundary
 //! (pyo3 would turn one into `PanicException`; the law does not panic on any input).
 

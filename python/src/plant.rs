@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use companion_core::nalgebra::SVector;
 use companion_core::{Command, PlatformCommand, Pose, Rpr};
 use companion_plant::{PaperTrajectory, Plant as CorePlant};
-use companion_runtime::controller::JOINTS;
-use companion_runtime::scenario::{Options, Target};
+use companion_runtime::domain::controller::JOINTS;
+use companion_runtime::domain::scenario::{Options, Target};
 use numpy::PyReadonlyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -57,7 +57,7 @@ impl Plant {
         let b = opts.builder(file, target, parse_choice(choice)?, parse_platform(platform)?, 120.0);
         let err = |e: anyhow::Error| runtime_error(py, &e);
         let s = b.build().map_err(|e| err(e.into()))?;
-        let plant = companion_runtime::sim::build_plant(&s).map_err(err)?;
+        let plant = companion_runtime::run::sim::build_plant(&s).map_err(err)?;
         let star = s.controller.params::<f64>().primary.target_in_effector;
         Ok(Self { plant, star })
     }

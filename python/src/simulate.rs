@@ -5,13 +5,13 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use companion_plant::PaperTrajectory;
-use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::observe::Silent;
-use companion_runtime::record::verdict::DEFAULT_MAX_REJECTED;
-use companion_runtime::record::{Acceptance, Row};
-use companion_runtime::scenario::{Options, Target};
-use companion_runtime::spatial::record::SpatialRecord;
-use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::record::spatial::SpatialRecord;
+use companion_runtime::domain::record::verdict::DEFAULT_MAX_REJECTED;
+use companion_runtime::domain::record::{Acceptance, Row};
+use companion_runtime::domain::scenario::{Options, Target};
+use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
 use numpy::ndarray::{Array1, Array2};
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
@@ -223,9 +223,10 @@ pub fn simulate<'py>(
     };
     let result = match spatial {
         None => {
-            companion_runtime::plant_setup::build(&base).map_err(err)?;
+            companion_runtime::domain::plant_setup::build(&base).map_err(err)?;
             let acceptance = Acceptance { max_rejected, ..Acceptance::default() };
-            let run = py.detach(|| companion_runtime::sim::run_one_with(&base, &dir, &Silent, &acceptance));
+            let run =
+                py.detach(|| companion_runtime::run::sim::run_one_with(&base, &dir, &Silent, &acceptance));
             run.map_err(err).and_then(|o| Ok((planar_timeseries(py, &o.rows)?, json_dict(py, &o.summary)?)))
         }
         Some(arm) => {
@@ -234,8 +235,9 @@ pub fn simulate<'py>(
                 None => SpatialTargetChoice::Lifted(traj),
             };
             let s = SpatialScenario::new(base, arm, target).map_err(|e| err(e.into()))?;
-            companion_runtime::spatial::check(&s).map_err(err)?;
-            let run = py.detach(|| companion_runtime::spatial::run_spatial(&s, &dir, &Silent, max_rejected));
+            companion_runtime::run::spatial::check(&s).map_err(err)?;
+            let run =
+                py.detach(|| companion_runtime::run::spatial::run_spatial(&s, &dir, &Silent, max_rejected));
             run.map_err(err)
                 .and_then(|o| Ok((spatial_timeseries(py, &o.records)?, json_dict(py, &o.summary)?)))
         }

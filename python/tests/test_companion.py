@@ -12,7 +12,7 @@ import pytest
 import companion
 from conftest import ROOT
 
-# FNV-1a 64 over the IEEE-754 bits, as runtime/src/record/digest.rs defines the trajectory digest.
+# FNV-1a 64 over the IEEE-754 bits, as runtime/src/domain/record/digest.rs defines the trajectory digest.
 OFFSET, PRIME, MASK = 0xCBF29CE484222325, 0x100000001B3, (1 << 64) - 1
 
 

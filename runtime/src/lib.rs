@@ -5,60 +5,26 @@
 //! thin command-line edge (the `companion` binary's `cli` module: clap, progress bars,
 //! printing, exit codes); nothing in the library parses a flag or prints.
 //!
-//! Layers, each depending only on the ones above it:
+//! Five layers, one folder each. A module uses modules of its own layer or of the layers
+//! listed before it, never of one after it:
 //!
-//! - domain: [`controller`] (the one module that touches the core's controller),
-//!   [`platform_config`] (the `[unicycle]` and `[car]` tables, a leaf),
-//!   [`scenario`] (a run's description, built in one expression or from a TOML file),
-//!   [`plant_setup`], [`record`] (`timeseries.csv`, `summary.json`), [`plots`],
-//!   [`histogram`], [`observe`] (progress and messages, for the CLI to show);
-//! - system: [`rt`] (real-time setup), [`signals`], [`clock`] (time behind a trait),
-//!   [`machine`], [`process`] (children and signals), [`lock`] (one process per role and demo
-//!   name) — `rt`, `process` and `lock` hold the crate's only `unsafe` (plain libc calls);
-//! - transport: [`wire`] (the two `#[repr(C)]` messages: the interface a hardware bridge
-//!   implements), [`link`] (the transport as the loops see it), [`ipc`] (iceoryx2), `zenoh_link` (Zenoh over
-//!   TCP, cargo feature `zenoh`), [`transport`] (`--transport`: the endpoint of either);
-//! - loops and processes: [`sim`] (`companion sim`), [`spatial`] (`companion sim --arm
-//!   ur5|panda|FILE`: the spatial law of §5 on a spatial plant; arms as data in [`arm`], a
-//!   domain module), [`hil`] (`companion hil`, `plant`,
-//!   `control`), [`latency`] (`companion latency`);
-//! - many runs: [`trial`] (one run without files), [`knobs`] (the parameters that are
-//!   sampled and searched), [`explore`] (`companion explore`: Monte Carlo over starts and
-//!   parameters), [`tune`] (`companion tune`: a search for parameters).
+//! 1. [`domain`]: what a run is and what it leaves behind — the controller, the scenario,
+//!    the arms as data, records, plots; no process, clock or transport;
+//! 2. [`sys`]: the operating system — real-time setup, signals, clocks, the machine,
+//!    children, the one-process-per-role lock; the crate's only `unsafe` (plain libc calls);
+//! 3. [`transport`]: the wire (the two `#[repr(C)]` messages a hardware bridge implements),
+//!    the link as the loops see it, iceoryx2 and Zenoh, and `--transport`'s endpoint;
+//! 4. [`run`]: the loops and processes — `companion sim`, `hil`, `plant`, `control`,
+//!    `latency`;
+//! 5. [`study`]: many runs — one run without files, the sampled parameters, `explore`,
+//!    `tune`.
 //!
-//! A test in `companion-tests` (`module_cycles`) checks that no module depends on another in
-//! a cycle, in every crate of the workspace.
+//! `domain` and `sys` use nothing of each other. Tests in `companion-tests` check that no
+//! module depends on another in a cycle (`module_cycles`) and that every dependency between
+//! these layers points up the list (`runtime_layers`).
 
-pub mod arm;
-#[cfg(feature = "zenoh")]
-pub mod certs;
-pub mod clock;
-pub mod controller;
-pub mod explore;
-pub mod hil;
-pub mod histogram;
-pub mod ipc;
-pub mod knobs;
-pub mod latency;
-pub mod link;
-pub mod lock;
-pub mod machine;
-pub mod observe;
-pub mod plant_setup;
-pub mod platform_config;
-pub mod plots;
-pub mod process;
-pub mod record;
-pub mod rt;
-pub mod scenario;
-pub mod signals;
-pub mod sim;
-pub mod spatial;
+pub mod domain;
+pub mod run;
+pub mod study;
+pub mod sys;
 pub mod transport;
-pub mod trial;
-pub mod tune;
-pub mod wire;
-#[cfg(feature = "zenoh")]
-pub mod zenoh_link;
-#[cfg(feature = "zenoh")]
-pub mod zenoh_log;

@@ -117,9 +117,9 @@ fn pair(control_args: &[&str], bridge_args: &[&str]) -> ((ExitStatus, String), (
 /// them: the state "the first side is up", however slowly it started.
 fn wait_for_services(name: &str) {
     use iceoryx2::prelude::*;
-    companion_runtime::ipc::quiet_logs();
-    let cfg = companion_runtime::ipc::config().unwrap();
-    let want = ["measurement", "command"].map(|w| companion_runtime::ipc::service_name(name, w));
+    companion_runtime::transport::ipc::quiet_logs();
+    let cfg = companion_runtime::transport::ipc::config().unwrap();
+    let want = ["measurement", "command"].map(|w| companion_runtime::transport::ipc::service_name(name, w));
     let end = Instant::now() + LIMIT;
     loop {
         let mut found = 0;

@@ -8,7 +8,7 @@
 //! move the trajectories, rerun with `COMPANION_BLESS=1` to rewrite the file and say why
 //! in the commit; otherwise a mismatch is a regression of determinism.
 //!
-//! [`TrajectoryDigest`]: companion_runtime::record::TrajectoryDigest
+//! [`TrajectoryDigest`]: companion_runtime::domain::record::TrajectoryDigest
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

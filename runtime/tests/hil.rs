@@ -650,7 +650,7 @@ fn the_commands_follow_the_plants_announcement_not_the_controllers_flags() {
     // The hash the plant announced is the canonical hash of what it wrote into scenario.json.
     let lat = json(&pd.join("latency.json"));
     let written = json(&pd.join("scenario.json"));
-    let hash = companion_runtime::wire::canonical::scenario_hash(&written["controller"]);
+    let hash = companion_runtime::transport::wire::canonical::scenario_hash(&written["controller"]);
     assert_eq!(lat["scenario_hash"], format!("{hash:#018x}"));
     assert_eq!(lat["protocol_version"], 4);
     assert_eq!(lat["joint_step_fraction"], 0.5);

@@ -13,19 +13,19 @@ use std::time::Duration;
 use anyhow::Result;
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::clock::{Clock, FakeClock, MonotonicClock};
-use companion_runtime::controller::AnyController;
-use companion_runtime::hil::messages::{answer, Stamp};
-use companion_runtime::hil::plant_loop::{run_real_time, PlantSide};
-use companion_runtime::hil::robot::{PlanarRobot, SpatialRobot};
-use companion_runtime::hil::serve::{serve, serve_law, ServeOptions};
-use companion_runtime::hil::stats::{ControlStats, LiveFigures, PlantStats};
-use companion_runtime::hil::{ControlEnd, Timing, WaitMode};
-use companion_runtime::ipc::{ControlEndpoint, PlantEndpoint};
-use companion_runtime::link::{Link, PeerState};
-use companion_runtime::record::Row;
-use companion_runtime::scenario::Scenario;
-use companion_runtime::wire::{
+use companion_runtime::domain::controller::AnyController;
+use companion_runtime::domain::record::Row;
+use companion_runtime::domain::scenario::Scenario;
+use companion_runtime::run::hil::messages::{answer, Stamp};
+use companion_runtime::run::hil::plant_loop::{run_real_time, PlantSide};
+use companion_runtime::run::hil::robot::{PlanarRobot, SpatialRobot};
+use companion_runtime::run::hil::serve::{serve, serve_law, ServeOptions};
+use companion_runtime::run::hil::stats::{ControlStats, LiveFigures, PlantStats};
+use companion_runtime::run::hil::{ControlEnd, Timing, WaitMode};
+use companion_runtime::sys::clock::{Clock, FakeClock, MonotonicClock};
+use companion_runtime::transport::ipc::{ControlEndpoint, PlantEndpoint};
+use companion_runtime::transport::link::{Link, PeerState};
+use companion_runtime::transport::wire::{
     flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
     MeasurementMsg,
 };
@@ -109,7 +109,7 @@ fn command_header() -> CommandHeader {
     let identity = ControllerIdentity {
         platform: platform::UNICYCLE,
         joint_count: 3,
-        space: companion_runtime::wire::target::space::PLANAR,
+        space: companion_runtime::transport::wire::target::space::PLANAR,
         arm_hash: 0,
         scenario_hash: 0,
         max_dt: 0.01,
@@ -119,7 +119,7 @@ fn command_header() -> CommandHeader {
 
 fn measurement(seq: u64, fl: u32) -> MeasurementMsg {
     let s = scenario(30.0);
-    let plant = companion_runtime::sim::build_plant(&s).unwrap();
+    let plant = companion_runtime::run::sim::build_plant(&s).unwrap();
     let header = MeasurementHeader {
         seq,
         flags: fl,
@@ -207,7 +207,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
         std::thread::spawn(move || {
             let ep = PlantEndpoint::plant(&name, true).unwrap();
             ep.wait_for_peer(Duration::from_secs(20), || None).unwrap();
-            let mut plant = companion_runtime::sim::build_plant(&s).unwrap();
+            let mut plant = companion_runtime::run::sim::build_plant(&s).unwrap();
             let mut link = Uncounted { inner: ep, transport: 0 };
             let mut stats = PlantStats::default();
             let live = LiveFigures::default();
@@ -218,8 +218,8 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
             };
             let stamp = Stamp {
                 session: 5,
-                scenario_hash: companion_runtime::hil::handshake::controller_hash(&s.controller),
-                arm_hash: companion_runtime::hil::handshake::arm_hash(),
+                scenario_hash: companion_runtime::run::hil::handshake::controller_hash(&s.controller),
+                arm_hash: companion_runtime::run::hil::handshake::arm_hash(),
                 period_ns: timing.period_ns,
                 dt: s.dt,
                 flags: 0,
@@ -256,7 +256,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
         delay_compensation: true,
     };
     let mut stats = ControlStats::default();
-    let silent = companion_runtime::observe::Silent;
+    let silent = companion_runtime::domain::observe::Silent;
     let (n_control, end) =
         allocations_in(|| serve(&MonotonicClock, &mut link, &s.controller, &opt, &mut stats, &silent));
     let (n_plant, plant_end, cycles, fresh, plant_transport) = plant_side.join().unwrap();
@@ -265,7 +265,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
          in the controller (not ours)",
         link.transport
     );
-    assert_eq!(plant_end, companion_runtime::hil::PlantEnd::Completed);
+    assert_eq!(plant_end, companion_runtime::run::hil::PlantEnd::Completed);
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!(cycles, steps + 1);
     assert!(stats.answered > steps / 2, "{} answers", stats.answered);
@@ -297,8 +297,10 @@ fn the_real_time_loops_over_iceoryx2_allocate_nothing_of_their_own() {
 fn the_zenoh_exchange_allocates_only_in_zenoh() {
     use std::sync::atomic::Ordering;
 
-    use companion_runtime::ipc::Role;
-    use companion_runtime::zenoh_link::{Security, TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant};
+    use companion_runtime::sys::lock::Role;
+    use companion_runtime::transport::zenoh_link::{
+        Security, TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant,
+    };
 
     let name = format!("noalloc-zenoh-{}", std::process::id());
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
@@ -408,7 +410,7 @@ impl<F: FnMut(&MeasurementMsg) -> CommandMsg> Link for InstantController<F> {
 #[test]
 fn the_plant_loop_allocates_nothing() {
     let s = scenario(5.0);
-    let mut plant = companion_runtime::sim::build_plant(&s).unwrap();
+    let mut plant = companion_runtime::run::sim::build_plant(&s).unwrap();
     let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
     let mut ctrl = AnyController::new(&s.controller).unwrap();
     let answer_of = |m: &MeasurementMsg| {
@@ -511,7 +513,7 @@ fn serve_allocations(s: &Scenario, last: u64) -> u64 {
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
-    let silent = companion_runtime::observe::Silent;
+    let silent = companion_runtime::domain::observe::Silent;
     let (n, end) = allocations_in(|| serve(&clock, &mut link, &s.controller, &opt, &mut stats, &silent));
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!(link.sent.len() as u64, last + 1);
@@ -534,9 +536,9 @@ fn the_controller_loop_allocates_nothing() {
 }
 
 /// A spatial scenario: the UR5 on the unicycle, lifted trajectory 1.
-fn ur5_scenario(duration: f64) -> companion_runtime::spatial::SpatialScenario {
-    use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-    use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
+fn ur5_scenario(duration: f64) -> companion_runtime::run::spatial::SpatialScenario {
+    use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+    use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
     let arm = SpatialArmSpec::from_choice(&ArmChoice::parse("ur5")).unwrap().unwrap();
     SpatialScenario::new(scenario(duration), arm, SpatialTargetChoice::Lifted(PaperTrajectory::One)).unwrap()
 }
@@ -544,14 +546,15 @@ fn ur5_scenario(duration: f64) -> companion_runtime::spatial::SpatialScenario {
 /// The real-time loop with a spatial arm (§5): the UR5's plant, its rows the spatial records.
 #[test]
 fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
-    use companion_runtime::spatial::record::SpatialRecord;
+    use companion_runtime::domain::record::spatial::SpatialRecord;
     let ss = ur5_scenario(3.0);
-    let star = companion_runtime::spatial::target_in_effector::<6>(&ss).unwrap();
+    let star = companion_runtime::run::spatial::target_in_effector::<6>(&ss).unwrap();
     let chain = ss.arm.chain::<f64, 6>().unwrap();
-    let mut plant = companion_runtime::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let mut plant = companion_runtime::run::spatial::build_plant(&ss, &chain, &star).unwrap();
     let clock = std::rc::Rc::new(FakeClock::new(1_000_000_000, 100));
     let mut ctrl =
-        companion_runtime::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm).unwrap();
+        companion_runtime::domain::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm)
+            .unwrap();
     let answer_of = |m: &MeasurementMsg| {
         let r = ctrl.step(&m.read::<6, companion_core::Spatial>().unwrap(), m.dt, m.delay);
         answer(m, &command_header(), &r)
@@ -589,7 +592,7 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
         run_real_time(&mut side, &mut robot, steps, &mut sink)
     });
     assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
-    assert_eq!(end.unwrap(), companion_runtime::hil::PlantEnd::Completed);
+    assert_eq!(end.unwrap(), companion_runtime::run::hil::PlantEnd::Completed);
     assert_eq!((stats.cycles, stats.fresh, stats.deadline_misses), (3_001, 3_001, 0));
     assert_eq!(rows.len(), 3_001);
     // The arm followed the commands: the tracking error fell from the start.
@@ -604,16 +607,16 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
 /// The controller's loop serving a spatial arm allocates nothing after the handshake.
 #[test]
 fn the_controller_loop_of_a_spatial_arm_allocates_nothing() {
-    use companion_runtime::hil::law::SpatialLaw;
+    use companion_runtime::run::hil::law::SpatialLaw;
     let ss = ur5_scenario(30.0);
     let chain = ss.arm.chain::<f64, 6>().unwrap();
-    let arm_hash = companion_runtime::wire::canonical::arm_hash(&chain);
-    let star = companion_runtime::spatial::target_in_effector::<6>(&ss).unwrap();
-    let plant = companion_runtime::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let arm_hash = companion_runtime::transport::wire::canonical::arm_hash(&chain);
+    let star = companion_runtime::run::spatial::target_in_effector::<6>(&ss).unwrap();
+    let plant = companion_runtime::run::spatial::build_plant(&ss, &chain, &star).unwrap();
     let header = MeasurementHeader {
         session: 9,
         arm_hash,
-        scenario_hash: companion_runtime::hil::handshake::controller_hash(&ss.base.controller),
+        scenario_hash: companion_runtime::run::hil::handshake::controller_hash(&ss.base.controller),
         dt: 1e-3,
         platform: platform::UNICYCLE,
         hold_periods: TIMING.hold_periods,
@@ -636,7 +639,7 @@ fn the_controller_loop_of_a_spatial_arm_allocates_nothing() {
 /// Allocations of one `serve_law` of `law` over copies of `m` numbered `0..=last`.
 fn spatial_serve_allocations(
     m: &MeasurementMsg,
-    law: &companion_runtime::hil::law::SpatialLaw<'_>,
+    law: &companion_runtime::run::hil::law::SpatialLaw<'_>,
     last: u64,
 ) -> u64 {
     let mut inbox = VecDeque::with_capacity(5_001);
@@ -661,7 +664,7 @@ fn spatial_serve_allocations(
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
-    let silent = companion_runtime::observe::Silent;
+    let silent = companion_runtime::domain::observe::Silent;
     let (n, end) =
         allocations_in(|| serve_law::<_, _, 6, _>(&clock, &mut link, law, &opt, &mut stats, &silent));
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);

@@ -354,9 +354,9 @@ fn the_documents_python_snippets_run_against_the_pinned_binding_and_a_live_contr
     let (status, out, err) = finish(python, Duration::from_secs(120), "the doc's Python snippets");
     if !status.success() {
         // The snippets failed before they killed it: end it.
-        let _ = companion_runtime::process::send_signal(
+        let _ = companion_runtime::sys::process::send_signal(
             i32::try_from(pid).unwrap(),
-            companion_runtime::process::Signal::Terminate,
+            companion_runtime::sys::process::Signal::Terminate,
         );
     }
     let controller =
@@ -364,7 +364,7 @@ fn the_documents_python_snippets_run_against_the_pinned_binding_and_a_live_contr
     let ct = String::from_utf8_lossy(&controller.stderr);
     // The name lock of a killed controller (a file it could not remove).
     let _ = std::fs::remove_file(
-        Path::new(companion_runtime::lock::LOCK_DIR).join(format!("{name}.control.lock")),
+        Path::new(companion_runtime::sys::lock::LOCK_DIR).join(format!("{name}.control.lock")),
     );
     assert!(
         status.success(),
@@ -420,7 +420,7 @@ fn control_warns_about_the_plant_flags_it_ignores_as_the_document_says() {
     assert!(err.contains("ignores --lockstep, --delay, --out: the plant decides them"), "{err}");
     let err = run(&[]);
     let _ = std::fs::remove_file(
-        Path::new(companion_runtime::lock::LOCK_DIR).join(format!("{name}.control.lock")),
+        Path::new(companion_runtime::sys::lock::LOCK_DIR).join(format!("{name}.control.lock")),
     );
     assert!(!err.contains("ignores"), "companion control without the plant's flags:\n{err}");
 }

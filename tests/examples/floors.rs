@@ -12,9 +12,9 @@
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory::{One, Two};
-use companion_runtime::controller::DiscretisationConfig;
-use companion_runtime::plots::{floor_plot, FloorCurve};
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::controller::DiscretisationConfig;
+use companion_runtime::domain::plots::{floor_plot, FloorCurve};
+use companion_runtime::domain::scenario::Scenario;
 use companion_tests::{scenario, summaries};
 
 const PERIODS: [f64; 6] = [2.5e-4, 5e-4, 1e-3, 2e-3, 4e-3, 1e-2];

@@ -14,7 +14,7 @@
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory::{self, One, Two};
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::scenario::Scenario;
 use companion_tests::pointwise::{distance, every, reference, sampled, worst};
 use companion_tests::{scenario, summaries};
 use rayon::prelude::*;

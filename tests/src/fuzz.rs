@@ -21,9 +21,9 @@ use std::time::{Duration, Instant};
 
 use companion_core::{Measurement, PaperRun, PlatformKind, Pose, StepError};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::{AnyController, DiscretisationConfig, Scalar, JOINTS};
-use companion_runtime::plant_setup;
-use companion_runtime::scenario::{LimitsChoice, Scenario};
+use companion_runtime::domain::controller::{AnyController, DiscretisationConfig, Scalar, JOINTS};
+use companion_runtime::domain::plant_setup;
+use companion_runtime::domain::scenario::{LimitsChoice, Scenario};
 use rayon::prelude::*;
 
 /// Valid measurements rejected in a row that make a lock-out.

@@ -7,10 +7,10 @@
 
 use std::path::PathBuf;
 
-use companion_runtime::observe::Silent;
-use companion_runtime::record::{RunOutcome, Summary};
-use companion_runtime::scenario::{Scenario, ScenarioBuilder};
-use companion_runtime::sim::run_one;
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::record::{RunOutcome, Summary};
+use companion_runtime::domain::scenario::{Scenario, ScenarioBuilder};
+use companion_runtime::run::sim::run_one;
 
 pub mod fuzz;
 pub mod modgraph;

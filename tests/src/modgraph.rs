@@ -370,6 +370,33 @@ pub fn cycles(modules: &BTreeMap<ModPath, Module>) -> Vec<String> {
     found
 }
 
+/// A crate's layers: the children of its root, each with the layers it may use.
+pub type Layers<'a> = &'a [(&'a str, &'a [&'a str])];
+
+/// Every dependency between the root's children that `layers` does not allow, as
+/// `a → b (a uses …)`, and every child of the root that is not a layer (`x: not a layer`),
+/// so a module added at the root cannot slip past the check. The root's own items (its
+/// `mod` declarations aside) count as a child `self` and must not use anything.
+pub fn layer_violations(modules: &BTreeMap<ModPath, Module>, layers: Layers<'_>) -> Vec<String> {
+    let mut found = Vec::new();
+    let may = |a: &str, b: &str| layers.iter().any(|(l, uses)| *l == a && uses.contains(&b));
+    if let Some(root) = modules.get(&Vec::new()) {
+        for child in &root.children {
+            if !layers.iter().any(|(l, _)| l == child) {
+                found.push(format!("{child}: not a layer"));
+            }
+        }
+    }
+    if let Some(edges) = graphs(modules).get(&Vec::new()) {
+        for ((a, b), why) in edges {
+            if !may(a, b) {
+                found.push(format!("{a} → {b} ({why})"));
+            }
+        }
+    }
+    found
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -437,5 +464,27 @@ mod tests {
         let c = cycles(&m);
         assert_eq!(c.len(), 1, "{c:?}");
         assert!(c[0].starts_with("crate: x → y → x") || c[0].starts_with("crate: y → x → y"), "{c:?}");
+    }
+
+    #[test]
+    fn a_layer_using_one_after_it_is_reported_and_one_before_it_is_not() {
+        let m = crate_of(&[
+            ("lib.rs", "pub mod low;\npub mod high;\npub mod stray;\n"),
+            ("low/mod.rs", "pub mod clock;\n"),
+            ("low/clock.rs", "pub fn now() {}\n"),
+            ("high/mod.rs", "pub mod run;\n"),
+            ("high/run.rs", "pub fn go() { crate::low::clock::now() }\n"),
+            ("stray.rs", "pub fn s() {}\n"),
+        ]);
+        let layers: Layers<'_> = &[("low", &[]), ("high", &["low"])];
+        assert_eq!(layer_violations(&m, layers), vec!["stray: not a layer".to_string()]);
+        let m = crate_of(&[
+            ("lib.rs", "pub mod low;\npub mod high;\n"),
+            ("low/mod.rs", "pub fn now() { let _ = crate::high::X; }\n"),
+            ("high/mod.rs", "pub struct X;\n"),
+        ]);
+        let v = layer_violations(&m, layers);
+        assert_eq!(v.len(), 1, "{v:?}");
+        assert!(v[0].starts_with("low → high ("), "{v:?}");
     }
 }

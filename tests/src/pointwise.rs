@@ -16,7 +16,7 @@ use companion_core::{
     Controller, Discretisation, Measurement, PaperRun, PlatformKind, Pose, RestFilter, Rpr, State, Unicycle,
 };
 use companion_plant::{paper_initial, PaperTrajectory, Plant, PlantConfig, Trajectory};
-use companion_runtime::controller::{ControllerSpec, Scalar};
+use companion_runtime::domain::controller::{ControllerSpec, Scalar};
 
 /// The six state components compared: `x_b`, `y_b`, `θ_b`, `q₁`, `q₂`, `q₃`.
 pub type Sample = [f64; 6];

@@ -4,7 +4,7 @@
 
 use std::path::Path;
 
-use companion_tests::modgraph::{cycles, read_crate};
+use companion_tests::modgraph::{cycles, layer_violations, read_crate, Layers};
 
 #[test]
 fn no_crate_has_a_module_cycle() {
@@ -28,4 +28,22 @@ fn no_crate_has_a_module_cycle() {
     // The runtime alone has dozens of modules: the reader found them.
     assert!(modules > 50, "only {modules} modules read");
     assert!(found.is_empty(), "module cycles:\n{}", found.join("\n"));
+}
+
+/// The runtime's five layers (its `lib.rs` says what each holds): a layer uses only the ones
+/// listed before it, and `domain` and `sys` use nothing of each other.
+const RUNTIME_LAYERS: Layers<'static> = &[
+    ("domain", &[]),
+    ("sys", &[]),
+    ("transport", &["sys"]),
+    ("run", &["domain", "sys", "transport"]),
+    ("study", &["domain", "sys", "transport", "run"]),
+];
+
+#[test]
+fn runtime_layers_point_one_way() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../runtime/src/lib.rs");
+    let m = read_crate(&root).unwrap_or_else(|e| panic!("{e}"));
+    let found = layer_violations(&m, RUNTIME_LAYERS);
+    assert!(found.is_empty(), "dependencies against the runtime's layers:\n{}", found.join("\n"));
 }

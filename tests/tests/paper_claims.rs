@@ -20,9 +20,9 @@ use std::sync::OnceLock;
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::DiscretisationConfig;
-use companion_runtime::record::Summary;
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::controller::DiscretisationConfig;
+use companion_runtime::domain::record::Summary;
+use companion_runtime::domain::scenario::Scenario;
 use companion_tests::{scenario, summaries};
 
 /// Summaries keyed by (trajectory, choice, with the Ψ̇ term).

@@ -15,9 +15,9 @@
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory::{self, One, Two};
-use companion_runtime::controller::{DiscretisationConfig, Scalar};
-use companion_runtime::record::Summary;
-use companion_runtime::scenario::{LimitsChoice, Scenario, ScenarioBuilder, Target};
+use companion_runtime::domain::controller::{DiscretisationConfig, Scalar};
+use companion_runtime::domain::record::Summary;
+use companion_runtime::domain::scenario::{LimitsChoice, Scenario, ScenarioBuilder, Target};
 use companion_tests::{out_dir, scenario, summaries};
 
 const RUNS: [PaperRun; 4] = [PaperRun::A, PaperRun::B, PaperRun::C, PaperRun::D];

@@ -3,9 +3,9 @@
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory::{One, Two};
-use companion_runtime::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
-use companion_runtime::observe::Silent;
-use companion_runtime::scenario::Scenario;
+use companion_runtime::domain::controller::{DiscretisationConfig, RestFilterConfig, Scalar};
+use companion_runtime::domain::observe::Silent;
+use companion_runtime::domain::scenario::Scenario;
 use companion_tests::{out_dir, run_in, scenario, summaries};
 
 /// Same inputs, same bits: running a scenario twice gives byte-identical `timeseries.csv`.
@@ -32,8 +32,8 @@ fn a_scenario_run_twice_gives_identical_files() {
 fn a_run_writes_csv_summary_and_plots() {
     let s = scenario(Scenario::builder(One, PaperRun::A, PlatformKind::Car).duration(2.0).log_every(100));
     let dir = out_dir("files");
-    let outcome = companion_runtime::sim::run_one(&s, &dir, &Silent).unwrap();
-    companion_runtime::plots::render_run(&dir, &outcome).unwrap();
+    let outcome = companion_runtime::run::sim::run_one(&s, &dir, &Silent).unwrap();
+    companion_runtime::domain::plots::render_run(&dir, &outcome).unwrap();
     let csv = std::fs::read_to_string(dir.join("timeseries.csv")).unwrap();
     let mut lines = csv.lines();
     let header = lines.next().unwrap();

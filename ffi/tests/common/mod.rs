@@ -1,7 +1,7 @@
 //! What the C tests share.
 
 use anyhow::Result;
-use companion_runtime::record::{Row, RowSink};
+use companion_runtime::domain::record::{Row, RowSink};
 
 /// Rows are not needed: the tests keep the controllers' answers themselves.
 pub struct NoRows;

@@ -7,14 +7,14 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::arm::SpatialArmSpec;
-use companion_runtime::controller::{DiscretisationConfig, Scalar};
-use companion_runtime::record::verdict::DEFAULT_MAX_REJECTED;
-use companion_runtime::record::Acceptance;
-use companion_runtime::scenario::{
+use companion_runtime::domain::arm::SpatialArmSpec;
+use companion_runtime::domain::controller::{DiscretisationConfig, Scalar};
+use companion_runtime::domain::record::verdict::DEFAULT_MAX_REJECTED;
+use companion_runtime::domain::record::Acceptance;
+use companion_runtime::domain::scenario::{
     ConfigFile, LimitsChoice, Options, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
 };
-use companion_runtime::spatial::{SpatialScenario, SpatialTargetChoice};
+use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
 
 /// The wheeled platform.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -254,7 +254,7 @@ impl ScenarioArgs {
         let file = self.config_file()?;
         let b = self.builder(file, self.target(), self.choice.into(), self.platform.into(), default_duration);
         let s = more(b).build()?;
-        companion_runtime::plant_setup::build(&s)?;
+        companion_runtime::domain::plant_setup::build(&s)?;
         Ok(s)
     }
 
@@ -286,7 +286,7 @@ impl ScenarioArgs {
             default_duration,
         );
         let s = SpatialScenario::new(more(b).build()?, arm, target)?;
-        companion_runtime::spatial::check(&s)?;
+        companion_runtime::run::spatial::check(&s)?;
         Ok(s)
     }
 
@@ -299,7 +299,7 @@ impl ScenarioArgs {
             if !(0.0..=1.0).contains(&x) {
                 anyhow::bail!(
                     "{flag} must be a fraction in [0, 1], got {}",
-                    companion_runtime::scenario::short(x)
+                    companion_runtime::domain::scenario::short(x)
                 );
             }
         }

@@ -28,7 +28,7 @@ pub struct CertsArgs {
 pub fn run(a: &CertsArgs) -> Result<()> {
     #[cfg(feature = "zenoh")]
     {
-        use companion_runtime::certs::{make, Host, Validity};
+        use companion_runtime::transport::certs::{make, Host, Validity};
         let hosts = Host::parse_list(&a.hosts)?;
         let m = make(&a.out, &hosts, Validity::days(a.days))?;
         println!("wrote {} (the CA: copy it to every host)", m.ca.display());

@@ -5,8 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use companion_runtime::explore::{self, Exploration, Shard, SpaceFile};
-use companion_runtime::signals;
+use companion_runtime::study::explore::{self, Exploration, Shard, SpaceFile};
+use companion_runtime::sys::signals;
 
 use super::args::ScenarioArgs;
 use super::exit::{EXIT_FOLDER_BUSY, EXIT_INTERRUPTED};

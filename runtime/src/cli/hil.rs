@@ -10,25 +10,25 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
-use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::hil::chaos::{self, Plan};
-use companion_runtime::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
-use companion_runtime::hil::fault::Corruption;
-use companion_runtime::hil::plant::PlantLock;
-use companion_runtime::hil::plant::PlantRun;
-use companion_runtime::hil::report::LatencyReport;
-use companion_runtime::hil::stats::LiveFigures;
-use companion_runtime::hil::{
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::histogram::fmt_ns;
+use companion_runtime::domain::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRACTION};
+use companion_runtime::domain::record::Failure;
+use companion_runtime::domain::scenario::{short, Scenario, ScenarioBuilder};
+use companion_runtime::run::hil::chaos::{self, Plan};
+use companion_runtime::run::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
+use companion_runtime::run::hil::fault::Corruption;
+use companion_runtime::run::hil::plant::PlantLock;
+use companion_runtime::run::hil::plant::PlantRun;
+use companion_runtime::run::hil::report::LatencyReport;
+use companion_runtime::run::hil::stats::LiveFigures;
+use companion_runtime::run::hil::{
     ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
 };
-use companion_runtime::histogram::fmt_ns;
-use companion_runtime::ipc::{self, NameInUse, Role};
-use companion_runtime::lock::NameLock;
-use companion_runtime::process::ChildGuard;
-use companion_runtime::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRACTION};
-use companion_runtime::record::Failure;
-use companion_runtime::scenario::{short, Scenario, ScenarioBuilder};
-use companion_runtime::signals::termination_requested;
+use companion_runtime::sys::lock::{self, NameInUse, NameLock, Role};
+use companion_runtime::sys::process::ChildGuard;
+use companion_runtime::sys::signals::termination_requested;
+use companion_runtime::transport::ipc;
 use companion_runtime::transport::{self, SecurityFlags, Transport};
 
 use super::args::ScenarioArgs;
@@ -310,7 +310,7 @@ impl HilArgs {
     /// # Errors
     /// A bad flag value or file, naming the flag or parameter and the rule.
     pub fn resolve(&self) -> Result<(HilConfig, HilScenario)> {
-        ipc::validate_name(&self.name)?;
+        lock::validate_name(&self.name)?;
         if self.delay != 0.0 && !self.lockstep {
             bail!(
                 "--delay simulates a pure delay in lockstep (--lockstep); in real time the plant measures the \
@@ -477,8 +477,8 @@ fn name_in_use_or(e: anyhow::Error) -> Result<ExitCode> {
 /// slack.
 fn setup() -> Result<()> {
     ipc::quiet_logs();
-    companion_runtime::signals::install_termination_handler()?;
-    companion_runtime::rt::tight_timer_slack();
+    companion_runtime::sys::signals::install_termination_handler()?;
+    companion_runtime::sys::rt::tight_timer_slack();
     Ok(())
 }
 
@@ -522,7 +522,7 @@ impl Throwaway {
     fn make(name: &str) -> Result<Self> {
         #[cfg(feature = "zenoh")]
         {
-            use companion_runtime::certs::{make, Host, Validity};
+            use companion_runtime::transport::certs::{make, Host, Validity};
             let dir = std::env::temp_dir().join(format!("companion-tls-{name}-{}", std::process::id()));
             let _ = std::fs::remove_dir_all(&dir);
             let mut m =
@@ -627,7 +627,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         .stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {
         // The faults count from a second from now in both processes.
-        c.epoch_ns = companion_runtime::rt::monotonic_ns() + 1_000_000_000;
+        c.epoch_ns = companion_runtime::sys::rt::monotonic_ns() + 1_000_000_000;
         plant.arg("--chaos-epoch-ns").arg(c.epoch_ns.to_string());
     }
     let child = plant.spawn().map_err(|e| anyhow!("starting the plant ({} plant): {e}", exe.display()))?;
@@ -752,7 +752,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     let progress = (!cfg.timing.lockstep && show_progress)
         .then(|| spawn_progress(Arc::clone(&live), steps, s.base().dt))
         .flatten();
-    let result = companion_runtime::hil::plant::run(&cfg, &s, &live, &term, &lock);
+    let result = companion_runtime::run::hil::plant::run(&cfg, &s, &live, &term, &lock);
     live.finish();
     if let Some(p) = progress {
         let _ = p.join();
@@ -808,10 +808,10 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
         cfg.name,
         cfg.name,
         cfg.transport.describe(),
-        companion_runtime::wire::PROTOCOL_VERSION,
+        companion_runtime::transport::wire::PROTOCOL_VERSION,
         ipc::service_name(&cfg.name, "{measurement,command}"),
-        companion_runtime::hil::handshake::controller_hash(&s.base().controller),
-        companion_runtime::wire::canonical::describe_arm(arm_hash(&s)?)
+        companion_runtime::run::hil::handshake::controller_hash(&s.base().controller),
+        companion_runtime::transport::wire::canonical::describe_arm(arm_hash(&s)?)
     );
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {
@@ -859,9 +859,9 @@ fn ignored_by_control(a: &HilArgs) -> Option<String> {
 
 /// The hash of the scenario's arm (the paper's, or the spatial arm's chain).
 fn arm_hash(s: &HilScenario) -> Result<u64> {
-    use companion_runtime::wire::canonical;
+    use companion_runtime::transport::wire::canonical;
     Ok(match s.spatial() {
-        None => companion_runtime::hil::handshake::arm_hash(),
+        None => companion_runtime::run::hil::handshake::arm_hash(),
         Some(ss) => match ss.arm.joints() {
             6 => canonical::arm_hash(&ss.arm.chain::<f64, 6>()?),
             7 => canonical::arm_hash(&ss.arm.chain::<f64, 7>()?),
@@ -971,7 +971,7 @@ mod tests {
         assert_eq!(tm.hold_periods, 20);
         assert_eq!(tm.wait, WaitMode::Adaptive);
         assert!(!tm.lockstep);
-        assert_eq!(cfg.acceptance, companion_runtime::record::Acceptance::default());
+        assert_eq!(cfg.acceptance, companion_runtime::domain::record::Acceptance::default());
         // The scenario is the one the flags describe (the joint guard is the plant's business,
         // announced on the wire: see hil::handshake).
         assert_eq!(s.base().controller.overrides.joint_step_fraction, None);

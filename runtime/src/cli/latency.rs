@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::{anyhow, Result};
 use clap::Args;
-use companion_runtime::histogram::fmt_ns;
-use companion_runtime::latency::pingpong::{PeerOptions, Transport};
-use companion_runtime::latency::run_peer as peer;
-use companion_runtime::latency::{Benchmark, LatencyOptions, Load};
+use companion_runtime::domain::histogram::fmt_ns;
+use companion_runtime::run::latency::pingpong::{PeerOptions, Transport};
+use companion_runtime::run::latency::run_peer as peer;
+use companion_runtime::run::latency::{Benchmark, LatencyOptions, Load};
 
 use super::hil::WaitArg;
 use super::terminal::Terminal;
@@ -64,7 +64,7 @@ impl From<LoadArg> for Load {
 /// A child process or a file failed, or the second clock disagreed with the samples (the
 /// figures are then not to be trusted; the files are written).
 pub fn run(a: &LatencyArgs) -> Result<()> {
-    companion_runtime::ipc::quiet_logs();
+    companion_runtime::transport::ipc::quiet_logs();
     let opts = LatencyOptions {
         cycles: a.cycles,
         warmup: a.warmup,
@@ -73,7 +73,7 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         hil_modes: if a.skip_hil { Vec::new() } else { a.hil_modes.iter().map(|m| (*m).into()).collect() },
         loads: a.loads.iter().map(|l| (*l).into()).collect(),
     };
-    let bench = companion_runtime::latency::run(&opts, &Terminal::lines())?;
+    let bench = companion_runtime::run::latency::run(&opts, &Terminal::lines())?;
     print_table(&bench);
     println!(
         "wrote {} and {}",
@@ -126,7 +126,7 @@ pub struct PeerArgs {
 /// # Errors
 /// A transport failure.
 pub fn run_peer(a: &PeerArgs) -> Result<()> {
-    companion_runtime::ipc::quiet_logs();
+    companion_runtime::transport::ipc::quiet_logs();
     if a.transport == Transport::Uds && a.socket_dir.is_none() {
         return Err(anyhow!("--socket-dir is required with uds"));
     }

@@ -5,11 +5,11 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use companion_runtime::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::record::{Failure, McapRecorder, PlanarReplay, ReplaySummary, RunOutcome};
-use companion_runtime::scenario::Target;
-use companion_runtime::sim::{all_scenarios, run_one_replayed, run_one_with};
-use companion_runtime::spatial::{replay, run_spatial};
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::record::{Failure, McapRecorder, PlanarReplay, ReplaySummary, RunOutcome};
+use companion_runtime::domain::scenario::Target;
+use companion_runtime::run::sim::{all_scenarios, run_one_replayed, run_one_with};
+use companion_runtime::run::spatial::{replay, run_spatial};
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -74,7 +74,7 @@ const DEFAULT_DURATION: f64 = 120.0;
 /// # Errors
 /// A bad flag, config file or I/O failure.
 pub fn run(args: &SimArgs) -> Result<ExitCode> {
-    companion_runtime::signals::install_termination_handler()?;
+    companion_runtime::sys::signals::install_termination_handler()?;
     let acceptance = args.scenario.acceptance(0.0)?;
     if let Some(arm) = SpatialArmSpec::from_choice(&ArmChoice::parse(&args.arm))? {
         return run_spatial_cli(args, arm, acceptance.max_rejected);
@@ -98,7 +98,7 @@ pub fn run(args: &SimArgs) -> Result<ExitCode> {
 
 fn run_scenarios(
     args: &SimArgs,
-    acceptance: &companion_runtime::record::Acceptance,
+    acceptance: &companion_runtime::domain::record::Acceptance,
 ) -> Result<Vec<RunOutcome>> {
     if args.all {
         if let Some(path) = &args.mcap {
@@ -125,7 +125,7 @@ fn run_scenarios(
             .collect::<Result<Vec<_>>>()?;
         term.finish();
         if !args.no_plots {
-            companion_runtime::plots::render_all(&args.out, &outcomes)?;
+            companion_runtime::domain::plots::render_all(&args.out, &outcomes)?;
         }
         print_table(&outcomes);
         println!("wrote {} runs into {}", outcomes.len(), args.out.display());
@@ -146,7 +146,7 @@ fn run_scenarios(
             print_replay(r);
         }
         if !args.no_plots {
-            companion_runtime::plots::render_run(&args.out, &outcome)?;
+            companion_runtime::domain::plots::render_run(&args.out, &outcome)?;
         }
         print_table(std::slice::from_ref(&outcome));
         println!("wrote {}", args.out.display());
@@ -180,7 +180,7 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         print_replay(&replay::write(m, s.base.controller.platform, &outcome.records)?);
     }
     if !args.no_plots {
-        companion_runtime::plots::spatial::render(&args.out, &outcome)?;
+        companion_runtime::domain::plots::spatial::render(&args.out, &outcome.figures())?;
     }
     print_spatial_table(&outcome.summary);
     let m = &outcome.summary;
@@ -198,7 +198,7 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
 }
 
 /// Prints the spatial run's line: its main figures, and its rejections.
-pub fn print_spatial_table(m: &companion_runtime::spatial::record::SpatialSummary) {
+pub fn print_spatial_table(m: &companion_runtime::domain::record::spatial::SpatialSummary) {
     println!(
         "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
         "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"

@@ -2,7 +2,7 @@
 
 use std::io::IsTerminal;
 
-use companion_runtime::observe::Observer;
+use companion_runtime::domain::observe::Observer;
 use indicatif::{ProgressBar, ProgressStyle};
 
 /// The terminal as an [`Observer`]: a progress bar (when there is one), notes and warnings

@@ -6,9 +6,9 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use companion_core::PaperRun;
 use companion_plant::PaperTrajectory;
-use companion_runtime::controller::run_name;
-use companion_runtime::scenario::Target;
-use companion_runtime::tune::{self, SetRun, TuneSpaceFile, Tuning};
+use companion_runtime::domain::controller::run_name;
+use companion_runtime::domain::scenario::Target;
+use companion_runtime::study::tune::{self, SetRun, TuneSpaceFile, Tuning};
 
 use super::args::ScenarioArgs;
 use super::terminal::Terminal;

@@ -359,7 +359,7 @@ fn a_plant_of_another_scenario_over_zenoh_is_refused_and_both_sides_say_why() {
 }
 
 /// The protocol version of the fake peer: the next one after this program's.
-const OTHER_VERSION: u32 = companion_runtime::wire::PROTOCOL_VERSION + 1;
+const OTHER_VERSION: u32 = companion_runtime::transport::wire::PROTOCOL_VERSION + 1;
 
 /// A Zenoh peer of protocol version [`OTHER_VERSION`] on demo `n`, listening on `ep`: its
 /// token, as a later version following this one's convention would declare it. Returns the

@@ -7,7 +7,7 @@
 use std::sync::OnceLock;
 use std::time::SystemTime;
 
-use companion_runtime::certs::{write_pair, Deployment, Host, Validity};
+use companion_runtime::transport::certs::{write_pair, Deployment, Host, Validity};
 
 use super::*;
 
@@ -133,7 +133,7 @@ fn a_tls_run_between_the_right_peers_succeeds_and_summary_records_the_link() {
     assert!(!perr.contains("--insecure"), "{perr}");
     // The lock files are gone after a clean end.
     for role in ["plant", "control"] {
-        let lock = Path::new(companion_runtime::lock::LOCK_DIR).join(format!("{n}.{role}.lock"));
+        let lock = Path::new(companion_runtime::sys::lock::LOCK_DIR).join(format!("{n}.{role}.lock"));
         assert!(!lock.exists(), "{} left behind", lock.display());
     }
 }
@@ -317,11 +317,11 @@ fn a_rogue_that_connects_first_is_refused_named_and_the_real_controller_served()
     // from another machine (a raw session: a second `companion control` here would only meet
     // this machine's lock of the demo's name).
     let rogue = session_of_a(&ep, "rogue");
-    let v = companion_runtime::wire::PROTOCOL_VERSION;
+    let v = companion_runtime::transport::wire::PROTOCOL_VERSION;
     let _token =
         rogue.liveliness().declare_token(format!("companion/{n}/v{v}/alive/control/4242")).wait().unwrap();
     let publisher = rogue.declare_publisher(format!("companion/{n}/v{v}/command")).wait().unwrap();
-    let size = std::mem::size_of::<companion_runtime::wire::CommandMsg>();
+    let size = std::mem::size_of::<companion_runtime::transport::wire::CommandMsg>();
     // Refused and named before the real controller starts.
     let (_, line) = plant.wait_line("refused the peer at", HANG);
     assert!(line.contains("\"rogue\", not \"ctrl\""), "{line}");
@@ -384,7 +384,10 @@ fn frames_of_the_wrong_size_or_content_for_10_s_are_counted_dropped_never_applie
     // key: truncated, oversized, empty, and of the right size but not a command.
     let s = session_of_a(&ep, "ctrl");
     let publisher = s
-        .declare_publisher(format!("companion/{n}/v{}/command", companion_runtime::wire::PROTOCOL_VERSION))
+        .declare_publisher(format!(
+            "companion/{n}/v{}/command",
+            companion_runtime::transport::wire::PROTOCOL_VERSION
+        ))
         .congestion_control(zenoh::qos::CongestionControl::Block)
         .wait()
         .unwrap();
@@ -393,7 +396,7 @@ fn frames_of_the_wrong_size_or_content_for_10_s_are_counted_dropped_never_applie
         assert!(Instant::now() < end, "the plant's subscriber never matched");
         std::thread::sleep(Duration::from_millis(10));
     }
-    let size = std::mem::size_of::<companion_runtime::wire::CommandMsg>();
+    let size = std::mem::size_of::<companion_runtime::transport::wire::CommandMsg>();
     let sizes = [0, 1, size - 1, size + 1, 4096, 65_536];
     let (mut wrong, mut garbage) = (0u64, 0u64);
     let (start, mut rss0) = (Instant::now(), 0);

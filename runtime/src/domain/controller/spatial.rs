@@ -1,0 +1,204 @@
+//! The spatial law (§5) as the runtime builds and steps it: the arm's task from the chain
+//! (`Params::for_arm`, `r*_ed` level 0.2 m beyond the flange), the platform law's settings
+//! from the scenario's [`ControllerSpec`] (so `--config`'s `[unicycle]`, `[car]`,
+//! `[velocity_limits]` and the platform keys of `[controller]`, `--limits`,
+//! `--discretisation` act as on planar runs), and one step on an `f64` measurement for a
+//! controller in `f64` or `f32`.
+
+use companion_core::{
+    Chain, Command, Controller, Manipulator, Measurement, Omnidirectional, ParamError, Params, Platform,
+    PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm,
+};
+
+use super::report::StepReport;
+use super::spec::{ArmConfig, ControllerSpec, Scalar};
+use crate::domain::arm::SpatialArmSpec;
+
+/// Where the spatial law puts the target: `r*_ed` this far along the flange's approach axis
+/// (`z`), level at home (m). The same as core's closed-loop tests.
+pub const TARGET_DISTANCE: f64 = 0.2;
+
+/// A controller that steps on `f64` spatial measurements.
+pub trait SpatialStep<const N: usize> {
+    /// One step: the command to hold for `period` seconds, taking effect `delay` seconds
+    /// after the measurement (0 in `companion sim`; the plant's announced delay in HIL).
+    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64, delay: f64) -> StepReport<N>;
+    /// `r*_ed` in `f64` (exactly the controller's).
+    fn target_in_effector(&self) -> Pose3<f64>;
+}
+
+impl<T: Real, P: Platform<T>, const N: usize> SpatialStep<N> for Controller<T, P, SpatialArm<T, N>, N>
+where
+    SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
+{
+    #[inline]
+    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64, delay: f64) -> StepReport<N> {
+        let m = Measurement::<T, N, Spatial> {
+            t: T::of(meas.t),
+            base: Pose::new(T::of(meas.base.x), T::of(meas.base.y), T::of(meas.base.theta)),
+            steering: T::of(meas.steering),
+            joints: meas.joints.map(T::of),
+            target: pose_in(&meas.target),
+            target_velocity: meas.target_velocity.map(T::of),
+        };
+        match self.step_delayed(&m, T::of(period), T::of(delay)) {
+            Ok(out) => {
+                let d = &out.diagnostics;
+                StepReport {
+                    command: command_f64(&out.command),
+                    ep_norm: d.e_p.map(Real::as_f64).norm(),
+                    h_s: d.h_s.as_f64(),
+                    psi: d.psi.as_f64(),
+                    saturation: d.saturation.as_f64(),
+                    alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
+                    joint_scale: d.joint_scale.as_f64(),
+                    error: None,
+                }
+            }
+            Err(r) => StepReport::rejected(r.error),
+        }
+    }
+
+    fn target_in_effector(&self) -> Pose3<f64> {
+        let p = &self.law.params().primary.target_in_effector;
+        Pose3::new(p.rotation.map(Real::as_f64), p.translation.map(Real::as_f64))
+    }
+}
+
+fn pose_in<T: Real>(p: &Pose3<f64>) -> Pose3<T> {
+    Pose3::new(p.rotation.map(T::of), p.translation.map(T::of))
+}
+
+/// A command in `f64` (exact), for the plant.
+pub fn command_f64<T: Real, const N: usize>(c: &Command<T, N>) -> Command<f64, N> {
+    let p = &c.platform;
+    Command {
+        platform: PlatformCommand {
+            v: p.v.as_f64(),
+            v_lat: p.v_lat.as_f64(),
+            omega: p.omega.as_f64(),
+            v_xi: p.v_xi.as_f64(),
+        },
+        joints: c.joints.map(Real::as_f64),
+    }
+}
+
+/// The `[controller]` keys that set the planar arm's task: refused with a spatial arm
+/// (its task comes from the chain).
+pub fn planar_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
+    let o = &spec.overrides;
+    let mut keys = Vec::new();
+    for (set, key) in [
+        (o.target_in_effector.is_some(), "controller.target_in_effector"),
+        (o.preferred_pose.is_some(), "controller.preferred_pose"),
+        (o.gain.is_some(), "controller.gain"),
+        (o.penalty_weight.is_some(), "controller.penalty_weight"),
+        (o.penalty_margin.is_some(), "controller.penalty_margin"),
+        (o.joint_velocity_limits.is_some(), "controller.joint_velocity_limits"),
+        (spec.arm != ArmConfig::default(), "arm"),
+    ] {
+        if set {
+            keys.push(key);
+        }
+    }
+    keys
+}
+
+/// The spatial law's parameters: the arm's task from `arm` (`Params::for_arm` for the
+/// spec's run (a)–(d), `r*_ed` level [`TARGET_DISTANCE`] beyond the flange), the platform
+/// law's from the spec (its platform presets and overrides).
+///
+/// # Errors
+/// As `Params::for_arm`.
+pub fn spatial_params<T: Real, const N: usize>(
+    spec: &ControllerSpec,
+    arm: &SpatialArm<T, N>,
+) -> Result<Params<T, N, Spatial>, ParamError> {
+    let mut p = Params::for_arm(arm, spec.choice, arm.level_target(T::of(TARGET_DISTANCE)))?;
+    let planar = spec.params::<T>();
+    let (s, from) = (&mut p.secondary, &planar.secondary);
+    s.gamma_1 = from.gamma_1;
+    s.gamma_2 = from.gamma_2;
+    s.rest_sigma = from.rest_sigma;
+    s.rest_xi = from.rest_xi;
+    s.rest_reach = from.rest_reach;
+    s.k_bar = from.k_bar;
+    s.d = from.d;
+    s.mu = from.mu;
+    s.precompensation = from.precompensation;
+    s.rest_filter = from.rest_filter;
+    s.psi_rate_in_drift = from.psi_rate_in_drift;
+    p.primary.regularisation_gain = planar.primary.regularisation_gain;
+    p.primary.regularisation_decay = planar.primary.regularisation_decay;
+    p.primary.filter_sigma = planar.primary.filter_sigma;
+    p.primary.filter_xi = planar.primary.filter_xi;
+    p.velocity_limits = planar.velocity_limits;
+    p.max_time_step = planar.max_time_step;
+    p.joint_step_fraction = planar.joint_step_fraction;
+    p.discretisation = planar.discretisation;
+    p.target_motion = planar.target_motion;
+    p.max_delay = planar.max_delay;
+    p.max_turn_per_step = planar.max_turn_per_step;
+    Ok(p)
+}
+
+/// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`.
+///
+/// # Errors
+/// An invalid chain or parameter.
+pub fn spatial_controller<T: Real, P: Platform<T>, const N: usize>(
+    spec: &ControllerSpec,
+    chain: &Chain<T, N>,
+    platform: P,
+) -> Result<Controller<T, P, SpatialArm<T, N>, N>, ParamError>
+where
+    SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
+{
+    let arm = SpatialArm::new(chain)?;
+    let params = spatial_params(spec, &arm)?;
+    let mut c = Controller::new(params, platform, arm)?;
+    if !spec.initial_alpha.iter().all(|a| a.is_finite()) {
+        return Err(ParamError::new("initial_alpha", Rule::NonFinite));
+    }
+    c.state.alpha =
+        companion_core::nalgebra::Vector2::new(T::of(spec.initial_alpha[0]), T::of(spec.initial_alpha[1]));
+    Ok(c)
+}
+
+/// The spatial controller of `spec` for `arm` with `N` joints, in the spec's scalar type on
+/// its platform, behind one type (built once, before a run: the box is the only allocation).
+///
+/// # Errors
+/// A chain that does not have `N` joints or is invalid, or an invalid parameter.
+pub fn boxed_spatial_controller<const N: usize>(
+    spec: &ControllerSpec,
+    arm: &SpatialArmSpec,
+) -> anyhow::Result<Box<dyn SpatialStep<N> + Send>>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    use anyhow::Context as _;
+    let law = "the spatial law's parameters";
+    let (c64, c32) = (|| arm.chain::<f64, N>(), || arm.chain::<f32, N>());
+    Ok(match (spec.platform, spec.scalar) {
+        (PlatformKind::Unicycle, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, spec.unicycle::<f64>()).context(law)?)
+        }
+        (PlatformKind::Unicycle, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, spec.unicycle::<f32>()).context(law)?)
+        }
+        (PlatformKind::Car, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, spec.car::<f64>()).context(law)?)
+        }
+        (PlatformKind::Car, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, spec.car::<f32>()).context(law)?)
+        }
+        (PlatformKind::Omni, Scalar::F64) => {
+            Box::new(spatial_controller(spec, &c64()?, Omnidirectional).context(law)?)
+        }
+        (PlatformKind::Omni, Scalar::F32) => {
+            Box::new(spatial_controller(spec, &c32()?, Omnidirectional).context(law)?)
+        }
+    })
+}

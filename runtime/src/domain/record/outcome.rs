@@ -1,0 +1,34 @@
+//! The outcome of a run and its `summary.json` and `scenario.json`.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+use super::row::Row;
+use super::summary::Summary;
+use crate::domain::scenario::Scenario;
+
+/// The outcome of one run: its scenario, summary and logged rows.
+#[derive(Debug)]
+pub struct RunOutcome {
+    /// The scenario.
+    pub scenario: Scenario,
+    /// Its summary.
+    pub summary: Summary,
+    /// The logged rows.
+    pub rows: Vec<Row>,
+}
+
+/// Writes `summary.json` and `scenario.json` into `dir`.
+///
+/// # Errors
+/// Writing failed.
+pub fn write_summary(dir: &Path, s: &Scenario, summary: &Summary) -> Result<()> {
+    let path = dir.join("summary.json");
+    std::fs::write(&path, serde_json::to_string_pretty(summary)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    let path = dir.join("scenario.json");
+    std::fs::write(&path, serde_json::to_string_pretty(s)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(())
+}

@@ -1,0 +1,160 @@
+//! Recording on the calling thread: `timeseries.csv`, the logged rows kept for the plots and,
+//! with `--mcap`, the replay file ([`Log`]), and with them the summary over every step
+//! ([`Recorder`]).
+
+use std::fs::File;
+use std::path::Path;
+
+use anyhow::{Context, Result};
+use companion_core::PlatformKind;
+
+use super::csv::CsvFile;
+use super::replay::PlanarReplay;
+use super::row::Row;
+use super::summary::SummaryAccumulator;
+use crate::domain::scenario::Scenario;
+
+/// Where a run loop hands its rows.
+pub trait RowSink {
+    /// Every how many steps a row is logged (written to the CSV and kept for the plots).
+    fn log_every(&self) -> u64;
+
+    /// Whether the row of step `n` is logged: `n` is a multiple of
+    /// [`log_every`](Self::log_every), or the last step. The loop computes the parts of a row
+    /// only a logged row needs for these.
+    #[inline]
+    fn logs(&self, n: u64, last: bool) -> bool {
+        n % self.log_every() == 0 || last
+    }
+
+    /// Records step `n`.
+    ///
+    /// # Errors
+    /// Writing the file failed.
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()>;
+
+    /// Writes what is buffered to the file.
+    ///
+    /// # Errors
+    /// Writing the file failed.
+    fn flush(&mut self) -> Result<()> {
+        Ok(())
+    }
+}
+
+/// `timeseries.csv`, the logged rows (one every `log_every` steps, and the last) and, if
+/// asked for, the same rows as an MCAP replay.
+#[derive(Debug)]
+pub struct Log {
+    csv: CsvFile<File>,
+    log_every: u64,
+    /// The logged rows (for plots).
+    pub rows: Vec<Row>,
+    /// The replay file (`--mcap`). If the log is dropped without
+    /// [`finish_replay`](Self::finish_replay) (an error part-way), the MCAP writer finishes
+    /// the file as it is dropped: a failed run still leaves a readable file.
+    replay: Option<PlanarReplay>,
+}
+
+impl Log {
+    /// Creates `dir/timeseries.csv` and writes the header; room for `expected_rows` rows.
+    ///
+    /// # Errors
+    /// The file cannot be created.
+    pub fn create(dir: &Path, kind: PlatformKind, log_every: u64, expected_rows: usize) -> Result<Self> {
+        let path = dir.join("timeseries.csv");
+        let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+        let csv = CsvFile::new(file, kind).with_context(|| format!("writing {}", path.display()))?;
+        Ok(Self { csv, log_every, rows: Vec::with_capacity(expected_rows), replay: None })
+    }
+
+    /// Writes every logged row to `replay` too.
+    #[must_use]
+    pub fn with_replay(mut self, replay: Option<PlanarReplay>) -> Self {
+        self.replay = replay;
+        self
+    }
+
+    /// Finishes the replay file, if there is one.
+    ///
+    /// # Errors
+    /// Writing the file failed.
+    pub fn finish_replay(&mut self) -> Result<Option<super::mcap::ReplaySummary>> {
+        self.replay.take().map(PlanarReplay::finish).transpose()
+    }
+
+    /// The log of scenario `s` in `dir` (created if missing).
+    ///
+    /// # Errors
+    /// The folder or file cannot be created.
+    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self> {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let rows = (s.steps() / s.log_every) as usize + 2;
+        Self::create(dir, s.controller.platform, s.log_every, rows)
+    }
+}
+
+impl RowSink for Log {
+    fn log_every(&self) -> u64 {
+        self.log_every
+    }
+
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+        if self.logs(n, last) {
+            self.csv.write_row(row).context("writing timeseries.csv")?;
+            self.rows.push(*row);
+            if let Some(r) = &mut self.replay {
+                r.write(row)?;
+            }
+        }
+        Ok(())
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        self.csv.flush().context("writing timeseries.csv")
+    }
+}
+
+/// The summary of scenario `s` (its name and joint limits), empty.
+pub fn summary_for(s: &Scenario) -> SummaryAccumulator {
+    let lim = s.controller.params::<f64>().joint_limits;
+    SummaryAccumulator::new(
+        &s.name,
+        [lim.lower[0], lim.lower[1], lim.lower[2]],
+        [lim.upper[0], lim.upper[1], lim.upper[2]],
+    )
+}
+
+/// The log and the summary over every step.
+#[derive(Debug)]
+pub struct Recorder {
+    /// `timeseries.csv` and the logged rows.
+    pub log: Log,
+    /// The summary accumulator.
+    pub summary: SummaryAccumulator,
+}
+
+impl Recorder {
+    /// The recorder for scenario `s` writing into `dir` (created if missing).
+    ///
+    /// # Errors
+    /// The folder or file cannot be created.
+    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self> {
+        Ok(Self { log: Log::for_scenario(s, dir)?, summary: summary_for(s) })
+    }
+}
+
+impl RowSink for Recorder {
+    fn log_every(&self) -> u64 {
+        self.log.log_every
+    }
+
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+        self.summary.add(row);
+        self.log.record(n, row, last)
+    }
+
+    fn flush(&mut self) -> Result<()> {
+        self.log.flush()
+    }
+}

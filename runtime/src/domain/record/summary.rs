@@ -1,0 +1,271 @@
+//! The figures of `summary.json`, accumulated over every step of a run.
+
+use serde::Serialize;
+
+use super::digest::TrajectoryDigest;
+use super::row::Row;
+use super::verdict::{Failure, Rejections};
+use crate::domain::controller::JOINTS;
+
+/// The run's figures (`summary.json`). "After 20 s" means `t ≥ 20 s`.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Summary {
+    /// The scenario's name.
+    pub scenario: String,
+    /// `‖e_p‖` at the last step.
+    pub final_ep_norm: f64,
+    /// The largest `‖e_p‖` for `t ≥ 20 s`; NaN (`null` in JSON) when no step had `t ≥ 20 s`
+    /// (a shorter run says nothing about it, which `0` would have claimed it did).
+    pub max_ep_norm_after_20s: f64,
+    /// The fraction of steps with `t ≥ 20 s` where `‖e_p‖ < 1e−3`; NaN (`null`) as above.
+    #[serde(rename = "fraction_ep_below_1e-3_after_20s")]
+    pub fraction_ep_below_1e_3_after_20s: f64,
+    /// Per joint, the smallest distance to the nearer limit over the run (rad or m).
+    pub min_joint_margin: [f64; JOINTS],
+    /// The platform's path length (m).
+    pub path_length: f64,
+    /// The platform's path length for `t ≥ 20 s` (m).
+    pub path_length_after_20s: f64,
+    /// Sign changes of the commanded forward speed `v` (maneuvers), counting only speeds
+    /// above 1 mm/s so that numerical dithering around zero does not count.
+    pub v_sign_changes: u64,
+    /// Maneuvers: reversals of the platform's driving direction, counted as turning points of
+    /// the signed odometer `∫ v dt` with 1 cm of hysteresis (chattering of `v` around zero
+    /// does not count).
+    pub maneuvers: u64,
+    /// The last time `‖e_p‖ ≥ 1e−3` (s): after it, the target is tracked to 1 mm. 0 if never.
+    pub ep_settling_time_s: f64,
+    /// The largest `|v|` commanded (m/s).
+    pub max_abs_v: f64,
+    /// The largest `|ω|` commanded (rad/s).
+    pub max_abs_omega: f64,
+    /// The root mean square of the commanded `v` over the run (m/s): the typical platform
+    /// speed, robust where the maximum is one spike.
+    pub rms_v: f64,
+    /// The root mean square of the commanded `ω` over the run (rad/s).
+    pub rms_omega: f64,
+    /// The largest `|α̇ᵢ|` commanded (rad/s).
+    pub max_abs_alpha_rate: f64,
+    /// The largest saturation factor.
+    pub max_saturation: f64,
+    /// The largest factor the joint guard divided the arm's velocities by (1: the arm law
+    /// (30) was always applied as is).
+    pub max_joint_scale: f64,
+    /// Steps where the joint guard acted (factor > 1).
+    pub joint_guard_steps: u64,
+    /// `h_s` at the first step.
+    pub initial_h_s: f64,
+    /// `h_s` at the last step.
+    pub final_h_s: f64,
+    /// Controller steps.
+    pub steps: u64,
+    /// Steps the controller rejected (safe command sent).
+    pub rejected_steps: u64,
+    /// The rejected steps by reason.
+    pub rejections: Rejections,
+    /// The time of the first rejected step (s).
+    pub first_rejection_at_s: Option<f64>,
+    /// Steps with `t ≥ 20 s` and a finite `‖e_p‖` (0: the figures "after 20 s" say nothing).
+    pub steps_after_20s: u64,
+    /// Wall-clock time of the run (s).
+    pub wall_time_s: f64,
+    /// The [`TrajectoryDigest`] of every step (16 hex digits): equal for two runs only if
+    /// they are bit-identical.
+    pub trajectory_digest: String,
+    /// Whether the run ended before its last step (SIGINT/SIGTERM, or a lost peer).
+    pub ended_early: bool,
+    /// Why the run failed (empty: it did what a run must; see `record::verdict`).
+    pub failures: Vec<Failure>,
+    /// HIL runs: the link between the plant and the controller (absent from `sim`'s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub link: Option<LinkRecord>,
+}
+
+/// The link of a HIL run, as `summary.json` records it.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct LinkRecord {
+    /// The transport, its endpoint and security, e.g. `zenoh (listening on tls/0.0.0.0:7447,
+    /// mutual TLS, peer certificate ctrl.local)`.
+    pub transport: String,
+    /// Whether the link let anyone in (`--insecure`: plain TCP, neither authenticated nor
+    /// encrypted).
+    pub insecure: bool,
+}
+
+/// The speed below which `v` has no sign for counting sign changes (m/s).
+pub const SIGN_SPEED: f64 = 1e-3;
+
+/// The distance a platform must cover in one direction for a reversal to count as a
+/// maneuver (m).
+pub const MANEUVER_DISTANCE: f64 = 0.01;
+
+/// Accumulates the summary over every step.
+#[derive(Clone, Debug)]
+pub struct SummaryAccumulator {
+    s: Summary,
+    after20: u64,
+    below: u64,
+    last_sign: i8,
+    last_pos: Option<(f64, f64)>,
+    /// The signed odometer, the previous command's `v`, the current direction of travel
+    /// (0 before the first leg) and the odometer's extremum in that direction.
+    odometer: f64,
+    sum_v2: f64,
+    sum_w2: f64,
+    prev_v: f64,
+    direction: i8,
+    extremum: f64,
+    lower: [f64; JOINTS],
+    upper: [f64; JOINTS],
+    digest: TrajectoryDigest,
+}
+
+impl SummaryAccumulator {
+    /// A new accumulator for joints with limits `lower`, `upper`.
+    pub fn new(name: &str, lower: [f64; JOINTS], upper: [f64; JOINTS]) -> Self {
+        let s = Summary {
+            scenario: name.to_string(),
+            min_joint_margin: [f64::INFINITY; JOINTS],
+            max_saturation: 1.0,
+            max_joint_scale: 1.0,
+            joint_guard_steps: 0,
+            ..Summary::default()
+        };
+        Self {
+            s,
+            after20: 0,
+            below: 0,
+            last_sign: 0,
+            last_pos: None,
+            odometer: 0.0,
+            sum_v2: 0.0,
+            sum_w2: 0.0,
+            prev_v: 0.0,
+            direction: 0,
+            extremum: 0.0,
+            lower,
+            upper,
+            digest: TrajectoryDigest::default(),
+        }
+    }
+
+    /// Adds one step.
+    ///
+    /// Reads only the row's time, platform pose and joints and its report: the in-process
+    /// loop (`sim::run_loop`) skips the end effector's pose on steps
+    /// that are not logged.
+    pub fn add(&mut self, row: &Row) {
+        let s = &mut self.s;
+        let p = &row.plant;
+        let r = &row.report;
+        self.digest.add(row);
+        s.steps += 1;
+        if let Some(e) = r.error {
+            s.rejected_steps += 1;
+            s.rejections.count(e);
+            s.first_rejection_at_s.get_or_insert(p.t);
+        }
+        let mut moved = 0.0;
+        if let Some((x, y)) = self.last_pos {
+            moved = (p.base.x - x).hypot(p.base.y - y);
+            s.path_length += moved;
+            if p.t >= 20.0 {
+                s.path_length_after_20s += moved;
+            }
+        }
+        self.last_pos = Some((p.base.x, p.base.y));
+        if s.steps == 1 {
+            s.initial_h_s = r.h_s;
+        }
+        // The robot's true tracking error (from the plant's exact state), whether or not
+        // the controller accepted the step.
+        let ep = p.ep_norm;
+        if ep.is_finite() {
+            s.final_ep_norm = ep;
+            if ep >= 1e-3 {
+                s.ep_settling_time_s = p.t;
+            }
+            if p.t >= 20.0 {
+                self.after20 += 1;
+                s.max_ep_norm_after_20s = s.max_ep_norm_after_20s.max(ep);
+                if ep < 1e-3 {
+                    self.below += 1;
+                }
+            }
+        }
+        if r.h_s.is_finite() {
+            s.final_h_s = r.h_s;
+        }
+        for i in 0..JOINTS {
+            let m = (p.joints[i] - self.lower[i]).min(self.upper[i] - p.joints[i]);
+            s.min_joint_margin[i] = s.min_joint_margin[i].min(m);
+        }
+        let v = r.command.platform.v;
+        if v.abs() > SIGN_SPEED {
+            let sign = if v > 0.0 { 1 } else { -1 };
+            if self.last_sign != 0 && sign != self.last_sign {
+                s.v_sign_changes += 1;
+            }
+            self.last_sign = sign;
+        }
+        // Maneuvers: turning points of the signed odometer `∫ v dt` (the distance moved
+        // since the last step was driven by the previous step's command), with 1 cm of
+        // hysteresis.
+        self.odometer += moved * self.prev_v.signum();
+        self.prev_v = v;
+        if self.direction >= 0 && self.odometer < self.extremum - MANEUVER_DISTANCE {
+            if self.direction > 0 {
+                s.maneuvers += 1;
+            }
+            self.direction = -1;
+            self.extremum = self.odometer;
+        } else if self.direction <= 0 && self.odometer > self.extremum + MANEUVER_DISTANCE {
+            if self.direction < 0 {
+                s.maneuvers += 1;
+            }
+            self.direction = 1;
+            self.extremum = self.odometer;
+        } else if (self.direction > 0 && self.odometer > self.extremum)
+            || (self.direction < 0 && self.odometer < self.extremum)
+        {
+            self.extremum = self.odometer;
+        }
+        s.max_abs_v = s.max_abs_v.max(v.abs());
+        s.max_abs_omega = s.max_abs_omega.max(r.command.platform.omega.abs());
+        self.sum_v2 += v * v;
+        self.sum_w2 += r.command.platform.omega * r.command.platform.omega;
+        for a in r.alpha_rate {
+            if a.is_finite() {
+                s.max_abs_alpha_rate = s.max_abs_alpha_rate.max(a.abs());
+            }
+        }
+        if r.saturation.is_finite() {
+            s.max_saturation = s.max_saturation.max(r.saturation);
+        }
+        if r.joint_scale.is_finite() {
+            s.max_joint_scale = s.max_joint_scale.max(r.joint_scale);
+            if r.joint_scale > 1.0 {
+                s.joint_guard_steps += 1;
+            }
+        }
+    }
+
+    /// The summary so far, with the wall time.
+    pub fn finish(&self, wall_time_s: f64) -> Summary {
+        let mut s = self.s.clone();
+        if self.after20 > 0 {
+            s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
+        } else {
+            s.max_ep_norm_after_20s = f64::NAN;
+            s.fraction_ep_below_1e_3_after_20s = f64::NAN;
+        }
+        s.steps_after_20s = self.after20;
+        s.wall_time_s = wall_time_s;
+        s.trajectory_digest = self.digest.hex();
+        if s.steps > 0 {
+            s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();
+            s.rms_omega = (self.sum_w2 / s.steps as f64).sqrt();
+        }
+        s
+    }
+}

@@ -1,0 +1,548 @@
+//! The plant process: publishes measurements, applies commands, owns time, writes the run's
+//! files (`timeseries.csv`, `summary.json`, `scenario.json`, `latency.json`, plots).
+
+use std::time::{Duration, Instant};
+
+use anyhow::{anyhow, bail, Result};
+use companion_core::{Manipulator, Spatial, SpatialArm};
+
+use super::chaos::{Agent, Plan};
+use super::config::{HilConfig, HilScenario};
+use super::end::PlantEnd;
+use super::handshake::controller_hash;
+use super::messages::Stamp;
+use super::plant_loop::{run_real_time, Lockstep, Lost, PlantSide};
+use super::report::{self, LatencyReport};
+use super::robot::{PlanarRobot, SpatialRobot};
+use super::stats::{LiveFigures, PlantStats};
+use crate::domain::observe::Observer;
+use crate::domain::record::mcap::McapRecorder;
+use crate::domain::record::spatial::{SpatialAccumulator, SpatialRecord};
+use crate::domain::record::verdict::{deadline_failures, rejection_failure, DeadlineFigures};
+use crate::domain::record::{
+    write_summary, Failure, LogItem, OutputDir, PlanarReplay, RecordWriter, Recorder, Row, RowSink,
+    RunOutcome,
+};
+use crate::domain::scenario::Scenario;
+use crate::run::sim::{self, LoopEnd};
+use crate::run::spatial::stream::SpatialStream;
+use crate::run::spatial::{self, SpatialOutcome, SpatialScenario};
+use crate::sys::clock::MonotonicClock;
+use crate::sys::lock::NameLock;
+use crate::sys::lock::Role;
+use crate::transport::link::Link as _;
+use crate::transport::wire::{canonical, flags, platform};
+use crate::transport::{self, PlantEndpoint};
+
+/// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
+const LOG_RING: usize = 1 << 15;
+/// The ring of a spatial run's logged rows (1.3 kB each), allocated once; the writer thread
+/// empties it every few milliseconds.
+const SPATIAL_RING: usize = 1 << 12;
+/// How often the writer thread flushes `timeseries.csv`.
+const FLUSH_EVERY: Duration = Duration::from_millis(50);
+
+/// What a plant run produced.
+#[derive(Debug)]
+pub struct PlantOutcome {
+    /// How it ended.
+    pub end: PlantEnd,
+    /// The run's summary (with its failures) and logged rows (the rows only when plots were
+    /// drawn).
+    pub run: PlantRun,
+    /// `latency.json`.
+    pub latency: LatencyReport,
+}
+
+/// The run a plant recorded: the paper's arm or a spatial one.
+#[derive(Debug)]
+pub enum PlantRun {
+    /// The planar run (as `companion sim`'s).
+    Planar(RunOutcome),
+    /// The spatial run (as `companion sim --arm`'s).
+    Spatial(SpatialOutcome),
+}
+
+impl PlantRun {
+    /// Why the run failed (empty: it did what a run must).
+    pub fn failures(&self) -> &[Failure] {
+        match self {
+            Self::Planar(r) => &r.summary.failures,
+            Self::Spatial(r) => &r.summary.failures,
+        }
+    }
+}
+
+/// Who holds the plant's role of the demo's name.
+#[derive(Debug)]
+pub enum PlantLock {
+    /// This process (`companion plant`).
+    Own(NameLock),
+    /// The parent process (`companion hil` started this plant and holds both roles).
+    Parent,
+}
+
+impl PlantLock {
+    /// The plant's role of `name`: taken by this process, or (`child`) checked to be held by
+    /// the parent that started it.
+    ///
+    /// # Errors
+    /// [`crate::sys::lock::NameInUse`], or a child whose parent does not hold the role.
+    pub fn acquire(name: &str, child: bool) -> Result<Self> {
+        if !child {
+            return Ok(Self::Own(NameLock::acquire(name, Role::Plant)?));
+        }
+        let parent = crate::sys::process::parent_pid();
+        match NameLock::holder(name, Role::Plant) {
+            Ok(pid) if pid == parent => Ok(Self::Parent),
+            _ => Err(anyhow!(
+                "--child: the plant's role of demo '{name}' is not held by the parent process ({parent})"
+            )),
+        }
+    }
+}
+
+/// The plant role: waits for the controller, runs the loop (real time or lockstep), writes
+/// the files into `cfg.out`. `live` is updated for a progress line; `observer` gets the
+/// lockstep progress, notes and warnings. `_lock`: the demo's plant role is this process's.
+///
+/// Nothing is written into `cfg.out` unless the controller joins (a folder made for the run
+/// is taken away again).
+///
+/// # Errors
+/// A transport failure, or files that cannot be written.
+pub fn run(
+    cfg: &HilConfig,
+    s: &HilScenario,
+    live: &LiveFigures,
+    observer: &dyn Observer,
+    lock: &PlantLock,
+) -> Result<PlantOutcome> {
+    match s {
+        HilScenario::Planar(s) => run_planar(cfg, s, live, observer, lock),
+        HilScenario::Spatial(ss) => match ss.arm.joints() {
+            6 => run_spatial::<6>(cfg, ss, live, observer),
+            7 => run_spatial::<7>(cfg, ss, live, observer),
+            8 => run_spatial::<8>(cfg, ss, live, observer),
+            n => Err(crate::domain::arm::ArmError::JointCount { found: n }.into()),
+        },
+    }
+}
+
+/// The transport open and the run's folder prepared, the controller not yet joined.
+struct Opened {
+    ep: PlantEndpoint,
+    stamp: Stamp,
+    out: OutputDir,
+}
+
+/// Opens the plant's transport for the scenario `s` (its hash) and the arm `arm_hash`, and
+/// prepares `cfg.out`.
+fn open(cfg: &HilConfig, s: &Scenario, arm_hash: u64) -> Result<Opened> {
+    let timing = cfg.timing;
+    let ep: PlantEndpoint = transport::open(
+        &cfg.transport,
+        &cfg.name,
+        Role::Plant,
+        timing.wait.uses_events(),
+        Duration::from_nanos(timing.peer_timeout_ns),
+    )?;
+    let mut announced = if timing.lockstep { flags::LOCKSTEP } else { 0 };
+    if ep.notifies() {
+        announced |= flags::NOTIFIES;
+    }
+    let stamp = Stamp {
+        session: crate::transport::ipc::new_session_id(),
+        scenario_hash: controller_hash(&s.controller),
+        arm_hash,
+        period_ns: timing.period_ns,
+        dt: s.dt,
+        flags: announced,
+        platform: platform::code(s.controller.platform),
+        hold_periods: timing.hold_periods,
+    };
+    let out = OutputDir::prepare(&cfg.out)?;
+    Ok(Opened { ep, stamp, out })
+}
+
+impl Opened {
+    /// Makes the `--mcap` replay file (with `create`: a path that cannot be written stops the
+    /// plant here), then waits for the controller to join; if either fails, takes away what
+    /// was made (`discard` for the replay) and returns the error.
+    fn join<R>(
+        self,
+        cfg: &HilConfig,
+        observer: &dyn Observer,
+        create: impl FnOnce(&std::path::Path) -> Result<R>,
+        discard: impl FnOnce(R),
+    ) -> Result<(Self, Option<R>)> {
+        let replay = match cfg.mcap.as_deref().map(create).transpose() {
+            Ok(r) => r,
+            Err(e) => {
+                self.out.discard();
+                return Err(e);
+            }
+        };
+        if let Err(e) = self.wait_for_controller(cfg, observer) {
+            if let Some(r) = replay {
+                discard(r);
+            }
+            self.out.discard();
+            return Err(e);
+        }
+        Ok((self, replay))
+    }
+
+    /// Waits for the controller to join.
+    fn wait_for_controller(&self, cfg: &HilConfig, observer: &dyn Observer) -> Result<()> {
+        observer.note(&format!(
+            "plant: demo '{}' waiting for its controller (companion control --name {}) over {}; scenario hash \
+             {:#018x}, arm {}",
+            cfg.name,
+            cfg.name,
+            cfg.transport.describe(),
+            self.stamp.scenario_hash,
+            crate::transport::wire::canonical::describe_arm(self.stamp.arm_hash)
+        ));
+        // Peers refused on the way (their certificate, their name) are named as they come.
+        self.ep.wait_for_peer(cfg.startup_timeout, || {
+            for r in self.ep.take_refusals() {
+                observer.warn(&format!("plant: {r}"));
+            }
+            None
+        })
+    }
+}
+
+/// What `summary.json` records of the link.
+fn link_record(cfg: &HilConfig) -> crate::domain::record::summary::LinkRecord {
+    crate::domain::record::summary::LinkRecord {
+        transport: cfg.transport.describe(),
+        insecure: cfg.transport.insecure(),
+    }
+}
+
+/// The real-time setup of the plant's loop thread, if asked for (its warning to `observer`).
+fn apply_rt(cfg: &HilConfig, observer: &dyn Observer) -> Option<crate::sys::rt::RtReport> {
+    let rt = cfg.rt_config(Role::Plant)?;
+    let r = crate::sys::rt::apply(&rt);
+    if let Some(w) = r.warning("plant") {
+        observer.warn(&w);
+    }
+    Some(r)
+}
+
+/// After the loop: the transport's warnings, a dead controller's shared memory cleaned.
+fn after_loop(ep: &PlantEndpoint, stats: &PlantStats, end: &PlantEnd, observer: &dyn Observer) {
+    let dropped = ep.transport_malformed();
+    if dropped > 0 {
+        observer.warn(&format!("plant: {dropped} messages of the wrong size dropped by the transport"));
+    }
+    // Peers refused while the run went on (a rogue, a flood of connections): never served.
+    if let Some(last) = ep.last_refusal() {
+        observer.warn(&format!("plant: {} connection(s) refused in all; the last: {last}", ep.refusals()));
+    }
+    if stats.event_fallback {
+        observer.warn(
+            "the controller does not notify command-ready (flag NOTIFIES clear): the plant polled (hybrid) \
+             instead of waiting on the event",
+        );
+    }
+    if matches!(end, PlantEnd::ControllerDied { .. }) {
+        ep.cleanup_dead_nodes();
+    }
+}
+
+/// The real-time failures of a run that ended as it should (a lost controller stops the robot
+/// by design, its end says so; a chaos run stops it on purpose, its own check applies).
+fn real_time_failures(cfg: &HilConfig, stats: &PlantStats, end: &PlantEnd) -> Vec<Failure> {
+    let judged = matches!(end, PlantEnd::Completed | PlantEnd::Interrupted { .. });
+    if cfg.timing.lockstep || !judged || cfg.chaos.is_some() {
+        return Vec::new();
+    }
+    let figures = DeadlineFigures {
+        cycles: stats.cycles,
+        deadline_misses: stats.deadline_misses,
+        stop_events: stats.stop_events,
+        stopped_periods: stats.stopped_periods,
+    };
+    deadline_failures(&figures, stats.first_stop_t, cfg.acceptance.max_miss_fraction)
+}
+
+/// Writes `latency.json` (and its plot unless `--no-plots`).
+///
+/// # Errors
+/// `latency.json` cannot be written.
+#[allow(clippy::too_many_arguments)]
+fn write_latency(
+    cfg: &HilConfig,
+    s: &Scenario,
+    dir: &std::path::Path,
+    stats: &PlantStats,
+    rt: Option<&crate::sys::rt::RtReport>,
+    end: &PlantEnd,
+    wall_s: f64,
+    failures: &[Failure],
+    chaos_stops: Vec<super::chaos::DoneStop>,
+    observer: &dyn Observer,
+) -> Result<LatencyReport> {
+    let mut latency = LatencyReport::new(s, cfg, stats, rt, end, wall_s);
+    latency.failures = failures.to_vec();
+    latency.chaos_stops = chaos_stops;
+    report::write_json(dir, &latency)?;
+    if !cfg.no_plots {
+        if let Err(e) = report::write_svg(dir, stats, &latency) {
+            observer.warn(&format!("latency plot: {e:#}"));
+        }
+    }
+    Ok(latency)
+}
+
+/// The plant of the paper's arm.
+fn run_planar(
+    cfg: &HilConfig,
+    s: &Scenario,
+    live: &LiveFigures,
+    observer: &dyn Observer,
+    _lock: &PlantLock,
+) -> Result<PlantOutcome> {
+    let timing = cfg.timing;
+    let mut plant = sim::build_plant(s)?;
+    let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
+    let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
+    let opened = open(cfg, s, super::handshake::arm_hash())?;
+    let (opened, replay) =
+        opened.join(cfg, observer, |p| PlanarReplay::create(p, s), PlanarReplay::discard)?;
+    let steps = s.steps();
+    let Opened { mut ep, stamp, out } = opened;
+    let dir = out.path();
+    let mut recorder = Recorder::for_scenario(s, dir)?;
+    recorder.log = recorder.log.with_replay(replay);
+    // `--chaos`: this process stops the controller (its parent) on the plan's schedule; the
+    // thread starts before the loop takes a real-time priority.
+    let agent = match (plan, cfg.chaos) {
+        (Some(p), Some(c)) => {
+            Some(Agent::spawn(p.stops_by(Role::Plant), crate::sys::process::parent_pid(), c.epoch_ns)?)
+        }
+        _ => None,
+    };
+    let clock = MonotonicClock;
+    let mut stats = PlantStats::default();
+    let wall = Instant::now();
+    let rt_report;
+    let end = if timing.lockstep {
+        rt_report = cfg.rt_config(Role::Plant).map(|rt| crate::sys::rt::apply(&rt));
+        let side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            last_sent: None,
+        };
+        let mut ex = Lockstep { side, steps, delay: s.delay };
+        let r = sim::run_loop(s, &mut plant, &mut ex, &mut recorder, observer);
+        let end = match r {
+            Ok(LoopEnd::Completed) => PlantEnd::Completed,
+            Ok(LoopEnd::Interrupted { last }) => PlantEnd::Interrupted { cycle: last },
+            Err(e) => lost_or(e)?,
+        };
+        recorder.flush()?;
+        if let Some(w) = rt_report.as_ref().and_then(|r| r.warning("plant")) {
+            observer.warn(&w);
+        }
+        end
+    } else {
+        // The writer thread first, so that it does not inherit the real-time CPU and priority.
+        let mut writer = RecordWriter::spawn(recorder, LOG_RING, FLUSH_EVERY)?;
+        rt_report = apply_rt(cfg, observer);
+        let mut sink = |n: u64, row: &Row, last: bool| writer.try_push(LogItem { n, row: *row, last });
+        let mut side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            last_sent: None,
+        };
+        let mut robot = PlanarRobot { plant: &mut plant, target_in_effector };
+        let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
+        crate::sys::rt::reset_thread();
+        live.finish();
+        recorder = writer.finish()?;
+        r?
+    };
+    if let Some(r) = recorder.log.finish_replay()? {
+        observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
+    }
+    let chaos_stops = agent.map(Agent::finish).unwrap_or_default();
+    live.finish();
+    after_loop(&ep, &stats, &end, observer);
+    let wall_s = wall.elapsed().as_secs_f64();
+    let mut summary = recorder.summary.finish(wall_s);
+    summary.ended_early = end != PlantEnd::Completed;
+    summary.failures.extend(rejection_failure(
+        &summary.rejections,
+        summary.steps,
+        summary.first_rejection_at_s,
+        cfg.acceptance.max_rejected,
+    ));
+    summary.failures.extend(real_time_failures(cfg, &stats, &end));
+    summary.link = Some(link_record(cfg));
+    write_summary(dir, s, &summary)?;
+    let latency = write_latency(
+        cfg,
+        s,
+        dir,
+        &stats,
+        rt_report.as_ref(),
+        &end,
+        wall_s,
+        &summary.failures,
+        chaos_stops,
+        observer,
+    )?;
+    let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
+    let run = RunOutcome { scenario: s.clone(), summary, rows };
+    if !cfg.no_plots {
+        if let Err(e) = crate::domain::plots::render_run(dir, &run) {
+            observer.warn(&format!("plots: {e:#}"));
+        }
+    }
+    Ok(PlantOutcome { end, run: PlantRun::Planar(run), latency })
+}
+
+/// How a lost controller ended the loop ([`Lost`]), or the loop's other error.
+fn lost_or(e: anyhow::Error) -> Result<PlantEnd> {
+    match e.downcast_ref::<Lost>() {
+        Some(Lost(end)) => Ok(*end),
+        None => Err(e),
+    }
+}
+
+/// The plant of a spatial arm of `N` joints (§5): the spatial plant of `companion sim --arm`,
+/// its rows the [`SpatialRecord`]s of every `--log-every`-th step (in real time written as
+/// the run goes by a thread of its own, [`SpatialStream`]).
+fn run_spatial<const N: usize>(
+    cfg: &HilConfig,
+    ss: &SpatialScenario,
+    live: &LiveFigures,
+    observer: &dyn Observer,
+) -> Result<PlantOutcome>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    let s = &ss.base;
+    let timing = cfg.timing;
+    if cfg.chaos.is_some() {
+        bail!("--chaos runs the paper's planar arm; it cannot be combined with a spatial --arm");
+    }
+    let chain = ss.arm.chain::<f64, N>()?;
+    let star = spatial::target_in_effector::<N>(ss)?;
+    let mut plant = spatial::build_plant(ss, &chain, &star)?;
+    let opened = open(cfg, s, canonical::arm_hash(&chain))?;
+    let layout = spatial::replay::layout(ss);
+    let (opened, mcap) =
+        opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
+    let Opened { mut ep, stamp, out } = opened;
+    let dir = out.path();
+    let steps = s.steps();
+    let max_rejected = cfg.acceptance.max_rejected;
+    let clock = MonotonicClock;
+    let mut stats = PlantStats::default();
+    let wall = Instant::now();
+    let rt_report;
+    let (mut outcome, end) = if timing.lockstep {
+        rt_report = apply_rt(cfg, observer);
+        let side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            last_sent: None,
+        };
+        let mut ex = Lockstep { side, steps, delay: 0.0 };
+        let (outcome, failed) =
+            spatial::execute(ss, &mut plant, &star, &mut ex, dir, observer, max_rejected)?;
+        let end = match failed {
+            None if outcome.summary.ended_early => PlantEnd::Interrupted { cycle: outcome.summary.steps },
+            None => PlantEnd::Completed,
+            Some(e) => lost_or(e)?,
+        };
+        crate::sys::rt::reset_thread();
+        (outcome, end)
+    } else {
+        let (lower, upper) = spatial::limits(&chain);
+        let mut acc = SpatialAccumulator::new(&ss.name, ss.arm.name(), &lower, &upper);
+        let every = s.log_every.max(1);
+        let expected = usize::try_from(steps / every + 2).unwrap_or(0);
+        // The writer thread first, so that it does not inherit the real-time CPU and priority.
+        let mut stream = SpatialStream::spawn(dir, N, SPATIAL_RING, expected)?;
+        rt_report = apply_rt(cfg, observer);
+        let mut sink = |n: u64, row: &SpatialRecord, last: bool| {
+            acc.add(row);
+            !(n % every == 0 || last) || stream.try_push(row)
+        };
+        let mut side = PlantSide {
+            clock: &clock,
+            link: &mut ep,
+            timing,
+            stamp,
+            stats: &mut stats,
+            live,
+            last_sent: None,
+        };
+        let mut robot = SpatialRobot { plant: &mut plant, target_in_effector: star };
+        let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
+        crate::sys::rt::reset_thread();
+        live.finish();
+        let records = stream.finish()?;
+        let end = r?;
+        let summary = acc.finish(wall.elapsed().as_secs_f64(), end != PlantEnd::Completed, max_rejected);
+        let outcome = SpatialOutcome {
+            scenario: ss.clone(),
+            summary,
+            records,
+            limits: lower.into_iter().zip(upper).collect(),
+        };
+        (outcome, end)
+    };
+    live.finish();
+    after_loop(&ep, &stats, &end, observer);
+    let wall_s = wall.elapsed().as_secs_f64();
+    outcome.summary.wall_time_s = wall_s;
+    outcome.summary.link = Some(link_record(cfg));
+    for f in real_time_failures(cfg, &stats, &end) {
+        outcome.summary.fail(f);
+    }
+    // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
+    // summary again, with the wall time and the real-time verdict.
+    spatial::write_summary_files(&outcome, &star, dir)?;
+    if let Some(m) = mcap {
+        let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
+        observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
+    }
+    let latency = write_latency(
+        cfg,
+        s,
+        dir,
+        &stats,
+        rt_report.as_ref(),
+        &end,
+        wall_s,
+        &outcome.summary.failures,
+        Vec::new(),
+        observer,
+    )?;
+    if !cfg.no_plots {
+        if let Err(e) = crate::domain::plots::spatial::render(dir, &outcome.figures()) {
+            observer.warn(&format!("plots: {e:#}"));
+        }
+    }
+    Ok(PlantOutcome { end, run: PlantRun::Spatial(outcome), latency })
+}

@@ -1,0 +1,567 @@
+//! `companion latency`: the worst-case latency benchmark.
+//!
+//! In one run, with the HIL's message sizes (344-byte measurement, 248-byte command):
+//!
+//! 1. the controller step alone, per platform and scalar type (in process, one sample per
+//!    step of a simulated run of trajectory 1, variant a);
+//! 2. a bare iceoryx2 ping-pong between two processes, both busy-polling — the transport's
+//!    floor on this machine — back to back and paced at one round trip per millisecond (the
+//!    HIL's rate: caches and predictors cool between exchanges), and the same with the event
+//!    service;
+//! 3. a Unix-domain datagram socket ping-pong with blocking receives — what a user would
+//!    otherwise pick — and, in a build with the `zenoh` feature, a Zenoh ping-pong over
+//!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's) and,
+//!    where network namespaces are permitted (root), across a veth pair into a namespace
+//!    (skipped with a warning otherwise);
+//! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
+//!    measurement-to-command round trip on the plant's clock, deadline misses and robot
+//!    stops — once on the machine as it is ("idle") and once under a load this program makes
+//!    itself ([`BusyLoad`]: one busy-looping thread per online CPU, at normal priority, in
+//!    this process), so that one run shows how each mode copes with a shared machine.
+//!
+//! Every figure comes from a histogram of individual samples (criterion cannot give a
+//! per-iteration maximum). The table, `latency-benchmark.json` and `latency-benchmark.svg`
+//! give p50 … p99.99 and the maximum, and the ratios (4)/(2) and (3)/(2) of the medians.
+//! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
+
+pub mod pingpong;
+#[cfg(feature = "zenoh")]
+pub mod zenoh;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command as Process, Stdio};
+
+use anyhow::{anyhow, bail, Context, Result};
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
+use serde::{Deserialize, Serialize};
+
+use self::pingpong::{PeerOptions, RtScope, SecondClock, Transport};
+use crate::domain::controller::{platform_name, AnyController, Scalar};
+use crate::domain::histogram::{fmt_ns, LatencyHistogram, Percentiles};
+use crate::domain::observe::Observer;
+use crate::domain::scenario::{Scenario, ScenarioError};
+use crate::run::hil::WaitMode;
+use crate::sys::clock::{Clock, MonotonicClock};
+use crate::sys::machine::Machine;
+use crate::sys::rt;
+
+/// What `companion latency` measures.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LatencyOptions {
+    /// Samples per measurement (HIL: cycles at 1 kHz).
+    pub cycles: u64,
+    /// Unrecorded warm-up iterations before each ping-pong and step measurement.
+    pub warmup: u64,
+    /// Output folder (created if missing).
+    pub out: PathBuf,
+    /// Real-time setup for every part.
+    pub rt: bool,
+    /// The HIL wait modes to measure (none: skip part 4).
+    pub hil_modes: Vec<WaitMode>,
+    /// The loads to measure them under.
+    pub loads: Vec<Load>,
+}
+
+/// The load on the machine while a HIL run is measured.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Load {
+    /// Nothing added (other programs may run).
+    Idle,
+    /// [`BusyLoad`]: one busy-looping thread per online CPU.
+    Busy,
+}
+
+impl Load {
+    /// `idle` or `busy`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Idle => "idle",
+            Self::Busy => "busy",
+        }
+    }
+}
+
+/// The load generator: `threads` threads of this process, each busy-looping (a spin hint and
+/// an atomic load) at normal priority until dropped. One per online CPU competes with both
+/// HIL processes for every CPU, as a build or another program would.
+#[derive(Debug)]
+pub struct BusyLoad {
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    threads: Vec<std::thread::JoinHandle<()>>,
+}
+
+impl BusyLoad {
+    /// Starts `threads` busy threads.
+    ///
+    /// # Errors
+    /// A thread cannot be started.
+    pub fn start(threads: usize) -> Result<Self> {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        let stop = std::sync::Arc::new(AtomicBool::new(false));
+        let mut handles = Vec::with_capacity(threads);
+        for i in 0..threads {
+            let s = std::sync::Arc::clone(&stop);
+            handles.push(
+                std::thread::Builder::new()
+                    .name(format!("busy-{i}"))
+                    .spawn(move || {
+                        while !s.load(Ordering::Relaxed) {
+                            std::hint::spin_loop();
+                        }
+                    })
+                    .context("starting a load thread")?,
+            );
+        }
+        Ok(Self { stop, threads: handles })
+    }
+}
+
+impl Drop for BusyLoad {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        for t in self.threads.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Part (1): one controller's step times over a simulated run.
+///
+/// # Errors
+/// A scenario that cannot be built.
+pub fn controller_step(
+    platform: PlatformKind,
+    scalar: Scalar,
+    cycles: u64,
+    warmup: u64,
+) -> Result<LatencyHistogram> {
+    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, platform)
+        .scalar(scalar)
+        .duration((cycles + warmup + 1) as f64 * 1e-3)
+        .build()?;
+    let mut plant = crate::run::sim::build_plant(&s)?;
+    let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
+    let clock = MonotonicClock;
+    let mut h = LatencyHistogram::new();
+    for n in 0..cycles + warmup {
+        let meas = plant.measure();
+        let t0 = clock.now_ns();
+        let r = ctrl.step(&meas, s.dt, 0.0);
+        let t1 = clock.now_ns();
+        if n >= warmup {
+            h.record(t1 - t0);
+        }
+        plant.advance(&r.command, s.dt);
+    }
+    Ok(h)
+}
+
+/// One HIL run's figures as the benchmark reads them from its `latency.json` (every key
+/// must be there: a missing one is an error, not a zero).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct HilFigures {
+    /// Round trip (ns).
+    pub round_trip_ns: Percentiles,
+    /// Controller compute (ns).
+    pub controller_compute_ns: Percentiles,
+    /// Release jitter (ns).
+    pub release_jitter_ns: Percentiles,
+    /// Cycles.
+    pub cycles: u64,
+    /// Deadline misses.
+    pub deadline_misses: u64,
+    /// Times the robot was stopped.
+    pub stop_events: u64,
+    /// The real-time setup in force.
+    pub rt: RtFigures,
+}
+
+/// The part of `latency.json`'s `rt` the benchmark reads.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+pub struct RtFigures {
+    /// Whether `SCHED_FIFO` was in force.
+    pub fifo: bool,
+}
+
+/// Part (4): a real-time `companion hil` run of `cycles` periods at 1 kHz in `mode`, its output
+/// in `dir`.
+///
+/// # Errors
+/// The run failed.
+pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool) -> Result<HilFigures> {
+    std::fs::create_dir_all(dir)?;
+    let duration = format!("{}", cycles as f64 * 1e-3);
+    let name = format!("latency-{}-{}", std::process::id(), mode.as_str());
+    let log = std::fs::File::create(dir.join("log.txt"))?;
+    let mut cmd = Process::new(exe);
+    cmd.args([
+        "hil",
+        "--duration",
+        &duration,
+        "--wait",
+        mode.as_str(),
+        "--name",
+        &name,
+        "--no-plots",
+        "--quiet",
+    ])
+    .arg("--out")
+    .arg(dir)
+    .stdin(Stdio::null())
+    .stdout(log.try_clone()?)
+    .stderr(log);
+    if use_rt {
+        cmd.arg("--rt");
+    }
+    let status = cmd.status().context("running companion hil")?;
+    // 7: real time was not kept — what this benchmark measures, not a failure of it.
+    if !(status.success() || status.code() == Some(7)) {
+        bail!(
+            "companion hil --wait {} failed ({status}); see {}",
+            mode.as_str(),
+            dir.join("log.txt").display()
+        );
+    }
+    let path = dir.join("latency.json");
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))
+}
+
+/// One row of the table.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    /// Part (1–4).
+    pub part: &'static str,
+    /// What was measured.
+    pub name: String,
+    /// Its percentiles (ns).
+    pub ns: Percentiles,
+}
+
+/// `latency-benchmark.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct Benchmark {
+    /// The command line.
+    pub command: String,
+    /// Samples per measurement.
+    pub cycles: u64,
+    /// Message sizes (bytes): measurement, command.
+    pub message_bytes: (usize, usize),
+    /// `--rt`.
+    pub rt: bool,
+    /// The machine at the end of the run.
+    pub machine: Machine,
+    /// The load average at the start.
+    pub load_average_at_start: String,
+    /// The rows.
+    pub rows: Vec<Row>,
+    /// The HIL runs: wait mode, load, figures.
+    pub hil: Vec<(WaitMode, Load, HilFigures)>,
+    /// The load generator's threads (`busy` runs).
+    pub load_threads: usize,
+    /// Ratios of medians.
+    pub ratios: Vec<(String, f64)>,
+    /// The back-to-back ping-pongs against a second clock ([`SecondClock`]).
+    pub second_clock: Vec<(String, SecondClock)>,
+}
+
+fn ratio(a: u64, b: u64) -> f64 {
+    if b == 0 {
+        f64::NAN
+    } else {
+        a as f64 / b as f64
+    }
+}
+
+/// `companion latency`: measures every part, writes `latency-benchmark.json` and
+/// `latency-benchmark.svg` into `a.out`, and returns the figures.
+///
+/// # Errors
+/// A child process or a file failed.
+pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
+    if a.cycles == 0 {
+        bail!("--cycles must be at least 1");
+    }
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let exe = std::env::current_exe().context("locating this program")?;
+    let load_start = std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim().to_string();
+    let (own_cpu, _) = pingpong::rt_cpus();
+    let mut rows: Vec<Row> = Vec::new();
+    let mut hists: Vec<(String, LatencyHistogram)> = Vec::new();
+    let mut push = |part: &'static str, name: String, h: LatencyHistogram, rows: &mut Vec<Row>| {
+        observer.note(&format!(
+            "  {name}: p50 {}  max {}",
+            fmt_ns(h.percentiles().p50),
+            fmt_ns(h.percentiles().max)
+        ));
+        rows.push(Row { part, name: name.clone(), ns: h.percentiles() });
+        hists.push((name, h));
+    };
+    observer.note(&format!("(1) controller step, {} steps per platform and scalar type", a.cycles));
+    for platform in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
+        for scalar in [Scalar::F64, Scalar::F32] {
+            let h = {
+                let _rt = a.rt.then(|| RtScope::enter(own_cpu, observer));
+                controller_step(platform, scalar, a.cycles, a.warmup)?
+            };
+            push("1", format!("controller step {} {}", platform_name(platform), scalar.name()), h, &mut rows);
+        }
+    }
+    observer.note(&format!("(2) iceoryx2 ping-pong, {} round trips", a.cycles));
+    let mut second_clock: Vec<(String, SecondClock)> = Vec::new();
+    let mut checked = |name: &str, c: SecondClock| {
+        observer.note(&format!(
+            "  second clock: the {} samples sum to {:.1} ms, the batch took {:.1} ms by CLOCK_MONOTONIC_RAW ({:.1} %)",
+            c.samples,
+            c.samples_sum_ns as f64 / 1e6,
+            c.batch_raw_ns as f64 / 1e6,
+            100.0 * c.share()
+        ));
+        if !c.agrees() {
+            observer.warn(&format!(
+                "{name}: the samples ({:.1} % of the batch) and the second clock disagree",
+                100.0 * c.share()
+            ));
+        }
+        second_clock.push((name.to_string(), c));
+    };
+    let (iox, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
+    checked("iceoryx2 ping-pong, busy-poll", c);
+    let iox_p50 = iox.percentiles().p50;
+    push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
+    // Paced, the batch is mostly waiting: the second clock says nothing of the samples there.
+    let (paced, _) =
+        pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
+    let paced_p50 = paced.percentiles().p50;
+    push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
+    let (iox_ev, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
+    checked("iceoryx2 ping-pong, events", c);
+    let iox_ev_p50 = iox_ev.percentiles().p50;
+    push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
+    observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
+    let (uds, c) = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
+    checked("unix datagram socket ping-pong", c);
+    let uds_p50 = uds.percentiles().p50;
+    push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    #[cfg(feature = "zenoh")]
+    let (zenoh_p50, zenoh_tls_p50) = {
+        observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
+        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, None, observer)?;
+        checked("zenoh ping-pong, tcp loopback", c);
+        let p50 = z.percentiles().p50;
+        push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
+        observer.note(&format!(
+            "(3) Zenoh ping-pong over loopback QUIC with mutual TLS (the default link), {} round trips",
+            a.cycles
+        ));
+        let tls = zenoh::Tls::make()?;
+        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, Some(&tls), observer)?;
+        checked("zenoh ping-pong, quic+mtls loopback", c);
+        let tls_p50 = z.percentiles().p50;
+        push("3", "zenoh ping-pong, quic+mtls loopback, blocking".into(), z, &mut rows);
+        observer.note("(3) Zenoh session set-up on loopback (connect until the peer is seen), 20 times each");
+        push("3", "zenoh session set-up, tcp loopback".into(), zenoh::session_setup(20, None)?, &mut rows);
+        push(
+            "3",
+            "zenoh session set-up, quic+mtls loopback".into(),
+            zenoh::session_setup(20, Some(&tls))?,
+            &mut rows,
+        );
+        match zenoh::Veth::create() {
+            Ok(v) => {
+                observer.note(&format!(
+                    "(3) Zenoh ping-pong across a veth pair into network namespace {}, {} round trips",
+                    v.netns, a.cycles
+                ));
+                let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), None, observer)?;
+                checked("zenoh ping-pong, tcp across network namespaces", c);
+                push("3", "zenoh ping-pong, tcp across network namespaces, blocking".into(), z, &mut rows);
+            }
+            Err(e) => observer.warn(&format!(
+                "(3) Zenoh across network namespaces skipped: {e:#} (needs root and `ip netns`)"
+            )),
+        }
+        (p50, tls_p50)
+    };
+    let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
+    let mut hil = Vec::new();
+    let load_threads = crate::sys::rt::online_cpus();
+    for load in &a.loads {
+        let _busy = match load {
+            Load::Idle => None,
+            Load::Busy => Some(BusyLoad::start(load_threads)?),
+        };
+        for mode in &a.hil_modes {
+            observer.note(&format!(
+                "(4) HIL cycle, --wait {}, {}, {} cycles at 1 kHz",
+                mode.as_str(),
+                load.as_str(),
+                a.cycles
+            ));
+            let dir = a.out.join(format!("hil-{}-{}", mode.as_str(), load.as_str()));
+            let f = hil_run(&exe, &dir, *mode, a.cycles, a.rt)?;
+            observer.note(&format!(
+                "  round trip p50 {}  max {}; {} deadline misses, {} robot stops",
+                fmt_ns(f.round_trip_ns.p50),
+                fmt_ns(f.round_trip_ns.max),
+                f.deadline_misses,
+                f.stop_events
+            ));
+            rows.push(Row {
+                part: "4",
+                name: format!("HIL cycle round trip, {}, {}", mode.as_str(), load.as_str()),
+                ns: f.round_trip_ns,
+            });
+            hil.push((*mode, *load, f));
+        }
+    }
+    let mut ratios = vec![
+        ("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)),
+        ("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)),
+    ];
+    #[cfg(feature = "zenoh")]
+    ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
+    #[cfg(feature = "zenoh")]
+    ratios.push((
+        "zenoh quic+mtls / zenoh tcp (aim: at most 1.3)".to_string(),
+        ratio(zenoh_tls_p50, zenoh_p50),
+    ));
+    for (mode, _, f) in hil.iter().filter(|h| h.1 == Load::Idle) {
+        ratios.push((
+            format!("HIL {} / iceoryx2 busy-poll", mode.as_str()),
+            ratio(f.round_trip_ns.p50, iox_p50),
+        ));
+        if *mode == WaitMode::Spin {
+            ratios.push((
+                "HIL spin / (iceoryx2 busy-poll + step unicycle f64)".to_string(),
+                ratio(f.round_trip_ns.p50, iox_p50 + step_p50),
+            ));
+            ratios.push((
+                "HIL spin / (iceoryx2 one per ms + HIL compute)".to_string(),
+                ratio(f.round_trip_ns.p50, paced_p50 + f.controller_compute_ns.p50),
+            ));
+        }
+        if *mode == WaitMode::Event {
+            ratios.push(("HIL event / iceoryx2 events".to_string(), ratio(f.round_trip_ns.p50, iox_ev_p50)));
+        }
+    }
+    let bench = Benchmark {
+        command: std::env::args().collect::<Vec<_>>().join(" "),
+        cycles: a.cycles,
+        message_bytes: (crate::transport::wire::MEASUREMENT_SIZE, crate::transport::wire::COMMAND_SIZE),
+        rt: a.rt,
+        machine: Machine::now(),
+        load_average_at_start: load_start,
+        rows,
+        hil,
+        load_threads,
+        ratios,
+        second_clock,
+    };
+    let path = a.out.join("latency-benchmark.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    let series: Vec<(&str, &LatencyHistogram)> =
+        hists.iter().filter(|(n, _)| !n.contains("f32")).map(|(n, h)| (n.as_str(), h)).collect();
+    let svg = a.out.join("latency-benchmark.svg");
+    if let Err(e) = crate::domain::plots::latency_svg(
+        &svg,
+        "companion latency: step, transports (HIL runs: see hil-*/)",
+        &series,
+        None,
+    ) {
+        observer.warn(&format!("plot: {e:#}"));
+    }
+    Ok(bench)
+}
+
+/// The hidden `latency-peer` subcommand: echoes until the end-of-run flag (or until the parent
+/// is gone).
+///
+/// # Errors
+/// A transport failure.
+pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
+    if let Some(cpu) = a.rt_cpu {
+        if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency peer") {
+            observer.warn(&w);
+        }
+    }
+    match a.transport {
+        Transport::IoxSpin | Transport::IoxEvent => {
+            pingpong::peer_iox(&a.name, a.transport == Transport::IoxEvent)
+        }
+        Transport::Uds => {
+            let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
+            pingpong::peer_uds(dir)
+        }
+        #[cfg(feature = "zenoh")]
+        Transport::Zenoh => {
+            let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
+            zenoh::peer(&a.name, ep, a.tls_dir.as_deref())
+        }
+        #[cfg(not(feature = "zenoh"))]
+        Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::time::Duration;
+
+    use super::*;
+    use crate::run::hil::end::PlantEnd;
+    use crate::run::hil::report::LatencyReport;
+    use crate::run::hil::stats::PlantStats;
+    use crate::run::hil::{HilConfig, Timing};
+
+    fn report_json() -> serde_json::Value {
+        let s = Scenario::paper(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
+        let timing = Timing {
+            period_ns: 1_000_000,
+            deadline_ns: 500_000,
+            hold_periods: 20,
+            wait: WaitMode::Spin,
+            spin_margin_ns: 0,
+            silence_ns: 1,
+            peer_timeout_ns: 1,
+            lockstep: false,
+            max_command_age: 0,
+        };
+        let cfg = HilConfig {
+            name: "t".into(),
+            out: PathBuf::new(),
+            timing,
+            startup_timeout: Duration::from_secs(1),
+            rt: None,
+            no_plots: true,
+            acceptance: crate::domain::record::Acceptance::default(),
+            chaos: None,
+            transport: crate::transport::Transport::Iceoryx2,
+            mcap: None,
+        };
+        let mut st = PlantStats { cycles: 7, deadline_misses: 2, ..PlantStats::default() };
+        st.round_trip.record(5_000);
+        let r = LatencyReport::new(&s, &cfg, &st, None, &PlantEnd::Completed, 1.0);
+        serde_json::to_value(&r).unwrap()
+    }
+
+    #[test]
+    fn the_benchmark_reads_back_what_the_plant_writes() {
+        let f: HilFigures = serde_json::from_value(report_json()).unwrap();
+        assert_eq!((f.cycles, f.deadline_misses, f.round_trip_ns.count), (7, 2, 1));
+        assert!(!f.rt.fifo);
+    }
+
+    #[test]
+    fn a_missing_key_in_latency_json_is_an_error_not_a_zero() {
+        let mut v = report_json();
+        v.as_object_mut().unwrap().remove("deadline_misses");
+        let e = serde_json::from_value::<HilFigures>(v).unwrap_err();
+        assert!(e.to_string().contains("deadline_misses"), "{e}");
+        let mut v = report_json();
+        v["round_trip_ns"].as_object_mut().unwrap().remove("p99.99");
+        assert!(serde_json::from_value::<HilFigures>(v).is_err());
+    }
+}

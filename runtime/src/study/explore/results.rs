@@ -1,0 +1,225 @@
+//! `results.csv`: one line per sample, each ending in a checksum of the line, so that a line
+//! cut short by a kill or altered afterwards is recognised wherever it is read (resuming,
+//! merging shards).
+//!
+//! ```text
+//! sample,distance,…,steering,<knobs>,class,tracked_fraction,settling_time_s,final_ep_norm,
+//! ep_bound,min_joint_margin,max_abs_v,time_saturated_s,rejected_steps,maneuvers,check
+//! ```
+//!
+//! Numbers are written with Rust's shortest round-trip formatting: the same value always
+//! gives the same text, and the text parses back to the same bits. `check` is the FNV-1a
+//! 64-bit hash of everything before the last comma, in 16 hexadecimal digits.
+
+use std::fmt::Write as _;
+
+use anyhow::{bail, Result};
+use serde::Serialize;
+
+use super::space::{Space, INITIAL};
+use crate::study::knobs::Knob;
+use crate::study::trial::{Judge, Trial};
+
+/// How a sample ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Class {
+    /// `‖e_p‖` within the tolerance over the final window, no step rejected.
+    Converged,
+    /// Ran to the end without converging (bounded, or still on its way).
+    NotConverged,
+    /// `‖e_p‖` passed the divergence bound; the run was stopped.
+    Diverged,
+    /// The controller rejected at least one step (never counted as converged).
+    Rejected,
+    /// The sample's scenario could not be built (should not happen after the space's check).
+    Invalid,
+}
+
+/// Every class, in summary order.
+pub const CLASSES: [Class; 5] =
+    [Class::Converged, Class::NotConverged, Class::Diverged, Class::Rejected, Class::Invalid];
+
+impl Class {
+    /// As written in `results.csv`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Converged => "converged",
+            Self::NotConverged => "not_converged",
+            Self::Diverged => "diverged",
+            Self::Rejected => "rejected",
+            Self::Invalid => "invalid",
+        }
+    }
+
+    fn parse(s: &str) -> Option<Self> {
+        CLASSES.into_iter().find(|c| c.name() == s)
+    }
+
+    /// The class of a trial.
+    pub fn of(trial: &Trial, judge: &Judge) -> Self {
+        if trial.summary.rejected_steps > 0 {
+            Self::Rejected
+        } else if trial.tail.diverged_at.is_some() {
+            Self::Diverged
+        } else if trial.converged(judge) {
+            Self::Converged
+        } else {
+            Self::NotConverged
+        }
+    }
+}
+
+/// The outcome columns after `class`.
+pub const OUTCOMES: [&str; 10] = [
+    "tracked_fraction",
+    "settling_time_s",
+    "final_ep_norm",
+    "ep_bound",
+    "min_joint_margin",
+    "max_abs_v",
+    "time_saturated_s",
+    "rejected_steps",
+    "maneuvers",
+    "check",
+];
+
+/// One parsed line.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Record {
+    /// The sample's index.
+    pub sample: u64,
+    /// The input columns' values (initial variables, then the knobs).
+    pub inputs: Vec<f64>,
+    /// The class.
+    pub class: Class,
+    /// The outcome columns' values, `check` excepted.
+    pub outcomes: [f64; 9],
+}
+
+impl Record {
+    /// An outcome by column name.
+    pub fn outcome(&self, name: &str) -> f64 {
+        OUTCOMES.iter().position(|c| *c == name).map_or(f64::NAN, |i| self.outcomes[i])
+    }
+}
+
+/// The knob columns of a space: its knobs, and the platform's size (`epsilon` or `epsilon_1`)
+/// even when it is fixed (the bound on `‖e_p‖` is plotted against it).
+pub fn knob_columns(space: &Space, size: Option<Knob>) -> Vec<Knob> {
+    let mut k: Vec<Knob> = space.parameters.iter().map(|(k, _)| *k).collect();
+    if let Some(s) = size {
+        if !k.contains(&s) {
+            k.push(s);
+            k.sort();
+        }
+    }
+    k
+}
+
+/// The header line (without a line break).
+pub fn header(knobs: &[Knob]) -> String {
+    let mut cols: Vec<&str> = vec!["sample"];
+    cols.extend(INITIAL);
+    cols.extend(knobs.iter().map(|k| k.name()));
+    cols.push("class");
+    cols.extend(OUTCOMES);
+    cols.join(",")
+}
+
+/// FNV-1a, 64 bits (the wire's: one implementation for every hash of the runtime).
+pub use crate::transport::wire::fnv1a;
+
+/// The line of a sample (without a line break).
+pub fn line(sample: u64, inputs: &[f64], class: Class, trial: Option<&Trial>) -> String {
+    let mut s = format!("{sample}");
+    for v in inputs {
+        let _ = write!(s, ",{v}");
+    }
+    let _ = write!(s, ",{}", class.name());
+    match trial {
+        Some(t) => {
+            let m = &t.summary;
+            let margin = m.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);
+            let _ = write!(
+                s,
+                ",{},{},{},{},{},{},{},{},{}",
+                t.tail.tracked_fraction,
+                t.tail.settling_time_s,
+                m.final_ep_norm,
+                t.tail.ep_bound,
+                margin,
+                m.max_abs_v,
+                t.tail.time_saturated_s,
+                m.rejected_steps,
+                m.maneuvers
+            );
+        }
+        None => s.push_str(",NaN,NaN,NaN,NaN,NaN,NaN,NaN,0,0"),
+    }
+    let check = fnv1a(s.as_bytes());
+    let _ = write!(s, ",{check:016x}");
+    s
+}
+
+/// Parses and verifies one line of a file with `columns` columns.
+///
+/// # Errors
+/// The wrong number of fields, a checksum that does not match, or a field that does not
+/// parse.
+pub fn parse(text: &str, columns: usize) -> Result<Record> {
+    let Some((body, check)) = text.rsplit_once(',') else { bail!("not a results line") };
+    let expected = format!("{:016x}", fnv1a(body.as_bytes()));
+    if check != expected {
+        bail!("checksum {check} does not match the line (expected {expected})");
+    }
+    let fields: Vec<&str> = text.split(',').collect();
+    if fields.len() != columns {
+        bail!("{} fields, expected {columns}", fields.len());
+    }
+    let num = |s: &str| s.parse::<f64>().map_err(|_| anyhow::anyhow!("`{s}` is not a number"));
+    let sample =
+        fields[0].parse::<u64>().map_err(|_| anyhow::anyhow!("`{}` is not a sample index", fields[0]))?;
+    let n_in = columns - 1 - 1 - OUTCOMES.len();
+    let inputs = fields[1..=n_in].iter().map(|s| num(s)).collect::<Result<Vec<_>>>()?;
+    let class = Class::parse(fields[1 + n_in])
+        .ok_or_else(|| anyhow::anyhow!("unknown class `{}`", fields[1 + n_in]))?;
+    let mut outcomes = [0.0; 9];
+    for (i, o) in outcomes.iter_mut().enumerate() {
+        *o = num(fields[2 + n_in + i])?;
+    }
+    Ok(Record { sample, inputs, class, outcomes })
+}
+
+/// Verified lines of a results file: `(sample, line)` each, and a last line cut short.
+pub type Lines = (Vec<(u64, String)>, Option<String>);
+
+/// The complete lines of a file's text after its header, verified, with the index of each;
+/// a last line without its line break (a write cut short by a kill) is returned apart.
+///
+/// # Errors
+/// The header differs, or a complete line is corrupt (named by its line number).
+pub fn read_lines(text: &str, header: &str, what: &str) -> Result<Lines> {
+    let columns = header.split(',').count();
+    let mut lines = text.split_inclusive('\n');
+    match lines.next() {
+        Some(h) if h.trim_end_matches('\n') == header => {}
+        Some(h) => bail!(
+            "{what}: its header differs from this exploration's:\n  found:    {}\n  expected: {header}",
+            h.trim_end()
+        ),
+        None => return Ok((Vec::new(), None)),
+    }
+    let mut out = Vec::new();
+    let mut cut = None;
+    for (i, l) in lines.enumerate() {
+        let Some(body) = l.strip_suffix('\n') else {
+            cut = Some(l.to_string());
+            break;
+        };
+        let rec = parse(body, columns)
+            .map_err(|e| anyhow::anyhow!("{what}, line {}: corrupt ({e}); not used", i + 2))?;
+        out.push((rec.sample, body.to_string()));
+    }
+    Ok((out, cut))
+}

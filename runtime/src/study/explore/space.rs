@@ -1,0 +1,440 @@
+//! The space an exploration samples: initial conditions and controller parameters, each a
+//! fixed value or a range drawn uniformly, read from a TOML file (`--space FILE`) and checked
+//! before any simulation runs.
+//!
+//! ```toml
+//! [initial]                      # each key: a number, or [low, high]
+//! distance = [0.5, 6.0]          # m: ‖p_bd(0)‖, the target's distance from the platform
+//! bearing = [-3.14159, 3.14159]  # rad: where the target is, seen from the platform
+//! heading = [-3.14159, 3.14159]  # rad: θ_bd(0), the target's heading relative to the platform
+//! q1 = 0.0                       # rad    (joints strictly inside their limits)
+//! q2 = [0.2, 0.6]                # m
+//! q3 = 0.0                       # rad
+//! alpha_1 = [0.0, 6.2832]        # rad: α(0) of the transverse function
+//! alpha_2 = 0.0                  # rad (car only)
+//! steering = 0.0                 # 1/m: the car's ξ(0); omitted: ξ_f(α(0))
+//!
+//! [parameters]                   # knobs (see `companion_runtime::study::knobs`)
+//! epsilon = [0.05, 0.3]
+//! stroke = [0.7, 1.2]
+//!
+//! [map]                          # the success map's axes: two variables drawn from ranges
+//! x = "distance"
+//! y = "heading"
+//! bins = [8, 12]
+//!
+//! [judge]                        # how a run is classified (`trial::Judge`)
+//! tolerance = 1e-3
+//! window = 5.0                   # s (default: 5, or the whole run if shorter)
+//! divergence = 100.0
+//! track_after = 20.0             # s: the tracked fraction from here (default: T/2)
+//! ```
+//!
+//! An initial value the file does not give is the scenario's own (the trajectory's
+//! `r_bd(0)`, `q(0)`; `α(0) = 0`); a parameter it does not give is the scenario's.
+//! Unknown keys, empty or reversed ranges, joints outside their limits and parameters the
+//! law rejects are errors. Parameters are checked at every corner of their box: each rule is
+//! monotone in each parameter or, like Lemma 2's `6η₂η₃ − 8η₃ − η₁η₂ > 0`, multilinear in
+//! them, so a box whose corners are valid is valid throughout.
+
+use std::collections::BTreeMap;
+use std::f64::consts::PI;
+use std::path::Path;
+
+use anyhow::{anyhow, bail, Context, Result};
+use serde::{Deserialize, Serialize};
+
+use crate::domain::scenario::{Scenario, ScenarioBuilder};
+use crate::study::knobs::{self, Knob};
+use crate::study::trial::Judge;
+
+/// A value of the space: fixed, or drawn uniformly from `[low, high)`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Value {
+    /// One value.
+    Fixed(f64),
+    /// `[low, high]`, drawn uniformly.
+    Range([f64; 2]),
+}
+
+impl Value {
+    /// The value at `u ∈ [0, 1)`.
+    pub fn at(self, u: f64) -> f64 {
+        match self {
+            Self::Fixed(v) => v,
+            Self::Range([lo, hi]) => lo + u * (hi - lo),
+        }
+    }
+
+    /// `(low, high)`; a fixed value is both.
+    pub fn bounds(self) -> (f64, f64) {
+        match self {
+            Self::Fixed(v) => (v, v),
+            Self::Range([lo, hi]) => (lo, hi),
+        }
+    }
+
+    /// Whether it is drawn.
+    pub fn is_range(self) -> bool {
+        matches!(self, Self::Range(_))
+    }
+
+    fn check(self, name: &str) -> Result<()> {
+        match self {
+            Self::Fixed(v) if !v.is_finite() => bail!("`{name}` = {v} must be finite"),
+            Self::Range([lo, hi]) if !(lo.is_finite() && hi.is_finite()) => {
+                bail!("`{name}` = [{lo}, {hi}]: both ends must be finite")
+            }
+            Self::Range([lo, hi]) if lo >= hi => {
+                bail!("`{name}` = [{lo}, {hi}] is an empty range: the low end must be below the high end")
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
+/// The initial-condition variables, in the order of the columns and of the draws.
+pub const INITIAL: [&str; 9] =
+    ["distance", "bearing", "heading", "q1", "q2", "q3", "alpha_1", "alpha_2", "steering"];
+
+/// The `[initial]` table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InitialSpace {
+    /// `‖p_bd(0)‖` (m).
+    pub distance: Option<Value>,
+    /// The target's direction seen from the platform (rad).
+    pub bearing: Option<Value>,
+    /// `θ_bd(0)` (rad).
+    pub heading: Option<Value>,
+    /// `q₁(0)` (rad).
+    pub q1: Option<Value>,
+    /// `q₂(0)` (m).
+    pub q2: Option<Value>,
+    /// `q₃(0)` (rad).
+    pub q3: Option<Value>,
+    /// `α₁(0)` (rad).
+    pub alpha_1: Option<Value>,
+    /// `α₂(0)` (rad).
+    pub alpha_2: Option<Value>,
+    /// The car's `ξ(0)` (1/m); `None`: `ξ_f(α(0))`.
+    pub steering: Option<Value>,
+}
+
+impl InitialSpace {
+    fn get(&self, i: usize) -> Option<Value> {
+        [
+            self.distance,
+            self.bearing,
+            self.heading,
+            self.q1,
+            self.q2,
+            self.q3,
+            self.alpha_1,
+            self.alpha_2,
+            self.steering,
+        ][i]
+    }
+}
+
+/// The `[map]` table: the success map's axes and bins.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MapSpec {
+    /// The horizontal axis: a variable drawn from a range.
+    pub x: String,
+    /// The vertical axis (none: a one-row map).
+    pub y: Option<String>,
+    /// Bins along x and y (1 to 100 each).
+    #[serde(default = "default_bins")]
+    pub bins: [usize; 2],
+}
+
+fn default_bins() -> [usize; 2] {
+    [8, 12]
+}
+
+/// A space file as written.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpaceFile {
+    /// Initial conditions.
+    #[serde(default)]
+    pub initial: InitialSpace,
+    /// Knobs by name.
+    #[serde(default)]
+    pub parameters: BTreeMap<String, Value>,
+    /// The success map.
+    pub map: Option<MapSpec>,
+    /// The classification.
+    pub judge: Option<JudgeFile>,
+}
+
+/// The `[judge]` table (omitted keys: `trial::Judge`'s defaults).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct JudgeFile {
+    /// `‖e_p‖` below this is tracked.
+    pub tolerance: Option<f64>,
+    /// The final window (s) over which a converged run stays tracked.
+    pub window: Option<f64>,
+    /// `‖e_p‖` above this stops the run as diverged.
+    pub divergence: Option<f64>,
+    /// The tracked fraction counts from this time (s); default: half the duration.
+    pub track_after: Option<f64>,
+}
+
+impl SpaceFile {
+    /// Reads a space file.
+    ///
+    /// # Errors
+    /// The file cannot be read or is not TOML of this shape (unknown keys included).
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+        toml::from_str(&text).with_context(|| format!("in space file {}", path.display()))
+    }
+
+    /// The default space: starts around the target — any distance from 0.5 to 6 m, any
+    /// bearing, any relative heading; joints, `α(0)` and the parameters as the scenario has
+    /// them; the map over distance and heading.
+    pub fn around_the_target() -> Self {
+        Self {
+            initial: InitialSpace {
+                distance: Some(Value::Range([0.5, 6.0])),
+                bearing: Some(Value::Range([-PI, PI])),
+                heading: Some(Value::Range([-PI, PI])),
+                ..InitialSpace::default()
+            },
+            parameters: BTreeMap::new(),
+            map: None,
+            judge: None,
+        }
+    }
+}
+
+/// A checked space: every variable's value, the knobs, the map and the judge.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Space {
+    /// The initial variables, in [`INITIAL`] order; `steering` may be `None` (matched).
+    pub initial: [Option<Value>; 9],
+    /// The knobs with their values, in `knobs::ALL` order.
+    pub parameters: Vec<(Knob, Value)>,
+    /// The map.
+    pub map: MapSpec,
+    /// The classification.
+    pub judge: Judge,
+}
+
+/// One sample's values: the start and the knobs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    /// The initial variables in [`INITIAL`] order (`steering` NaN when matched).
+    pub initial: [f64; 9],
+    /// The knobs' values, as [`Space::parameters`].
+    pub parameters: Vec<(Knob, f64)>,
+}
+
+impl Space {
+    /// Checks `file` against the scenario `builder` makes (platform, joint limits, the law's
+    /// rules at every corner of the parameter box) before anything runs.
+    ///
+    /// # Errors
+    /// An unknown key, an empty, reversed or non-finite range, joints outside their limits, a
+    /// parameter of another platform, a corner of the box the law rejects (named, with the
+    /// rule), map axes that are not ranges, or a bad judge.
+    pub fn check(file: &SpaceFile, builder: &ScenarioBuilder) -> Result<Self> {
+        let base = builder.clone().build().context("the scenario")?;
+        let platform = base.controller.platform;
+        let start = base_start(&base)?;
+        let mut initial = [None; 9];
+        for (i, name) in INITIAL.iter().enumerate() {
+            let v = file.initial.get(i);
+            if let Some(v) = v {
+                v.check(name)?;
+            }
+            initial[i] = match (i, v) {
+                (8, v) => v,
+                (_, Some(v)) => Some(v),
+                (_, None) => Some(Value::Fixed(start[i])),
+            };
+        }
+        if let Some(Value::Range([lo, _]) | Value::Fixed(lo)) = initial[0] {
+            if lo < 0.0 {
+                bail!("`distance` must be >= 0 m, got {lo}");
+            }
+        }
+        let mut parameters = Vec::new();
+        for (name, v) in &file.parameters {
+            let knob = Knob::parse_for(name, platform).map_err(|e| anyhow!("[parameters]: {e}"))?;
+            v.check(name)?;
+            parameters.push((knob, *v));
+        }
+        parameters.sort_by_key(|(k, _)| *k);
+        check_corners(builder, &base, &parameters)?;
+        check_joints(builder, &base, &parameters, &initial)?;
+        // The drawn variables: distance and heading first, then the others in column order.
+        let mut drawn: Vec<&str> = ["distance", "heading"]
+            .into_iter()
+            .chain(INITIAL)
+            .filter(|n| {
+                INITIAL.iter().position(|m| m == n).and_then(|i| initial[i]).is_some_and(Value::is_range)
+            })
+            .collect();
+        drawn.extend(parameters.iter().filter(|(_, v)| v.is_range()).map(|(k, _)| k.name()));
+        drawn.dedup();
+        let map = match &file.map {
+            Some(m) => m.clone(),
+            None => {
+                let Some(x) = drawn.first() else {
+                    bail!("the space draws no variable: give at least one range");
+                };
+                MapSpec {
+                    x: (*x).to_string(),
+                    y: drawn.get(1).map(|y| (*y).to_string()),
+                    bins: default_bins(),
+                }
+            }
+        };
+        for axis in std::iter::once(&map.x).chain(map.y.as_ref()) {
+            if !drawn.contains(&axis.as_str()) {
+                bail!("map axis `{axis}` must be a variable of the space drawn from a range");
+            }
+        }
+        if map.y.as_ref() == Some(&map.x) {
+            bail!("the map's two axes must differ (both are `{}`)", map.x);
+        }
+        if map.bins.iter().any(|b| !(1..=100).contains(b)) {
+            bail!("map bins must be 1 to 100 each, got {:?}", map.bins);
+        }
+        let j = file.judge.unwrap_or_default();
+        let d = Judge::default();
+        let judge = Judge {
+            tolerance: j.tolerance.unwrap_or(d.tolerance),
+            // The default window, but never longer than the run.
+            window: j.window.unwrap_or(d.window.min(base.duration)),
+            divergence: j.divergence.unwrap_or(d.divergence),
+            track_after: j.track_after,
+        };
+        if let Some(t) = judge.track_after {
+            if !(t >= 0.0 && t < base.duration) {
+                bail!("judge.track_after must be in [0, duration = {} s), got {t}", base.duration);
+            }
+        }
+        if !(judge.tolerance.is_finite() && judge.tolerance > 0.0) {
+            bail!("judge.tolerance must be > 0, got {}", judge.tolerance);
+        }
+        if !(judge.window > 0.0 && judge.window <= base.duration) {
+            bail!("judge.window must be in (0, duration = {} s], got {}", base.duration, judge.window);
+        }
+        if !(judge.divergence.is_finite() && judge.divergence > judge.tolerance) {
+            bail!("judge.divergence must be finite and > tolerance, got {}", judge.divergence);
+        }
+        Ok(Self { initial, parameters, map, judge })
+    }
+
+    /// The point at the uniform draws `u` (one per variable: [`INITIAL`] then `knobs::ALL`).
+    pub fn point(&self, u: &[f64; DRAWS]) -> Point {
+        let mut initial = [f64::NAN; 9];
+        for (i, v) in self.initial.iter().enumerate() {
+            if let Some(v) = v {
+                initial[i] = v.at(u[i]);
+            }
+        }
+        let parameters = self
+            .parameters
+            .iter()
+            .map(|(k, v)| {
+                let slot = INITIAL.len() + knobs::ALL.iter().position(|a| a == k).unwrap_or(0);
+                (*k, v.at(u[slot]))
+            })
+            .collect();
+        Point { initial, parameters }
+    }
+
+    /// The scenario of a point: `builder`'s with the point's start, `α(0)` and knobs.
+    ///
+    /// # Errors
+    /// The point's scenario is invalid (the corner check makes this a bug).
+    pub fn scenario(&self, builder: &ScenarioBuilder, base: &Scenario, p: &Point) -> Result<Scenario> {
+        let [d, b, h, q1, q2, q3, a1, a2, xi] = p.initial;
+        let start = crate::domain::scenario::Start {
+            target: [d * b.cos(), d * b.sin(), h],
+            joints: [q1, q2, q3],
+            steering: xi.is_finite().then_some(xi),
+        };
+        Ok(knobs::apply(builder, base, &p.parameters).start(start).initial_alpha([a1, a2]).build()?)
+    }
+}
+
+/// How many uniform draws a point takes: one per initial variable and one per knob, whether
+/// drawn or not, so that adding a range to a space leaves the other variables' draws alone.
+pub const DRAWS: usize = INITIAL.len() + knobs::ALL.len();
+
+/// The scenario's own start in [`INITIAL`] order (`steering` NaN).
+fn base_start(s: &Scenario) -> Result<[f64; 9]> {
+    let plant = crate::domain::plant_setup::build(s)?;
+    let x = plant.truth();
+    let r_bd = x.base.between(&x.target);
+    let a = s.controller.initial_alpha;
+    Ok([
+        r_bd.x.hypot(r_bd.y),
+        r_bd.y.atan2(r_bd.x),
+        r_bd.theta,
+        x.joints[0],
+        x.joints[1],
+        x.joints[2],
+        a[0],
+        a[1],
+        f64::NAN,
+    ])
+}
+
+/// Builds the scenario at every corner of the parameter box (at most 2¹⁴).
+fn check_corners(builder: &ScenarioBuilder, base: &Scenario, parameters: &[(Knob, Value)]) -> Result<()> {
+    let ranged: Vec<usize> = (0..parameters.len()).filter(|&i| parameters[i].1.is_range()).collect();
+    for corner in 0u32..(1 << ranged.len()) {
+        let values: Vec<(Knob, f64)> = parameters
+            .iter()
+            .enumerate()
+            .map(|(i, (k, v))| {
+                let (lo, hi) = v.bounds();
+                let high = ranged.iter().position(|&r| r == i).is_some_and(|bit| corner & (1 << bit) != 0);
+                (*k, if high { hi } else { lo })
+            })
+            .collect();
+        if let Err(e) = knobs::apply(builder, base, &values).build() {
+            let at: Vec<String> = values.iter().map(|(k, v)| format!("{} = {v}", k.name())).collect();
+            bail!("the law rejects the parameters at a corner of the space ({}): {e}", at.join(", "));
+        }
+    }
+    Ok(())
+}
+
+/// The joints' ranges must lie strictly inside the limits at every stroke of the space.
+fn check_joints(
+    builder: &ScenarioBuilder,
+    base: &Scenario,
+    parameters: &[(Knob, Value)],
+    initial: &[Option<Value>; 9],
+) -> Result<()> {
+    // The narrowest limits: the shortest stroke, if it is drawn.
+    let shortest: Vec<(Knob, f64)> =
+        parameters.iter().filter(|(k, _)| *k == Knob::Stroke).map(|(k, v)| (*k, v.bounds().0)).collect();
+    let s = knobs::apply(builder, base, &shortest).build()?;
+    let lim = s.controller.params::<f64>().joint_limits;
+    for j in 0..3 {
+        let Some(v) = initial[3 + j] else { continue };
+        let (lo, hi) = v.bounds();
+        if lo <= lim.lower[j] || hi >= lim.upper[j] {
+            bail!(
+                "`q{}` = {:?} must lie strictly inside the joint's limits ({}, {})",
+                j + 1,
+                v,
+                lim.lower[j],
+                lim.upper[j]
+            );
+        }
+    }
+    Ok(())
+}

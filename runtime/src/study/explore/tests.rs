@@ -1,0 +1,264 @@
+//! Determinism across thread counts and shards, resuming after a kill, one process per
+//! folder, corrupt files, and bad spaces refused before anything runs.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use companion_core::{PaperRun, PlatformKind};
+use companion_plant::PaperTrajectory;
+
+use super::*;
+use crate::domain::observe::Silent;
+use crate::domain::scenario::Scenario;
+
+fn dir(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("companion-explore-{}-{tag}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn builder(platform: PlatformKind) -> ScenarioBuilder {
+    Scenario::builder(PaperTrajectory::One, PaperRun::A, platform).duration(1.5)
+}
+
+fn space() -> SpaceFile {
+    let mut f = SpaceFile::around_the_target();
+    f.initial.distance = Some(Value::Range([1.5, 3.0]));
+    f.initial.alpha_1 = Some(Value::Range([0.0, 6.0]));
+    f.judge = Some(space::JudgeFile { window: Some(0.5), ..Default::default() });
+    f
+}
+
+fn exploration(samples: u64) -> Exploration {
+    Exploration::new(builder(PlatformKind::Car), &space(), samples, 7).unwrap()
+}
+
+fn never() -> bool {
+    false
+}
+
+fn run_with_threads(e: &Exploration, out: &Path, shard: Shard, threads: usize) -> ExploreOutcome {
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+    pool.install(|| e.run(out, shard, &Silent, &never)).unwrap()
+}
+
+fn read(d: &Path, f: &str) -> Vec<u8> {
+    std::fs::read(d.join(f)).unwrap_or_else(|e| panic!("{}: {e}", d.join(f).display()))
+}
+
+const FILES: [&str; 4] = ["results.csv", "summary.json", "explore.json", "map.svg"];
+
+#[test]
+fn the_same_bytes_for_any_thread_count_and_any_shard_split() {
+    let e = exploration(10);
+    let (one, two) = (dir("t1"), dir("t2"));
+    let a = run_with_threads(&e, &one, Shard::WHOLE, 1);
+    run_with_threads(&e, &two, Shard::WHOLE, 2);
+    let s = a.summary.unwrap();
+    assert_eq!(s.samples, 10);
+    for f in FILES {
+        assert!(read(&one, f) == read(&two, f), "{f} differs between 1 and 2 threads");
+    }
+    // Three shards, in a different thread count each, merged.
+    let shards: Vec<PathBuf> = (1..=3).map(|k| dir(&format!("s{k}"))).collect();
+    for (k, d) in shards.iter().enumerate() {
+        let shard = Shard { index: k as u64 + 1, count: 3 };
+        let o = run_with_threads(&e, d, shard, 1 + k % 2);
+        assert_eq!(o.summary.unwrap().samples, shard.samples(10).count() as u64);
+    }
+    let merged = dir("merged");
+    // Given in any order.
+    merge(&[shards[2].clone(), shards[0].clone(), shards[1].clone()], &merged).unwrap();
+    for f in FILES {
+        assert!(read(&one, f) == read(&merged, f), "{f} differs between the unsharded run and the merge");
+    }
+    // A missing shard, a repeated one, and a shard of another exploration are refused.
+    let err = merge(&shards[..2], &dir("m2")).unwrap_err().to_string();
+    assert!(err.contains("shards missing: 3/3"), "{err}");
+    let err = merge(&[shards[0].clone(), shards[0].clone()], &dir("m3")).unwrap_err().to_string();
+    assert!(err.contains("given twice"), "{err}");
+    let other = Exploration::new(builder(PlatformKind::Car), &space(), 10, 8).unwrap();
+    let od = dir("other");
+    run_with_threads(&other, &od, Shard { index: 3, count: 3 }, 1);
+    let err = merge(&[shards[0].clone(), shards[1].clone(), od], &dir("m4")).unwrap_err().to_string();
+    assert!(err.contains("another exploration"), "{err}");
+    // The unsharded folder is not a shard.
+    let err = merge(std::slice::from_ref(&one), &dir("m5")).unwrap_err().to_string();
+    assert!(err.contains("not a shard"), "{err}");
+    // A corrupt line in a shard's results is detected, not merged.
+    let path = shards[1].join("results.csv");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    lines[1] = lines[1].replacen(",0.", ",1.", 1);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    let err = merge(&shards, &dir("m6")).unwrap_err().to_string();
+    assert!(err.contains("corrupt") && err.contains("line 2"), "{err}");
+    for d in [one, two, merged].iter().chain(&shards) {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+#[test]
+fn a_killed_exploration_resumes_and_loses_nothing() {
+    let e = exploration(8);
+    let whole = dir("whole");
+    run_with_threads(&e, &whole, Shard::WHOLE, 1);
+    // Interrupted after three samples (as SIGINT does: the next ones are not started).
+    let out = dir("resume");
+    let started = AtomicUsize::new(0);
+    let stop = || started.fetch_add(1, Ordering::SeqCst) >= 3;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let first = pool.install(|| e.run(&out, Shard::WHOLE, &Silent, &stop)).unwrap();
+    assert!(first.summary.is_none());
+    assert_eq!(first.ran, 3);
+    assert!(!out.join("results.csv").exists());
+    // A kill in the middle of a write leaves a cut line at the end of the journal.
+    let journal = out.join("journal.csv");
+    let text = std::fs::read_to_string(&journal).unwrap();
+    assert_eq!(text.lines().count(), 4, "header and three samples");
+    let cut = &text.lines().nth(1).unwrap()[..20];
+    std::fs::write(&journal, format!("{text}{cut}")).unwrap();
+    let second = run_with_threads(&e, &out, Shard::WHOLE, 2);
+    assert_eq!((second.resumed, second.ran), (3, 5));
+    assert!(second.notes.iter().any(|n| n.contains("cut short")), "{:?}", second.notes);
+    for f in FILES {
+        assert!(read(&whole, f) == read(&out, f), "{f} differs after resuming");
+    }
+    assert!(!journal.exists(), "the journal is removed once the results are written");
+    // Running the finished command again runs nothing and rewrites the same files.
+    let third = run_with_threads(&e, &out, Shard::WHOLE, 1);
+    assert_eq!((third.resumed, third.ran), (8, 0));
+    assert!(read(&whole, "results.csv") == read(&out, "results.csv"));
+    // Another exploration into the same folder is refused.
+    let other = exploration(9);
+    let err = other.run(&out, Shard::WHOLE, &Silent, &never).unwrap_err().to_string();
+    assert!(err.contains("another exploration"), "{err}");
+    let _ = std::fs::remove_dir_all(&whole);
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn a_second_process_on_a_folder_is_refused_and_merge_tells_running_from_unfinished() {
+    let e = exploration(6);
+    let shards: Vec<PathBuf> = (1..=2).map(|k| dir(&format!("lock{k}"))).collect();
+    let (one, two) = (Shard { index: 1, count: 2 }, Shard { index: 2, count: 2 });
+    run_with_threads(&e, &shards[1], two, 1);
+    // Shard 1 stopped after two of its three samples; then "running" (its lock held, as the
+    // process running it holds it; flock locks conflict between two opens in one process too).
+    let started = AtomicUsize::new(0);
+    let stop = || started.fetch_add(1, Ordering::SeqCst) >= 2;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    assert!(pool.install(|| e.run(&shards[0], one, &Silent, &stop)).unwrap().summary.is_none());
+    let holder = std::fs::File::open(shards[0].join("explore.json")).unwrap();
+    assert_eq!(lock::try_lock(&holder, true).unwrap(), Lock::Held);
+    let journal = read(&shards[0], "journal.csv");
+    let err = e.run(&shards[0], one, &Silent, &never).unwrap_err();
+    assert_eq!(err.downcast_ref::<Busy>(), Some(&Busy { folder: shards[0].clone() }), "{err:#}");
+    assert!(read(&shards[0], "journal.csv") == journal, "the refused run touched the journal");
+    let err = merge(&shards, &dir("lock-m1")).unwrap_err().to_string();
+    assert!(err.contains("still running"), "{err}");
+    // The holder gone (killed): unfinished, not running, and how far it got.
+    drop(holder);
+    let err = merge(&shards, &dir("lock-m2")).unwrap_err().to_string();
+    assert!(
+        err.contains("shard 1/2 is unfinished and no process is running it (2 of its 3 samples"),
+        "{err}"
+    );
+    assert_eq!(run_with_threads(&e, &shards[0], one, 1).ran, 1);
+    let merged = dir("lock-m3");
+    merge(&shards, &merged).unwrap();
+    // A first run killed while writing explore.json: the folder is taken as new.
+    let whole = dir("lock-whole");
+    run_with_threads(&e, &whole, Shard::WHOLE, 1);
+    let cut = dir("lock-cut");
+    std::fs::create_dir_all(&cut).unwrap();
+    std::fs::write(cut.join("explore.json"), &read(&whole, "explore.json")[..40]).unwrap();
+    run_with_threads(&e, &cut, Shard::WHOLE, 1);
+    for f in FILES {
+        assert!(read(&whole, f) == read(&merged, f), "{f}: merge differs from the unsharded run");
+        assert!(read(&whole, f) == read(&cut, f), "{f}: the run over a cut explore.json differs");
+    }
+    for d in shards.iter().chain([&merged, &whole, &cut]) {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+#[test]
+fn a_corrupt_journal_is_detected_not_used() {
+    let e = exploration(4);
+    let out = dir("corrupt");
+    let stop_after = AtomicUsize::new(0);
+    let stop = || stop_after.fetch_add(1, Ordering::SeqCst) >= 2;
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    pool.install(|| e.run(&out, Shard::WHOLE, &Silent, &stop)).unwrap();
+    let journal = out.join("journal.csv");
+    let text = std::fs::read_to_string(&journal).unwrap();
+    // One digit changed in a complete line: its checksum no longer matches.
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let k = lines[1].find(|c: char| c.is_ascii_digit() && c != '0').unwrap_or(0);
+    let mut bytes = lines[1].clone().into_bytes();
+    bytes[k] = if bytes[k] == b'9' { b'8' } else { bytes[k] + 1 };
+    lines[1] = String::from_utf8(bytes).unwrap();
+    std::fs::write(&journal, lines.join("\n") + "\n").unwrap();
+    let err = e.run(&out, Shard::WHOLE, &Silent, &never).unwrap_err().to_string();
+    assert!(err.contains("journal.csv, line 2: corrupt"), "{err}");
+    assert!(!out.join("results.csv").exists());
+    let _ = std::fs::remove_dir_all(&out);
+}
+
+#[test]
+fn bad_spaces_are_refused_before_anything_runs() {
+    let b = || builder(PlatformKind::Car);
+    let check = |text: &str| -> String {
+        let f: Result<SpaceFile, _> = toml::from_str(text);
+        match f {
+            Err(e) => e.to_string(),
+            Ok(f) => Exploration::new(b(), &f, 10, 1)
+                .map(|_| String::from("accepted"))
+                .unwrap_or_else(|e| format!("{e:#}")),
+        }
+    };
+    assert!(check("[initial]\ndistance = [3.0, 1.0]").contains("empty range"));
+    assert!(check("[initial]\ndistance = [1.0, 1.0]").contains("empty range"));
+    assert!(check("[initial]\ndistance = [1.0, inf]").contains("finite"));
+    assert!(check("[initial]\nradius = [1.0, 2.0]").contains("unknown field `radius`"));
+    assert!(check("[parameters]\nepsilonn = [0.1, 0.2]").contains("unknown parameter `epsilonn`"));
+    assert!(check("[parameters]\nepsilon_1 = [0.1, 0.2]").contains("unicycle platform"));
+    // Lemma 2 at a corner: η₁ large against η₂, η₃.
+    let e = check("[parameters]\neta_1 = [1.0, 30.0]");
+    assert!(e.contains("corner") && e.contains("Lemma 2"), "{e}");
+    assert!(check("[parameters]\nepsilon = [-0.1, 0.2]").contains("epsilon"));
+    assert!(check("[initial]\nq2 = [0.1, 0.8]").contains("strictly inside"));
+    let e = check("[initial]\ndistance = 2.0\n[map]\nx = \"distance\"\ny = \"heading\"");
+    assert!(e.contains("map axis `distance`"), "{e}");
+    let e = check("[initial]\ndistance = 2.0\nbearing = 0.0\nheading = 0.0");
+    assert!(e.contains("draws no variable"), "{e}");
+    // One drawn variable: a one-row map over it.
+    assert_eq!(check("[initial]\ndistance = 2.0\nbearing = 0.0\nheading = [0.0, 1.0]"), "accepted");
+    let ranges = "[initial]\ndistance = [1.0, 2.0]\nheading = [0.0, 1.0]\n";
+    assert!(check(&format!("{ranges}[judge]\nwindow = 100.0")).contains("judge.window"));
+    assert!(check(&format!("{ranges}[map]\nx = \"distance\"\ny = \"distance\"")).contains("must differ"));
+    assert!(Exploration::new(b(), &space(), 0, 1).unwrap_err().to_string().contains("--samples"));
+    assert_eq!(check("[parameters]\nepsilon = [0.1, 0.3]\nstroke = [0.7, 1.2]"), "accepted");
+    assert!(Shard::parse("0/3").is_err() && Shard::parse("4/3").is_err() && Shard::parse("x").is_err());
+    assert_eq!(Shard::parse("2/3").unwrap(), Shard { index: 2, count: 3 });
+}
+
+#[test]
+fn a_sample_with_a_rejected_step_is_rejected_never_converged() {
+    let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+        .duration(1.0)
+        .build()
+        .unwrap();
+    let judge = crate::study::trial::Judge { window: 0.5, ..Default::default() };
+    let mut t = crate::study::trial::run(&s, &judge).unwrap();
+    t.tail.window_max_ep = 0.0;
+    assert_eq!(Class::of(&t, &judge), Class::Converged);
+    t.summary.rejected_steps = 1;
+    assert!(!t.converged(&judge));
+    assert_eq!(Class::of(&t, &judge), Class::Rejected);
+    t.tail.diverged_at = Some(0.5);
+    assert_eq!(Class::of(&t, &judge), Class::Rejected);
+    t.summary.rejected_steps = 0;
+    assert_eq!(Class::of(&t, &judge), Class::Diverged);
+}

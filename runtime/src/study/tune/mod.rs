@@ -1,0 +1,476 @@
+//! `companion tune`: a search for the controller's parameters — the transverse function's
+//! (Lemma 1's `ε₁, ε₂`, Lemma 2's `ε, η₁, η₂, η₃`), the steering gain `k`, `K̄`, the gains —
+//! on a set of runs, under a robot's velocity limits.
+//!
+//! **Objective.** Tracked fraction first, then effort: a candidate's cost is
+//!
+//! ```text
+//! cost = (1 − mean tracked fraction) + w · mean rms |v|      (w = 0.01 s/m by default)
+//! ```
+//!
+//! over the runs of the set, "tracked" being the fraction of steps after 20 s with
+//! `‖e_p‖ < 1 mm` (as in `summary.json`); a run that has a step rejected or touches a joint
+//! limit counts as tracked 0. With `w = 0.01` and speeds below 1 m/s, effort decides only
+//! between candidates within one point of tracked fraction of each other. The report keeps
+//! every candidate and their Pareto front (tracked fraction against rms |v|).
+//!
+//! **Where.** Within the space's box (each knob searched on a log scale: all are positive
+//! quantities) and within the law's validity region — Lemma 2's `6η₂η₃ > 8η₃ + η₁η₂` for the
+//! car and every other rule of `Params::validate`: a candidate the law rejects is not run.
+//!
+//! **How** (deterministic for a given seed, whatever the thread count):
+//!
+//! 1. the current parameters (the baseline), then a scrambled Halton sequence (a
+//!    low-discrepancy design, shifted by the seed) over the box — half the budget — run in
+//!    parallel;
+//! 2. Nelder–Mead (argmin's) on the normalised box from each of the three best points so far
+//!    in turn, each with a third of the rest of the budget (a simplex shrunk onto one point
+//!    only measures noise; three starts keep some diversity). Each candidate runs its set's
+//!    runs in parallel.
+//!
+//! Why these: the cost is a noisy, discontinuous function of the parameters (tracked
+//! fractions jump when a manoeuvre succeeds or not; runs b and d are chaotic), so gradients
+//! are useless; a space-filling design finds the good regions, and Nelder–Mead, which needs
+//! only comparisons of costs, refines within one. argmin is a maintained, pure-Rust
+//! optimisation library with a standard Nelder–Mead; its particle swarm would spend a budget
+//! of a few hundred runs on tens of particles without refining.
+
+pub mod report;
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use anyhow::{anyhow, bail, Result};
+use argmin::core::{CostFunction, Error as ArgminError, Executor};
+use argmin::solver::neldermead::NelderMead;
+use companion_core::PlatformKind;
+use rand::rngs::ChaCha12Rng;
+use rand::{Rng as _, SeedableRng};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::domain::observe::Observer;
+use crate::domain::record::Summary;
+use crate::domain::scenario::{Scenario, ScenarioBuilder};
+use crate::study::knobs::{self, Knob};
+use crate::study::trial::{self, Judge};
+
+/// A tune space file (`--space FILE`).
+///
+/// ```toml
+/// [parameters]          # knob = [low, high], low > 0 (see companion_runtime::study::knobs)
+/// epsilon = [0.05, 0.4]
+/// eta_1 = [0.5, 50.0]
+///
+/// [objective]
+/// effort_weight = 0.01  # s/m
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TuneSpaceFile {
+    /// Knob ranges.
+    #[serde(default)]
+    pub parameters: std::collections::BTreeMap<String, [f64; 2]>,
+    /// The objective's weights.
+    pub objective: Option<ObjectiveFile>,
+}
+
+/// The `[objective]` table.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObjectiveFile {
+    /// `w` (s/m): the weight of the mean rms |v| against the tracked fraction.
+    pub effort_weight: Option<f64>,
+}
+
+/// The default effort weight `w` (s/m).
+pub const EFFORT_WEIGHT: f64 = 0.01;
+
+/// The default space of a platform.
+pub fn default_space(platform: PlatformKind) -> Vec<(Knob, [f64; 2])> {
+    match platform {
+        PlatformKind::Car => vec![
+            (Knob::Epsilon, [0.04, 0.4]),
+            (Knob::Eta1, [0.5, 50.0]),
+            (Knob::Eta2, [1.34, 8.0]),
+            (Knob::Eta3, [0.5, 80.0]),
+            (Knob::K, [1.0, 50.0]),
+            (Knob::KBar2, [1.0, 1000.0]),
+            (Knob::KBar3, [1.0, 1000.0]),
+        ],
+        PlatformKind::Unicycle => vec![
+            (Knob::Epsilon1, [0.05, 0.4]),
+            (Knob::Epsilon2, [0.1, 2.0]),
+            (Knob::KBar2, [0.1, 100.0]),
+            (Knob::KBar3, [1.0, 1000.0]),
+        ],
+        PlatformKind::Omni => vec![(Knob::KBar3, [0.01, 100.0]), (Knob::D, [0.1, 10.0])],
+    }
+}
+
+/// One run of the set: its name and its scenario's builder.
+#[derive(Clone, Debug)]
+pub struct SetRun {
+    /// E.g. `1a`.
+    pub name: String,
+    /// The run's scenario before the knobs.
+    pub builder: ScenarioBuilder,
+    /// What the builder builds.
+    pub base: Scenario,
+}
+
+/// A run's figures for one candidate.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunScore {
+    /// The run's name.
+    pub run: String,
+    /// Tracked fraction after 20 s (0 if a step was rejected or a joint limit touched).
+    pub tracked: f64,
+    /// rms |v| (m/s).
+    pub rms_v: f64,
+    /// Maneuvers.
+    pub maneuvers: u64,
+    /// Rejected steps.
+    pub rejected_steps: u64,
+    /// Smallest joint margin (rad or m).
+    pub min_joint_margin: f64,
+}
+
+/// One evaluated candidate.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Candidate {
+    /// In evaluation order, from 0.
+    pub index: usize,
+    /// `baseline`, `design` or `refine`.
+    pub stage: &'static str,
+    /// The knobs' values.
+    pub values: Vec<(Knob, f64)>,
+    /// Per run (empty if the law rejects the parameters).
+    pub runs: Vec<RunScore>,
+    /// Mean tracked fraction.
+    pub tracked: f64,
+    /// Mean rms |v| (m/s).
+    pub effort: f64,
+    /// The cost (lower is better; `+∞` if the law rejects the parameters).
+    pub cost: f64,
+    /// Why the law rejects the parameters, if it does.
+    pub invalid: Option<String>,
+}
+
+/// A tuning: the set of runs, the space, the budget.
+#[derive(Clone, Debug)]
+pub struct Tuning {
+    /// The runs of the set.
+    pub runs: Vec<SetRun>,
+    /// The knobs and their ranges.
+    pub space: Vec<(Knob, [f64; 2])>,
+    /// Candidate evaluations.
+    pub budget: usize,
+    /// The seed of the design's shift.
+    pub seed: u64,
+    /// `w` (s/m).
+    pub effort_weight: f64,
+}
+
+impl Tuning {
+    /// A tuning of `space` (the platform's default space if `None`) on `runs`.
+    ///
+    /// # Errors
+    /// No runs, a budget below the number of knobs + 2, an unknown knob or one of another
+    /// platform, an empty, reversed or non-positive range, or a space in which no point
+    /// satisfies the law's rules (Lemma 2 for the car) — all before anything runs.
+    pub fn new(runs: Vec<SetRun>, file: Option<&TuneSpaceFile>, budget: usize, seed: u64) -> Result<Self> {
+        let Some(first) = runs.first() else { bail!("tune needs at least one run in its set") };
+        let platform = first.base.controller.platform;
+        let space = match file.filter(|f| !f.parameters.is_empty()) {
+            None => default_space(platform),
+            Some(f) => {
+                let mut v = Vec::new();
+                for (name, r) in &f.parameters {
+                    let k = Knob::parse_for(name, platform).map_err(|e| anyhow!("[parameters]: {e}"))?;
+                    v.push((k, *r));
+                }
+                v.sort_by_key(|(k, _)| *k);
+                v
+            }
+        };
+        for (k, [lo, hi]) in &space {
+            if !(lo.is_finite() && hi.is_finite() && *lo > 0.0) {
+                bail!("`{}` = [{lo}, {hi}]: both ends must be finite and > 0 (knobs are searched on a log scale)", k.name());
+            }
+            if lo >= hi {
+                bail!(
+                    "`{}` = [{lo}, {hi}] is an empty range: the low end must be below the high end",
+                    k.name()
+                );
+            }
+        }
+        let effort_weight =
+            file.and_then(|f| f.objective).and_then(|o| o.effort_weight).unwrap_or(EFFORT_WEIGHT);
+        if !(effort_weight.is_finite() && effort_weight >= 0.0) {
+            bail!("objective.effort_weight must be >= 0, got {effort_weight}");
+        }
+        if budget < space.len() + 2 {
+            bail!("--budget {budget} is too small: at least {} (the knobs + 2)", space.len() + 2);
+        }
+        let t = Self { runs, space, budget, seed, effort_weight };
+        // The validity region must not be empty: look for one valid point of the design.
+        let shift = t.shift();
+        let valid = (1..=4096).any(|i| t.invalid(&t.values(&halton(i, &shift))).is_none());
+        if !valid {
+            bail!(
+                "no point of the space satisfies the law's rules (for the car, Lemma 2: 6 eta_2 eta_3 > \
+                 8 eta_3 + eta_1 eta_2); e.g. at its low corner: {}",
+                t.invalid(&t.values(&vec![0.0; t.space.len()])).unwrap_or_default()
+            );
+        }
+        Ok(t)
+    }
+
+    /// The design's shift: one uniform number per knob from the seed.
+    fn shift(&self) -> Vec<f64> {
+        let mut rng = ChaCha12Rng::seed_from_u64(self.seed);
+        (0..self.space.len()).map(|_| (rng.next_u64() >> 11) as f64 / (1u64 << 53) as f64).collect()
+    }
+
+    /// The knobs' values at normalised coordinates `x ∈ [0, 1]ⁿ` (log scale).
+    pub fn values(&self, x: &[f64]) -> Vec<(Knob, f64)> {
+        self.space
+            .iter()
+            .zip(x)
+            .map(|((k, [lo, hi]), u)| (*k, lo * (hi / lo).powf(u.clamp(0.0, 1.0))))
+            .collect()
+    }
+
+    /// The normalised coordinates of values (clamped to the box).
+    fn coords(&self, values: &[(Knob, f64)]) -> Vec<f64> {
+        self.space
+            .iter()
+            .map(|(k, [lo, hi])| {
+                let v = values.iter().find(|(q, _)| q == k).map_or(*lo, |(_, v)| *v);
+                ((v / lo).ln() / (hi / lo).ln()).clamp(0.0, 1.0)
+            })
+            .collect()
+    }
+
+    /// Why the law rejects these values in some run of the set (`None`: valid).
+    fn invalid(&self, values: &[(Knob, f64)]) -> Option<String> {
+        self.runs
+            .iter()
+            .find_map(|r| knobs::apply(&r.builder, &r.base, values).build().err().map(|e| e.to_string()))
+    }
+
+    /// Evaluates one candidate (its runs in parallel).
+    fn evaluate(&self, index: usize, stage: &'static str, values: Vec<(Knob, f64)>) -> Candidate {
+        if let Some(why) = self.invalid(&values) {
+            return Candidate {
+                index,
+                stage,
+                values,
+                runs: Vec::new(),
+                tracked: 0.0,
+                effort: f64::NAN,
+                cost: f64::INFINITY,
+                invalid: Some(why),
+            };
+        }
+        let runs: Vec<RunScore> = self.runs.par_iter().map(|r| score(r, &values)).collect();
+        let n = runs.len() as f64;
+        let tracked = runs.iter().map(|r| r.tracked).sum::<f64>() / n;
+        let effort = runs.iter().map(|r| r.rms_v).sum::<f64>() / n;
+        let cost = (1.0 - tracked) + self.effort_weight * effort;
+        Candidate { index, stage, values, runs, tracked, effort, cost, invalid: None }
+    }
+
+    /// Runs the search.
+    ///
+    /// # Errors
+    /// The optimiser failed for a reason other than the budget.
+    pub fn run(&self, observer: &dyn Observer) -> Result<Vec<Candidate>> {
+        let archive = Mutex::new(Vec::<Candidate>::new());
+        let push = |c: Candidate| -> Result<Candidate> {
+            observer.advance(1);
+            archive.lock().map_err(|_| anyhow!("lock poisoned"))?.push(c.clone());
+            Ok(c)
+        };
+        // 1. The baseline and the design.
+        let d = self.space.len();
+        let baseline: Vec<(Knob, f64)> =
+            self.space.iter().map(|(k, _)| (*k, k.value(&self.runs[0].base))).collect();
+        let shift = self.shift();
+        let n_design = (self.budget / 2).max(d + 1).min(self.budget - 1);
+        let mut design = Vec::with_capacity(n_design);
+        let mut i = 1;
+        while design.len() < n_design && i < 64 * self.budget {
+            let v = self.values(&halton(i, &shift));
+            if self.invalid(&v).is_none() {
+                design.push(v);
+            }
+            i += 1;
+        }
+        let first = self.evaluate(0, "baseline", baseline);
+        push(first)?;
+        let evaluated: Vec<Candidate> =
+            design.into_par_iter().enumerate().map(|(j, v)| self.evaluate(j + 1, "design", v)).collect();
+        for c in evaluated {
+            push(c)?;
+        }
+        // 2. Nelder–Mead from the best design points in turn (each start gets a share of the
+        // rest of the budget: a simplex that has shrunk onto one point only measures noise).
+        let starts: Vec<Candidate> = {
+            let a = archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+            let mut v: Vec<Candidate> = a.iter().filter(|c| c.cost.is_finite()).cloned().collect();
+            v.sort_by(|x, y| x.cost.total_cmp(&y.cost).then(x.index.cmp(&y.index)));
+            v.dedup_by(|x, y| x.values == y.values);
+            v.truncate(START_COUNT);
+            v
+        };
+        let left = self.budget.saturating_sub(archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len());
+        let share = (left / starts.len().max(1)).max(d + 2);
+        for start in starts {
+            let used = archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len();
+            if used + d + 1 > self.budget {
+                break;
+            }
+            let x0 = self.coords(&start.values);
+            let mut simplex = vec![x0.clone()];
+            for j in 0..d {
+                let mut x = x0.clone();
+                x[j] = if x[j] + STEP <= 1.0 { x[j] + STEP } else { x[j] - STEP };
+                simplex.push(x);
+            }
+            let limit = (used + share).min(self.budget);
+            let problem = Problem {
+                tuning: self,
+                archive: &archive,
+                observer,
+                cache: Mutex::new(HashMap::new()),
+                limit,
+            };
+            let solver = NelderMead::new(simplex).with_sd_tolerance(1e-4)?;
+            match Executor::new(problem, solver).configure(|s| s.max_iters(10_000)).run() {
+                Ok(_) => {}
+                Err(e) if e.to_string().contains(BUDGET) => {}
+                Err(e) => return Err(anyhow!("Nelder–Mead: {e}")),
+            }
+        }
+        let candidates = archive.into_inner().map_err(|_| anyhow!("lock poisoned"))?;
+        Ok(candidates)
+    }
+}
+
+const BUDGET: &str = "tune: budget spent";
+
+/// How many of the best design points Nelder–Mead starts from.
+const START_COUNT: usize = 3;
+
+/// The initial simplex's edge, in normalised coordinates (a seventh of each knob's range).
+const STEP: f64 = 0.15;
+
+/// The scores of a run with knob values.
+fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
+    let result = knobs::apply(&r.builder, &r.base, values)
+        .build()
+        .map_err(anyhow::Error::from)
+        .and_then(|s| trial::run(&s, &Judge::default()));
+    match result {
+        Ok(t) => {
+            let s: &Summary = &t.summary;
+            let margin = s.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);
+            let failed =
+                s.rejected_steps > 0 || margin.is_nan() || margin <= 0.0 || t.tail.diverged_at.is_some();
+            RunScore {
+                run: r.name.clone(),
+                // NaN when the run has no step after 20 s: such a run tracks nothing measurable.
+                tracked: if failed || s.steps_after_20s == 0 {
+                    0.0
+                } else {
+                    s.fraction_ep_below_1e_3_after_20s
+                },
+                rms_v: s.rms_v,
+                maneuvers: s.maneuvers,
+                rejected_steps: s.rejected_steps,
+                min_joint_margin: margin,
+            }
+        }
+        Err(_) => RunScore {
+            run: r.name.clone(),
+            tracked: 0.0,
+            rms_v: f64::NAN,
+            maneuvers: 0,
+            rejected_steps: 0,
+            min_joint_margin: f64::NAN,
+        },
+    }
+}
+
+/// The valid candidate of least cost (the earliest among equals).
+pub fn best_of(c: &[Candidate]) -> Option<&Candidate> {
+    c.iter()
+        .filter(|c| c.cost.is_finite())
+        .min_by(|a, b| a.cost.total_cmp(&b.cost).then(a.index.cmp(&b.index)))
+}
+
+/// The `i`-th point (from 1) of the Halton sequence in `shift.len()` dimensions, each
+/// coordinate shifted by `shift` modulo 1 (Cranley–Patterson rotation).
+pub fn halton(i: usize, shift: &[f64]) -> Vec<f64> {
+    const PRIMES: [usize; 16] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
+    shift
+        .iter()
+        .enumerate()
+        .map(|(d, s)| {
+            let b = PRIMES[d % PRIMES.len()];
+            let (mut f, mut r, mut n) = (1.0, 0.0, i);
+            while n > 0 {
+                f /= b as f64;
+                r += f * (n % b) as f64;
+                n /= b;
+            }
+            (r + s).fract()
+        })
+        .collect()
+}
+
+/// The search's cost function for argmin: evaluates (once per point), archives, and stops the
+/// optimiser when the budget is spent.
+struct Problem<'a> {
+    tuning: &'a Tuning,
+    archive: &'a Mutex<Vec<Candidate>>,
+    observer: &'a dyn Observer,
+    cache: Mutex<HashMap<Vec<u64>, f64>>,
+    /// Stop this start when the archive holds this many candidates.
+    limit: usize,
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+
+    fn cost(&self, x: &Vec<f64>) -> Result<f64, ArgminError> {
+        // Outside the box: the cost at the box's edge plus the distance, so the simplex returns.
+        let outside: f64 = x.iter().map(|u| (u - u.clamp(0.0, 1.0)).abs()).sum();
+        let inside: Vec<f64> = x.iter().map(|u| u.clamp(0.0, 1.0)).collect();
+        let key: Vec<u64> = inside.iter().map(|u| u.to_bits()).collect();
+        if let Some(c) = self.cache.lock().map_err(|_| anyhow!("lock poisoned"))?.get(&key) {
+            return Ok(c + outside);
+        }
+        let mut archive = self.archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+        if archive.len() >= self.limit {
+            return Err(anyhow!(BUDGET));
+        }
+        let index = archive.len();
+        drop(archive);
+        let c = self.tuning.evaluate(index, "refine", self.tuning.values(&inside));
+        // An invalid point costs more than any valid one (costs are at most 1 + w·effort).
+        let cost = if c.cost.is_finite() { c.cost } else { 10.0 };
+        self.observer.advance(1);
+        archive = self.archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+        archive.push(c);
+        drop(archive);
+        self.cache.lock().map_err(|_| anyhow!("lock poisoned"))?.insert(key, cost);
+        Ok(cost + outside)
+    }
+}
+
+#[cfg(test)]
+mod tests;

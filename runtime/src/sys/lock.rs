@@ -1,0 +1,243 @@
+//! One process per role and demo name, decided atomically: an exclusive `flock` on
+//! `/tmp/companion/NAME.ROLE.lock`, taken before anything of the demo exists and held for
+//! the process's life (the kernel drops it when the process ends, however it ends).
+//!
+//! Looking for a live iceoryx2 node of the same name first and creating one's own afterwards
+//! leaves a window in which two demos started at the same moment both find the name free;
+//! then one demo's controller could drive the other's plant. A lock has no such window: of
+//! two processes asking for it at once, exactly one gets it.
+//!
+//! The lock files are owner-only (`0600`: another user can neither read the holder's pid nor
+//! take the lock first) and removed when their holder ends cleanly (dropping the lock), so
+//! that they do not pile up one per demo name. Removing a file another process may have
+//! opened is safe because a lock counts only on the file that is at the path: after `flock`
+//! succeeds, the holder checks that the path still names the file it locked, and starts over
+//! if not (the previous holder removed it in between).
+//!
+//! `companion hil` takes both roles' locks before it starts its plant (which runs under its
+//! parent's locks), so a second `hil`, `plant` or `control` with that name stops at once with
+//! [`NameInUse`]; `companion plant` and `companion control` each take their own.
+#![allow(unsafe_code)]
+
+use std::fs::{File, OpenOptions};
+use std::io::{Read, Seek, Write};
+use std::os::fd::AsRawFd;
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt, PermissionsExt};
+use std::path::PathBuf;
+
+use anyhow::{anyhow, Context, Result};
+
+/// The two roles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Role {
+    /// Publishes measurements, subscribes to commands.
+    Plant,
+    /// Publishes commands, subscribes to measurements.
+    Control,
+}
+
+impl Role {
+    /// `plant` or `control`.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Plant => "plant",
+            Self::Control => "control",
+        }
+    }
+
+    /// The other role.
+    pub fn peer(self) -> Self {
+        match self {
+            Self::Plant => Self::Control,
+            Self::Control => Self::Plant,
+        }
+    }
+}
+
+/// A demo with this name is already running.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "a demo named '{name}' is already running (its {role} is process {pid}); stop it or choose another --name"
+)]
+pub struct NameInUse {
+    /// The demo's name.
+    pub name: String,
+    /// The role found alive.
+    pub role: &'static str,
+    /// Its process id (0 if unknown).
+    pub pid: i32,
+}
+
+/// A demo name that is not 1–32 characters of `A–Z a–z 0–9 _ -`.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got {0:?}")]
+pub struct BadName(pub String);
+
+/// Checks a demo name: 1–32 characters of `A–Z a–z 0–9 _ -` (it names files, iceoryx2
+/// services and Zenoh key expressions).
+///
+/// # Errors
+/// [`BadName`]: the name is empty, too long, or has another character.
+pub fn validate_name(name: &str) -> Result<(), BadName> {
+    let ok = !name.is_empty()
+        && name.len() <= 32
+        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+    if ok {
+        Ok(())
+    } else {
+        Err(BadName(name.to_string()))
+    }
+}
+
+/// The folder of the lock files.
+pub const LOCK_DIR: &str = "/tmp/companion";
+
+/// A held lock on one role of a demo name (released when dropped).
+#[derive(Debug)]
+pub struct NameLock {
+    file: File,
+    /// The demo's name.
+    pub name: String,
+    /// The role.
+    pub role: Role,
+}
+
+fn path(name: &str, role: Role) -> PathBuf {
+    PathBuf::from(LOCK_DIR).join(format!("{name}.{}.lock", role.as_str()))
+}
+
+/// Tries `flock(LOCK_EX | LOCK_NB)`: `Ok(true)` if taken, `Ok(false)` if another process
+/// holds it.
+fn try_flock(f: &File) -> std::io::Result<bool> {
+    // SAFETY: flock takes a file descriptor (valid: `f` is open) and flags; no memory.
+    let r = unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) };
+    if r == 0 {
+        return Ok(true);
+    }
+    let e = std::io::Error::last_os_error();
+    if e.raw_os_error() == Some(libc::EWOULDBLOCK) {
+        Ok(false)
+    } else {
+        Err(e)
+    }
+}
+
+impl NameLock {
+    /// Takes the lock of `role` in demo `name` (a name checked by [`validate_name`]).
+    ///
+    /// # Errors
+    /// [`NameInUse`] if another process holds it (with its pid when known), or the lock file
+    /// cannot be made.
+    pub fn acquire(name: &str, role: Role) -> Result<Self> {
+        validate_name(name)?;
+        std::fs::create_dir_all(LOCK_DIR).with_context(|| format!("creating {LOCK_DIR}"))?;
+        let p = path(name, role);
+        let mut file = loop {
+            let mut file = OpenOptions::new()
+                .read(true)
+                .write(true)
+                .create(true)
+                .truncate(false)
+                .mode(0o600)
+                .open(&p)
+                .with_context(|| format!("opening the lock file {}", p.display()))?;
+            if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
+                let pid = holder_of(&mut file).unwrap_or(0);
+                return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
+            }
+            // The previous holder may have removed the file between our open and our lock:
+            // then the lock is on a file nobody else will find; take the one at the path.
+            let here = file.metadata().with_context(|| format!("reading {}", p.display()))?;
+            if std::fs::metadata(&p).is_ok_and(|m| m.ino() == here.ino() && m.dev() == here.dev()) {
+                break file;
+            }
+        };
+        // A file left by an older version (0644) becomes owner-only too.
+        file.set_permissions(std::fs::Permissions::from_mode(0o600))
+            .with_context(|| format!("making {} owner-only", p.display()))?;
+        // The holder's pid, for the message of whoever finds the lock taken.
+        file.set_len(0)
+            .and_then(|()| file.rewind())
+            .and_then(|()| write!(file, "{}", std::process::id()))
+            .with_context(|| format!("writing {}", p.display()))?;
+        Ok(Self { file, name: name.to_string(), role })
+    }
+
+    /// The pid written in the lock file of `role` in demo `name` (its holder's, or the last
+    /// holder's: a lock file outlives its lock).
+    ///
+    /// # Errors
+    /// No such file, or no pid in it.
+    pub fn holder(name: &str, role: Role) -> Result<i32> {
+        let mut f = File::open(path(name, role))?;
+        holder_of(&mut f).ok_or_else(|| anyhow!("no pid in the lock file"))
+    }
+}
+
+impl Drop for NameLock {
+    /// Removes the lock file, still locked (see the module's doc for why that is safe), then
+    /// releases the lock by closing it.
+    fn drop(&mut self) {
+        let p = path(&self.name, self.role);
+        let ours = match (self.file.metadata(), std::fs::metadata(&p)) {
+            (Ok(a), Ok(b)) => a.ino() == b.ino() && a.dev() == b.dev(),
+            _ => false,
+        };
+        if ours {
+            let _ = std::fs::remove_file(&p);
+        }
+    }
+}
+
+fn holder_of(f: &mut File) -> Option<i32> {
+    let mut s = String::new();
+    f.rewind().ok()?;
+    f.read_to_string(&mut s).ok()?;
+    s.trim().parse().ok()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked() {
+        assert!(validate_name("demo").is_ok());
+        assert!(validate_name("a_b-9").is_ok());
+        assert!(validate_name("").is_err());
+        assert!(validate_name("a/b").is_err());
+        assert!(validate_name(&"x".repeat(33)).is_err());
+    }
+
+    #[test]
+    fn a_lock_is_held_once_and_released_when_dropped() {
+        let name = format!("locktest-{}", std::process::id());
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        // Another open file description of the same file is refused, even in this process.
+        let e = NameLock::acquire(&name, Role::Plant).unwrap_err();
+        let n = e.downcast_ref::<NameInUse>().expect("NameInUse");
+        assert_eq!((n.role, n.pid), ("plant", i32::try_from(std::process::id()).unwrap()));
+        assert_eq!(NameLock::holder(&name, Role::Plant).unwrap(), n.pid);
+        // The other role is another lock.
+        let b = NameLock::acquire(&name, Role::Control).unwrap();
+        // Owner-only.
+        let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        drop(a);
+        // Removed when released.
+        assert!(!path(&name, Role::Plant).exists());
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        drop((a, b));
+        for role in [Role::Plant, Role::Control] {
+            assert!(!path(&name, role).exists(), "{role:?}");
+        }
+        // A file left 0644 by an older version is made owner-only.
+        std::fs::write(path(&name, Role::Plant), "1").unwrap();
+        std::fs::set_permissions(path(&name, Role::Plant), std::fs::Permissions::from_mode(0o644)).unwrap();
+        let a = NameLock::acquire(&name, Role::Plant).unwrap();
+        let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o600);
+        drop(a);
+        assert!(NameLock::acquire("bad/name", Role::Plant).is_err());
+    }
+}

@@ -1,0 +1,72 @@
+//! The transport as the loops see it: publish one message, take the next, wait for one, and
+//! ask whether the peer is alive. The loops are generic over [`Link`]; the iceoryx2 endpoints
+//! ([`crate::transport::ipc`]) are the production implementation, fakes in tests are others, and
+//! [`crate::run::hil::fault::Injecting`] is a decorator that adds corrupted messages (for tests).
+
+use std::time::Duration;
+
+use anyhow::Result;
+
+use crate::transport::wire::{CommandMsg, MeasurementMsg};
+
+/// What [`Link::peer_state`] found.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PeerState {
+    /// The peer's node exists and its process is alive (pid).
+    Alive(i32),
+    /// The peer's process died without cleaning up (pid).
+    Dead(i32),
+    /// The peer's session ended without a closed connection (pid): its lease ran out with
+    /// nothing heard (Zenoh over QUIC, where a killed process closes nothing). Dead, or
+    /// unreachable across the network: the two look the same.
+    Expired(i32),
+    /// No node of the peer exists (it has not started, or it exited cleanly).
+    Absent,
+}
+
+/// One side of a message exchange.
+pub trait Link {
+    /// What this side sends.
+    type Tx: Copy;
+    /// What this side receives.
+    type Rx: Copy;
+
+    /// Publishes a message.
+    ///
+    /// # Errors
+    /// A transport failure.
+    fn publish(&mut self, msg: &Self::Tx) -> Result<()>;
+
+    /// Takes the oldest waiting message.
+    ///
+    /// # Errors
+    /// A transport failure.
+    fn try_receive(&mut self) -> Result<Option<Self::Rx>>;
+
+    /// Waits on the transport's event for at most `timeout` (event mode; else returns at
+    /// once).
+    ///
+    /// # Errors
+    /// A transport failure.
+    fn wait_event(&mut self, timeout: Duration) -> Result<()>;
+
+    /// Whether the peer is alive (a few system calls: call it only after a silence).
+    ///
+    /// # Errors
+    /// The peer's state cannot be read.
+    fn peer_state(&mut self) -> Result<PeerState>;
+
+    /// Whether this side notifies the peer's event after each message (so that the peer may
+    /// sleep on it; announced on the wire as `flags::NOTIFIES`).
+    fn notifies(&self) -> bool {
+        false
+    }
+}
+
+/// The plant's side: sends measurements, receives commands.
+pub trait PlantLink: Link<Tx = MeasurementMsg, Rx = CommandMsg> {}
+impl<L: Link<Tx = MeasurementMsg, Rx = CommandMsg>> PlantLink for L {}
+
+/// The controller's side: sends commands, receives measurements.
+pub trait ControlLink: Link<Tx = CommandMsg, Rx = MeasurementMsg> {}
+impl<L: Link<Tx = CommandMsg, Rx = MeasurementMsg>> ControlLink for L {}
