@@ -1,7 +1,8 @@
 use core::mem::offset_of;
 
-use companion_core::nalgebra::{Vector3, Vector6};
-use companion_core::{PlatformKind, Pose3, Spatial};
+use companion_core::nalgebra::{SVector, Vector3, Vector6};
+use companion_core::{Command, Field, Measurement, Planar, PlatformKind, Pose, Pose3, Spatial, StepError};
+use iceoryx2::prelude::ZeroCopySend;
 
 use super::*;
 
@@ -208,7 +209,7 @@ fn protocol_doc_layout(text: &str, title: &str) -> Vec<(usize, String, String)> 
 
 #[test]
 fn module_docs_and_protocol_document_give_the_real_layouts() {
-    let module = include_str!("../wire.rs");
+    let module = include_str!("mod.rs");
     let protocol = include_str!("../../../../docs/protocol.md");
     for (what, doc) in [
         ("module docs", module_doc_layout(module, "Layout of [`MeasurementMsg`]")),
