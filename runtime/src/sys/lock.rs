@@ -20,10 +20,11 @@
 #![allow(unsafe_code)]
 
 use std::fs::{File, OpenOptions};
-use std::io::{Read, Seek, Write};
+use std::io::{Read, Seek};
 use std::os::fd::AsRawFd;
-use std::os::unix::fs::{MetadataExt, OpenOptionsExt, PermissionsExt};
+use std::os::unix::fs::{FileExt, MetadataExt, OpenOptionsExt, PermissionsExt};
 use std::path::PathBuf;
+use std::time::{Duration, Instant};
 
 use anyhow::{anyhow, Context, Result};
 
@@ -132,7 +133,7 @@ impl NameLock {
         validate_name(name)?;
         std::fs::create_dir_all(LOCK_DIR).with_context(|| format!("creating {LOCK_DIR}"))?;
         let p = path(name, role);
-        let mut file = loop {
+        let file = loop {
             let mut file = OpenOptions::new()
                 .read(true)
                 .write(true)
@@ -142,7 +143,7 @@ impl NameLock {
                 .open(&p)
                 .with_context(|| format!("opening the lock file {}", p.display()))?;
             if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
-                let pid = holder_of(&mut file).unwrap_or(0);
+                let pid = holder_of_locked(&mut file);
                 return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
             }
             // The previous holder may have removed the file between our open and our lock:
@@ -155,10 +156,13 @@ impl NameLock {
         // A file left by an older version (0644) becomes owner-only too.
         file.set_permissions(std::fs::Permissions::from_mode(0o600))
             .with_context(|| format!("making {} owner-only", p.display()))?;
-        // The holder's pid, for the message of whoever finds the lock taken.
-        file.set_len(0)
-            .and_then(|()| file.rewind())
-            .and_then(|()| write!(file, "{}", std::process::id()))
+        // The holder's pid, for the message of whoever finds the lock taken: one write of a
+        // fixed width over whatever was there, so a reader finds either the old content or
+        // the whole pid, never an emptied file (the length is set after, for a longer old
+        // content of an older version).
+        let pid = format!("{:<PID_WIDTH$}\n", std::process::id());
+        file.write_all_at(pid.as_bytes(), 0)
+            .and_then(|()| file.set_len(pid.len() as u64))
             .with_context(|| format!("writing {}", p.display()))?;
         Ok(Self { file, name: name.to_string(), role })
     }
@@ -187,6 +191,36 @@ impl Drop for NameLock {
             let _ = std::fs::remove_file(&p);
         }
     }
+}
+
+/// The width of the pid in a lock file (a Linux pid has at most 7 digits).
+const PID_WIDTH: usize = 10;
+
+/// How long a process that found a lock taken waits for its holder's pid to appear.
+const PID_WAIT: Duration = Duration::from_millis(200);
+
+/// The pid of the process that holds the lock on `f`: a live pid written in the file. Its
+/// holder writes it just after taking the lock, so for a moment the file may still be empty
+/// (just created) or carry the pid of an earlier holder that died: then the pid is read
+/// again for up to [`PID_WAIT`]. 0 if none appeared by then.
+fn holder_of_locked(f: &mut File) -> i32 {
+    let start = Instant::now();
+    loop {
+        let pid = holder_of(f);
+        match pid {
+            Some(p) if alive(p) => return p,
+            _ if start.elapsed() >= PID_WAIT => return pid.unwrap_or(0),
+            _ => std::thread::sleep(Duration::from_millis(1)),
+        }
+    }
+}
+
+/// Whether a process of this pid exists (signal 0: nothing is sent).
+fn alive(pid: i32) -> bool {
+    // SAFETY: kill with signal 0 only checks that the process exists; no memory.
+    pid > 0
+        && (unsafe { libc::kill(pid, 0) } == 0
+            || std::io::Error::last_os_error().raw_os_error() == Some(libc::EPERM))
 }
 
 fn holder_of(f: &mut File) -> Option<i32> {
@@ -239,5 +273,42 @@ mod tests {
         assert_eq!(mode, 0o600);
         drop(a);
         assert!(NameLock::acquire("bad/name", Role::Plant).is_err());
+    }
+
+    #[test]
+    fn the_loser_of_a_race_names_the_winners_pid() {
+        // Users saw "its control is process 0": the loser read the lock file while the winner
+        // had created or emptied it but not yet written its pid. Two threads race for one
+        // name many times; the loser must always name this process.
+        let name = format!("lockrace-{}", std::process::id());
+        let me = i32::try_from(std::process::id()).unwrap();
+        let mut pids = Vec::new();
+        for _ in 0..300 {
+            let barrier = std::sync::Barrier::new(2);
+            let (a, b) = std::thread::scope(|s| {
+                let go = || {
+                    barrier.wait();
+                    NameLock::acquire(&name, Role::Control)
+                };
+                let a = s.spawn(go);
+                let b = s.spawn(go);
+                (a.join().unwrap(), b.join().unwrap())
+            });
+            // The winner holds its lock until both are back: exactly one loses.
+            match (&a, &b) {
+                (Ok(_), Err(e)) | (Err(e), Ok(_)) => {
+                    pids.push(e.downcast_ref::<NameInUse>().expect("NameInUse").pid);
+                }
+                _ => panic!("not exactly one winner: {:?} {:?}", a.is_ok(), b.is_ok()),
+            }
+        }
+        let wrong: Vec<i32> = pids.iter().copied().filter(|p| *p != me).collect();
+        assert!(
+            wrong.is_empty(),
+            "{} of {} losers named another pid: {:?}",
+            wrong.len(),
+            pids.len(),
+            &wrong[..wrong.len().min(10)]
+        );
     }
 }
