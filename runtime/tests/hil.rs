@@ -509,13 +509,21 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     );
     // The plant's own measure of the stop: the longest gap between two commands it received
     // (the controller was stopped for 200 ms; its last command before the stop may reach a
-    // preempted plant late). Not the count of missed periods: a plant that is itself
-    // preempted on a loaded machine skips the releases it fell behind (counted apart), so
-    // how many of the 200 periods it ran depends on the machine.
+    // preempted plant late).
     // The stop lasted at least the 200 ms between the two signals (however late the second
     // came on a loaded machine: no upper bound), less the delivery of the last command before it.
     let gap = lat["longest_command_gap_ns"].as_u64().unwrap();
     assert!(gap >= 150_000_000, "{lat:#}");
+    // The plant keeps its schedule through the silence: each of the ~200 silent periods is a
+    // miss. (It ran only ~30 of them while iceoryx2's timed wait overslept every missed
+    // deadline by 8 ms, a scheduler tick; `sys::rt::wait_readable`.) A plant that was itself
+    // stalled for 50 ms or more on a loaded machine skipped those releases (counted apart):
+    // then only the sum is asked.
+    let run = lat["max_consecutive_misses"].as_u64().unwrap();
+    let skipped = lat["skipped_releases"].as_u64().unwrap();
+    let stalled = lat["longest_stall_ns"].as_u64().unwrap() >= 50_000_000;
+    assert!(run + skipped >= 150, "{lat:#}");
+    assert!(run >= 100 || stalled, "the plant ran {run} of the silence's ~200 periods: {lat:#}");
     assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");

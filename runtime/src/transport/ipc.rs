@@ -529,10 +529,17 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     #[inline]
     pub fn wait_event(&self, timeout: Duration) -> Result<()> {
         if let Some(l) = &self.listener {
-            match l.timed_wait(|_| {}, timeout) {
-                // A signal (SIGSTOP/SIGCONT, SIGINT) ended the wait early: the caller re-checks.
-                Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                Err(e) => return Err(anyhow!("timed_wait: {e:?}")),
+            // Not `l.timed_wait`: it rounds a short timeout up to whole scheduler ticks (8 ms
+            // here; see `sys::rt::wait_readable`). Poll the listener's descriptor with a precise
+            // timeout, then take what arrived without blocking.
+            let readable = crate::sys::rt::wait_readable(l.file_descriptor(), timeout)
+                .map_err(|e| anyhow!("waiting for the peer's event: {e}"))?;
+            if readable {
+                match l.try_wait(|_| {}) {
+                    // A signal (SIGSTOP/SIGCONT, SIGINT) ended the wait early: the caller re-checks.
+                    Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
+                    Err(e) => return Err(anyhow!("try_wait: {e:?}")),
+                }
             }
         }
         Ok(())
