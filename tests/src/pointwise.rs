@@ -148,6 +148,32 @@ pub fn reference(
     duration: f64,
     every: usize,
 ) -> Vec<Sample> {
+    integrate(trajectory, run, step, duration, every, Loop::sample)
+}
+
+/// [`reference`]'s transverse-function parameter `α` (the unicycle's one component, rad) at
+/// the same instants.
+///
+/// # Panics
+/// If the continuous law rejects a state (it does not on the paper's runs).
+pub fn reference_alpha(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    step: f64,
+    duration: f64,
+    every: usize,
+) -> Vec<f64> {
+    integrate(trajectory, run, step, duration, every, |x| x.alpha[0])
+}
+
+fn integrate<R>(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    step: f64,
+    duration: f64,
+    every: usize,
+    sample: impl Fn(&Loop) -> R,
+) -> Vec<R> {
     let init = paper_initial(trajectory);
     let law = controller(run, true);
     let trajectory = Trajectory::from(trajectory);
@@ -176,7 +202,7 @@ pub fn reference(
     let f = Continuous { law, trajectory, template };
     let steps = (duration / step).round() as usize;
     let mut out = Vec::with_capacity(steps / every + 1);
-    out.push(x.sample());
+    out.push(sample(&x));
     for n in 0..steps {
         let (t0, t1) = (n as f64 * step, (n + 1) as f64 * step);
         let tm = 0.5 * (t0 + t1);
@@ -189,7 +215,7 @@ pub fn reference(
         let sum = k1.axpy(2.0, &k2).axpy(2.0, &k3).axpy(1.0, &k4);
         x = x.axpy(step / 6.0, &sum);
         if (n + 1) % every == 0 {
-            out.push(x.sample());
+            out.push(sample(&x));
         }
     }
     out
