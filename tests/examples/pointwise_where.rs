@@ -21,7 +21,7 @@
 use companion_core::{wrap_angle, Controller, PaperRun, PlatformKind, Rpr, Unicycle};
 use companion_plant::{paper_initial, PaperTrajectory, Plant, PlantConfig, Trajectory};
 use companion_runtime::controller::{ControllerSpec, Scalar};
-use companion_tests::pointwise::{reference, reference_alpha, Sample};
+use companion_tests::pointwise::{reference, reference_alpha, worst, Sample};
 
 /// One step of the default law: the plant's state at `t_k` and what the law reported.
 struct Row {
@@ -91,15 +91,8 @@ fn main() {
     let runs = [run(tr, r, 1e-3, duration), run(tr, r, 5e-4, duration), run(tr, r, 2.5e-4, duration)];
     for (k, rows) in runs.iter().enumerate() {
         let stride = 1 << k;
-        let (mut d, mut at, mut comp) = (0.0_f64, 0, 0);
-        for (i, f) in fine.iter().enumerate() {
-            for c in 0..6 {
-                let e = (rows[stride * i].s[c] - f[c]).abs();
-                if e > d {
-                    (d, at, comp) = (e, i, c);
-                }
-            }
-        }
+        let at_1ms: Vec<Sample> = rows.iter().step_by(stride).map(|r| r.s).collect();
+        let (d, at, comp) = worst(&at_1ms, &fine);
         eprintln!(
             "{name} at {} ms: {d:.3e} at t = {:.3} s, component {comp}",
             1.0 / stride as f64,
