@@ -148,6 +148,32 @@ pub fn reference(
     duration: f64,
     every: usize,
 ) -> Vec<Sample> {
+    integrate(trajectory, run, step, duration, every, Loop::sample)
+}
+
+/// [`reference`]'s transverse-function parameter `α` (the unicycle's one component, rad) at
+/// the same instants.
+///
+/// # Panics
+/// If the continuous law rejects a state (it does not on the paper's runs).
+pub fn reference_alpha(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    step: f64,
+    duration: f64,
+    every: usize,
+) -> Vec<f64> {
+    integrate(trajectory, run, step, duration, every, |x| x.alpha[0])
+}
+
+fn integrate<R>(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    step: f64,
+    duration: f64,
+    every: usize,
+    sample: impl Fn(&Loop) -> R,
+) -> Vec<R> {
     let init = paper_initial(trajectory);
     let law = controller(run, true);
     let trajectory = Trajectory::from(trajectory);
@@ -176,7 +202,7 @@ pub fn reference(
     let f = Continuous { law, trajectory, template };
     let steps = (duration / step).round() as usize;
     let mut out = Vec::with_capacity(steps / every + 1);
-    out.push(x.sample());
+    out.push(sample(&x));
     for n in 0..steps {
         let (t0, t1) = (n as f64 * step, (n + 1) as f64 * step);
         let tm = 0.5 * (t0 + t1);
@@ -189,7 +215,7 @@ pub fn reference(
         let sum = k1.axpy(2.0, &k2).axpy(2.0, &k3).axpy(1.0, &k4);
         x = x.axpy(step / 6.0, &sum);
         if (n + 1) % every == 0 {
-            out.push(x.sample());
+            out.push(sample(&x));
         }
     }
     out
@@ -201,6 +227,31 @@ pub fn reference(
 /// # Panics
 /// If the law rejects a measurement (it does not on the paper's runs).
 pub fn sampled(trajectory: PaperTrajectory, run: PaperRun, period: f64, duration: f64) -> Vec<Sample> {
+    sampled_motion(trajectory, run, period, duration).0
+}
+
+/// What the default law did at one step: the transverse function's `α` at `t_k` (rad), the
+/// held `α̇` (rad/s) and the joint command `u_q`.
+#[derive(Clone, Copy, Debug)]
+pub struct Motion {
+    /// `α(t_k)` (rad).
+    pub alpha: f64,
+    /// `α̇` held over the step (rad/s).
+    pub alpha_rate: f64,
+    /// `u_q` held over the step.
+    pub u_q: [f64; 3],
+}
+
+/// [`sampled`] with, at every step, what the law did ([`Motion`]; one fewer than the samples).
+///
+/// # Panics
+/// If the law rejects a measurement (it does not on the paper's runs).
+pub fn sampled_motion(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    period: f64,
+    duration: f64,
+) -> (Vec<Sample>, Vec<Motion>) {
     let mut c = controller(run, false);
     let mut plant = Plant::new(
         PlantConfig::new(PlatformKind::Unicycle),
@@ -214,15 +265,15 @@ pub fn sampled(trajectory: PaperTrajectory, run: PaperRun, period: f64, duration
         let s = p.truth();
         [s.base.x, s.base.y, s.base.theta, s.joints[0], s.joints[1], s.joints[2]]
     };
-    let mut out = Vec::with_capacity(steps + 1);
-    out.push(sample(&plant));
+    let (mut out, mut motion) = (vec![sample(&plant)], Vec::with_capacity(steps));
     for _ in 0..steps {
-        let meas = plant.measure();
-        let o = c.step(&meas, period).expect("the default law accepts the paper's runs");
+        let o = c.step(&plant.measure(), period).expect("the default law accepts the paper's runs");
+        let (g, u) = (&o.diagnostics, &o.command.joints);
+        motion.push(Motion { alpha: g.alpha[0], alpha_rate: g.alpha_rate[0], u_q: [u[0], u[1], u[2]] });
         plant.advance(&o.command, period);
         out.push(sample(&plant));
     }
-    out
+    (out, motion)
 }
 
 /// The largest difference of any component between two series sampled at the same instants.
