@@ -459,10 +459,12 @@ fn control_exit_code(end: &ControlEnd) -> u8 {
     }
 }
 
-/// The exit code of an error: [`NameInUse`] (printed) is 5; an error after SIGINT/SIGTERM
-/// (e.g. while waiting for the peer) is 130; other errors go up.
-fn name_in_use_or(e: anyhow::Error) -> Result<ExitCode> {
-    if let Some(n) = e.downcast_ref::<NameInUse>() {
+/// The exit code of an error: [`NameInUse`] (printed), also as a [`lock::LockError`], is 5; an
+/// error after SIGINT/SIGTERM (e.g. while waiting for the peer) is 130; other errors go up.
+fn name_in_use_or(e: impl Into<anyhow::Error>) -> Result<ExitCode> {
+    let e: anyhow::Error = e.into();
+    let lock_in_use = || e.downcast_ref::<lock::LockError>().and_then(lock::LockError::name_in_use);
+    if let Some(n) = e.downcast_ref::<NameInUse>().or_else(lock_in_use) {
         eprintln!("error: {n}");
         return Ok(ExitCode::from(EXIT_NAME_IN_USE));
     }
