@@ -25,7 +25,7 @@ use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
     ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
 };
-use companion_runtime::sys::lock::{self, NameInUse, NameLock, Role};
+use companion_runtime::sys::lock::{self, NameLock, Role};
 use companion_runtime::sys::process::ChildGuard;
 use companion_runtime::sys::signals::termination_requested;
 use companion_runtime::transport::ipc;
@@ -459,12 +459,12 @@ fn control_exit_code(end: &ControlEnd) -> u8 {
     }
 }
 
-/// The exit code of an error: [`NameInUse`] (printed), also as a [`lock::LockError`], is 5; an
-/// error after SIGINT/SIGTERM (e.g. while waiting for the peer) is 130; other errors go up.
+/// The exit code of an error: [`NameInUse`](lock::NameInUse) (printed), also inside the
+/// library's lock and start-up errors ([`transport::name_in_use`]), is 5; an error after
+/// SIGINT/SIGTERM (e.g. while waiting for the peer) is 130; other errors go up.
 fn name_in_use_or(e: impl Into<anyhow::Error>) -> Result<ExitCode> {
     let e: anyhow::Error = e.into();
-    let lock_in_use = || e.downcast_ref::<lock::LockError>().and_then(lock::LockError::name_in_use);
-    if let Some(n) = e.downcast_ref::<NameInUse>().or_else(lock_in_use) {
+    if let Some(n) = transport::name_in_use(e.as_ref()) {
         eprintln!("error: {n}");
         return Ok(ExitCode::from(EXIT_NAME_IN_USE));
     }
