@@ -963,6 +963,25 @@ mod tests {
     }
 
     #[test]
+    fn a_name_in_use_is_exit_5_wherever_the_library_put_it() {
+        use companion_runtime::sys::lock::{LockError, NameInUse};
+        use companion_runtime::transport::{OpenError, StartError};
+        let n = || NameInUse { name: "d".into(), role: "plant", pid: 42 };
+        let open = OpenError { role: Role::Plant, cause: StartError::NameInUse(n()) };
+        for e in [
+            anyhow::Error::from(n()),
+            anyhow::Error::from(LockError::NameInUse(n())),
+            anyhow::Error::from(StartError::NameInUse(n())).context("waiting for the controller"),
+            anyhow::Error::from(open).context("running the plant"),
+        ] {
+            assert_eq!(transport::name_in_use(e.as_ref()), Some(&n()), "{e:#}");
+            assert_eq!(name_in_use_or(e).unwrap(), ExitCode::from(EXIT_NAME_IN_USE));
+        }
+        let other = anyhow::Error::from(StartError::NoZenoh);
+        assert!(name_in_use_or(other).is_err() || termination_requested());
+    }
+
+    #[test]
     fn defaults_give_30_s_at_1_khz_with_a_500_us_deadline() {
         let t = T::parse_from(["x"]);
         let (cfg, s) = t.a.resolve().unwrap();
