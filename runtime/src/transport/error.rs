@@ -164,8 +164,9 @@ impl StartError {
     }
 }
 
-/// Opening one side's transport failed ([`open`], [`ipc::PlantEndpoint::plant`],
-/// [`ipc::ControlEndpoint::control`]): which side, and why.
+/// Opening one side's transport failed ([`crate::transport::open`],
+/// [`crate::transport::ipc::PlantEndpoint::plant`],
+/// [`crate::transport::ipc::ControlEndpoint::control`]): which side, and why.
 #[derive(Debug, thiserror::Error)]
 #[error("opening the {}'s transport", side(.role))]
 pub struct OpenError {
