@@ -24,7 +24,7 @@ use companion_runtime::run::hil::stats::{ControlStats, LiveFigures, PlantStats};
 use companion_runtime::run::hil::{ControlEnd, Timing, WaitMode};
 use companion_runtime::sys::clock::{Clock, FakeClock, MonotonicClock};
 use companion_runtime::transport::ipc::{ControlEndpoint, PlantEndpoint};
-use companion_runtime::transport::link::{Link, PeerState};
+use companion_runtime::transport::link::{Link, LinkError, PeerState};
 use companion_runtime::transport::wire::{
     flags, platform, CommandHeader, CommandMsg, ControllerIdentity, LoggedDiagnostics, MeasurementHeader,
     MeasurementMsg,
@@ -158,16 +158,16 @@ impl<L> Uncounted<L> {
 impl<L: Link> Link for Uncounted<L> {
     type Tx = L::Tx;
     type Rx = L::Rx;
-    fn publish(&mut self, m: &L::Tx) -> Result<()> {
+    fn publish(&mut self, m: &L::Tx) -> Result<(), LinkError> {
         self.pause(|l| l.publish(m))
     }
-    fn try_receive(&mut self) -> Result<Option<L::Rx>> {
+    fn try_receive(&mut self) -> Result<Option<L::Rx>, LinkError> {
         self.pause(Link::try_receive)
     }
-    fn wait_event(&mut self, d: Duration) -> Result<()> {
+    fn wait_event(&mut self, d: Duration) -> Result<(), LinkError> {
         self.pause(|l| l.wait_event(d))
     }
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         self.pause(Link::peer_state)
     }
 }
@@ -389,20 +389,20 @@ struct InstantController<F> {
 impl<F: FnMut(&MeasurementMsg) -> CommandMsg> Link for InstantController<F> {
     type Tx = MeasurementMsg;
     type Rx = CommandMsg;
-    fn publish(&mut self, m: &MeasurementMsg) -> Result<()> {
+    fn publish(&mut self, m: &MeasurementMsg) -> Result<(), LinkError> {
         let mut c = (self.answer)(m);
         c.compute_ns = 3_000;
         self.clock.advance(10_000);
         self.pending = Some(c);
         Ok(())
     }
-    fn try_receive(&mut self) -> Result<Option<CommandMsg>> {
+    fn try_receive(&mut self) -> Result<Option<CommandMsg>, LinkError> {
         Ok(self.pending.take())
     }
-    fn wait_event(&mut self, _: Duration) -> Result<()> {
+    fn wait_event(&mut self, _: Duration) -> Result<(), LinkError> {
         Ok(())
     }
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         Ok(PeerState::Alive(1))
     }
 }
@@ -468,22 +468,22 @@ struct Script {
 impl Link for Script {
     type Tx = CommandMsg;
     type Rx = MeasurementMsg;
-    fn publish(&mut self, c: &CommandMsg) -> Result<()> {
+    fn publish(&mut self, c: &CommandMsg) -> Result<(), LinkError> {
         self.sent.push(*c);
         self.ready = true;
         Ok(())
     }
-    fn try_receive(&mut self) -> Result<Option<MeasurementMsg>> {
+    fn try_receive(&mut self) -> Result<Option<MeasurementMsg>, LinkError> {
         if !self.ready {
             return Ok(None);
         }
         self.ready = false;
         Ok(self.inbox.pop_front())
     }
-    fn wait_event(&mut self, _: Duration) -> Result<()> {
+    fn wait_event(&mut self, _: Duration) -> Result<(), LinkError> {
         Ok(())
     }
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         Ok(PeerState::Alive(1))
     }
 }

@@ -25,7 +25,7 @@ use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
     ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
 };
-use companion_runtime::sys::lock::{self, NameInUse, NameLock, Role};
+use companion_runtime::sys::lock::{self, NameLock, Role};
 use companion_runtime::sys::process::ChildGuard;
 use companion_runtime::sys::signals::termination_requested;
 use companion_runtime::transport::ipc;
@@ -459,10 +459,12 @@ fn control_exit_code(end: &ControlEnd) -> u8 {
     }
 }
 
-/// The exit code of an error: [`NameInUse`] (printed) is 5; an error after SIGINT/SIGTERM
-/// (e.g. while waiting for the peer) is 130; other errors go up.
-fn name_in_use_or(e: anyhow::Error) -> Result<ExitCode> {
-    if let Some(n) = e.downcast_ref::<NameInUse>() {
+/// The exit code of an error: [`NameInUse`](lock::NameInUse) (printed), also inside the
+/// library's lock and start-up errors ([`transport::name_in_use`]), is 5; an error after
+/// SIGINT/SIGTERM (e.g. while waiting for the peer) is 130; other errors go up.
+fn name_in_use_or(e: impl Into<anyhow::Error>) -> Result<ExitCode> {
+    let e: anyhow::Error = e.into();
+    if let Some(n) = transport::name_in_use(e.as_ref()) {
         eprintln!("error: {n}");
         return Ok(ExitCode::from(EXIT_NAME_IN_USE));
     }
@@ -958,6 +960,25 @@ mod tests {
     struct T {
         #[command(flatten)]
         a: HilArgs,
+    }
+
+    #[test]
+    fn a_name_in_use_is_exit_5_wherever_the_library_put_it() {
+        use companion_runtime::sys::lock::{LockError, NameInUse};
+        use companion_runtime::transport::{OpenError, StartError};
+        let n = || NameInUse { name: "d".into(), role: "plant", pid: 42 };
+        let open = OpenError { role: Role::Plant, cause: StartError::NameInUse(n()) };
+        for e in [
+            anyhow::Error::from(n()),
+            anyhow::Error::from(LockError::NameInUse(n())),
+            anyhow::Error::from(StartError::NameInUse(n())).context("waiting for the controller"),
+            anyhow::Error::from(open).context("running the plant"),
+        ] {
+            assert_eq!(transport::name_in_use(e.as_ref()), Some(&n()), "{e:#}");
+            assert_eq!(name_in_use_or(e).unwrap(), ExitCode::from(EXIT_NAME_IN_USE));
+        }
+        let other = anyhow::Error::from(StartError::NoZenoh);
+        assert!(name_in_use_or(other).is_err() || termination_requested());
     }
 
     #[test]

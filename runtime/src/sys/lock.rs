@@ -26,8 +26,6 @@ use std::os::unix::fs::{FileExt, MetadataExt, OpenOptionsExt, PermissionsExt};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
-
 /// The two roles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Role {
@@ -73,6 +71,42 @@ pub struct NameInUse {
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got {0:?}")]
 pub struct BadName(pub String);
+
+/// Why [`NameLock::acquire`] did not take the lock.
+#[derive(Debug, thiserror::Error)]
+pub enum LockError {
+    /// The name is not a demo name ([`validate_name`]).
+    #[error(transparent)]
+    BadName(#[from] BadName),
+    /// Another process holds the lock.
+    #[error(transparent)]
+    NameInUse(#[from] NameInUse),
+    /// The lock file or its folder cannot be made, opened, locked, read or written: `what`
+    /// was being done (e.g. `creating /tmp/companion`), `source` the operating system's error.
+    #[error("{what}")]
+    File {
+        /// What was being done, naming the file.
+        what: String,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+}
+
+impl LockError {
+    /// The demo found running, if that is the error.
+    pub fn name_in_use(&self) -> Option<&NameInUse> {
+        match self {
+            Self::NameInUse(n) => Some(n),
+            _ => None,
+        }
+    }
+}
+
+/// `what` (made only on failure) around an I/O error.
+fn file_error(what: impl FnOnce() -> String) -> impl FnOnce(std::io::Error) -> LockError {
+    move |source| LockError::File { what: what(), source }
+}
 
 /// Checks a demo name: 1–32 characters of `A–Z a–z 0–9 _ -` (it names files, iceoryx2
 /// services and Zenoh key expressions).
@@ -127,11 +161,12 @@ impl NameLock {
     /// Takes the lock of `role` in demo `name` (a name checked by [`validate_name`]).
     ///
     /// # Errors
-    /// [`NameInUse`] if another process holds it (with its pid when known), or the lock file
-    /// cannot be made.
-    pub fn acquire(name: &str, role: Role) -> Result<Self> {
+    /// [`LockError::BadName`] for a name [`validate_name`] refuses, [`LockError::NameInUse`]
+    /// if another process holds it (with its pid when known), or [`LockError::File`] if the
+    /// lock file cannot be made.
+    pub fn acquire(name: &str, role: Role) -> Result<Self, LockError> {
         validate_name(name)?;
-        std::fs::create_dir_all(LOCK_DIR).with_context(|| format!("creating {LOCK_DIR}"))?;
+        std::fs::create_dir_all(LOCK_DIR).map_err(file_error(|| format!("creating {LOCK_DIR}")))?;
         let p = path(name, role);
         let file = loop {
             let mut file = OpenOptions::new()
@@ -141,21 +176,21 @@ impl NameLock {
                 .truncate(false)
                 .mode(0o600)
                 .open(&p)
-                .with_context(|| format!("opening the lock file {}", p.display()))?;
-            if !try_flock(&file).with_context(|| format!("locking {}", p.display()))? {
+                .map_err(file_error(|| format!("opening the lock file {}", p.display())))?;
+            if !try_flock(&file).map_err(file_error(|| format!("locking {}", p.display())))? {
                 let pid = holder_of_locked(&mut file);
                 return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
             }
             // The previous holder may have removed the file between our open and our lock:
             // then the lock is on a file nobody else will find; take the one at the path.
-            let here = file.metadata().with_context(|| format!("reading {}", p.display()))?;
+            let here = file.metadata().map_err(file_error(|| format!("reading {}", p.display())))?;
             if std::fs::metadata(&p).is_ok_and(|m| m.ino() == here.ino() && m.dev() == here.dev()) {
                 break file;
             }
         };
         // A file left by an older version (0644) becomes owner-only too.
         file.set_permissions(std::fs::Permissions::from_mode(0o600))
-            .with_context(|| format!("making {} owner-only", p.display()))?;
+            .map_err(file_error(|| format!("making {} owner-only", p.display())))?;
         // The holder's pid, for the message of whoever finds the lock taken: one write of a
         // fixed width over whatever was there, so a reader finds either the old content or
         // the whole pid, never an emptied file (the length is set after, for a longer old
@@ -163,7 +198,7 @@ impl NameLock {
         let pid = format!("{:<PID_WIDTH$}\n", std::process::id());
         file.write_all_at(pid.as_bytes(), 0)
             .and_then(|()| file.set_len(pid.len() as u64))
-            .with_context(|| format!("writing {}", p.display()))?;
+            .map_err(file_error(|| format!("writing {}", p.display())))?;
         Ok(Self { file, name: name.to_string(), role })
     }
 
@@ -171,10 +206,11 @@ impl NameLock {
     /// holder's: a lock file outlives its lock).
     ///
     /// # Errors
-    /// No such file, or no pid in it.
-    pub fn holder(name: &str, role: Role) -> Result<i32> {
+    /// No such file, or no pid in it ([`std::io::ErrorKind::InvalidData`]).
+    pub fn holder(name: &str, role: Role) -> std::io::Result<i32> {
         let mut f = File::open(path(name, role))?;
-        holder_of(&mut f).ok_or_else(|| anyhow!("no pid in the lock file"))
+        holder_of(&mut f)
+            .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidData, "no pid in the lock file"))
     }
 }
 
@@ -238,9 +274,9 @@ mod tests {
     fn names_are_checked() {
         assert!(validate_name("demo").is_ok());
         assert!(validate_name("a_b-9").is_ok());
-        assert!(validate_name("").is_err());
-        assert!(validate_name("a/b").is_err());
-        assert!(validate_name(&"x".repeat(33)).is_err());
+        for bad in ["", "a/b", &"x".repeat(33)] {
+            assert_eq!(validate_name(bad), Err(BadName(bad.to_string())), "{bad:?}");
+        }
     }
 
     #[test]
@@ -249,7 +285,16 @@ mod tests {
         let a = NameLock::acquire(&name, Role::Plant).unwrap();
         // Another open file description of the same file is refused, even in this process.
         let e = NameLock::acquire(&name, Role::Plant).unwrap_err();
-        let n = e.downcast_ref::<NameInUse>().expect("NameInUse");
+        let LockError::NameInUse(n) = &e else { panic!("not NameInUse: {e}") };
+        assert_eq!(e.name_in_use(), Some(n));
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "a demo named '{name}' is already running (its plant is process {}); stop it or choose another \
+                 --name",
+                n.pid
+            )
+        );
         assert_eq!((n.role, n.pid), ("plant", i32::try_from(std::process::id()).unwrap()));
         assert_eq!(NameLock::holder(&name, Role::Plant).unwrap(), n.pid);
         // The other role is another lock.
@@ -272,7 +317,13 @@ mod tests {
         let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600);
         drop(a);
-        assert!(NameLock::acquire("bad/name", Role::Plant).is_err());
+        let e = NameLock::acquire("bad/name", Role::Plant).unwrap_err();
+        assert!(matches!(&e, LockError::BadName(BadName(n)) if n == "bad/name"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            r#"--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got "bad/name""#
+        );
+        assert_eq!(e.name_in_use(), None);
     }
 
     #[test]
@@ -297,7 +348,7 @@ mod tests {
             // The winner holds its lock until both are back: exactly one loses.
             match (&a, &b) {
                 (Ok(_), Err(e)) | (Err(e), Ok(_)) => {
-                    pids.push(e.downcast_ref::<NameInUse>().expect("NameInUse").pid);
+                    pids.push(e.name_in_use().expect("NameInUse").pid);
                 }
                 _ => panic!("not exactly one winner: {:?} {:?}", a.is_ok(), b.is_ok()),
             }

@@ -5,8 +5,6 @@
 use std::process::{Child, ExitStatus};
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
-
 /// Kills and reaps a child on drop (a run that fails half-way leaves no process).
 #[derive(Debug)]
 pub struct ChildGuard(pub Option<Child>);
@@ -25,8 +23,8 @@ impl ChildGuard {
     /// Waits for the child to exit (up to `timeout`), then kills it if it has not.
     ///
     /// # Errors
-    /// Waiting failed.
-    pub fn finish(&mut self, timeout: Duration) -> Result<Option<ExitStatus>> {
+    /// Waiting failed (the operating system's error).
+    pub fn finish(&mut self, timeout: Duration) -> std::io::Result<Option<ExitStatus>> {
         if let Some(c) = self.0.as_mut() {
             let start = Instant::now();
             loop {

@@ -5,8 +5,6 @@
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, OnceLock};
 
-use anyhow::{Context, Result};
-
 /// The last termination signal received (0: none), shared with the handlers.
 static FLAG: OnceLock<Arc<AtomicUsize>> = OnceLock::new();
 
@@ -14,16 +12,27 @@ fn flag() -> &'static Arc<AtomicUsize> {
     FLAG.get_or_init(|| Arc::new(AtomicUsize::new(0)))
 }
 
+/// The operating system refused the handler of a signal.
+#[derive(Debug, thiserror::Error)]
+#[error("installing the handler of signal {signal}")]
+pub struct HandlerRefused {
+    /// The signal's number.
+    pub signal: i32,
+    /// The operating system's error.
+    #[source]
+    pub source: std::io::Error,
+}
+
 /// Installs the SIGINT and SIGTERM handlers (idempotent: installing twice registers the
 /// same flag twice, which is harmless).
 ///
 /// # Errors
-/// The operating system refused a handler.
-pub fn install_termination_handler() -> Result<()> {
+/// [`HandlerRefused`]: the operating system refused a handler.
+pub fn install_termination_handler() -> Result<(), HandlerRefused> {
     for sig in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         let value = sig as usize;
         signal_hook::flag::register_usize(sig, Arc::clone(flag()), value)
-            .with_context(|| format!("installing the handler of signal {sig}"))?;
+            .map_err(|source| HandlerRefused { signal: sig, source })?;
     }
     Ok(())
 }

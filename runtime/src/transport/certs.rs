@@ -15,11 +15,56 @@ use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, SystemTime};
 
-use anyhow::{anyhow, bail, Context, Result};
 use rcgen::{
     BasicConstraints, CertificateParams, CertifiedIssuer, DnType, ExtendedKeyUsagePurpose, IsCa, KeyPair,
     KeyUsagePurpose,
 };
+
+/// Why the deployment's material could not be made: a bad `--hosts` list, a file in the way or
+/// not writable, or rcgen refusing.
+#[derive(Debug, thiserror::Error)]
+pub enum CertsError {
+    /// A host named `ca`, whose files would be the CA's.
+    #[error("host \"ca\": the CA's own files are ca.pem and ca.key; give the host another name")]
+    HostNamedCa,
+    /// A host that is not `NAME` or `NAME=ADDR[+ADDR]` (as given).
+    #[error("host {0:?}: expected NAME or NAME=ADDR[+ADDR], e.g. plant.local or plant.local=192.168.1.20")]
+    BadHost(String),
+    /// A host name given twice.
+    #[error("host {0:?} given twice")]
+    HostTwice(String),
+    /// An empty list.
+    #[error("no host: give e.g. --hosts plant.local,ctrl.local")]
+    NoHost,
+    /// A file of the material exists already (nothing was written).
+    #[error("{} exists already: give another --out (nothing was written)", .0.display())]
+    Exists(PathBuf),
+    /// A file or the folder cannot be made or written: `what` was being done, naming it.
+    #[error("{what}")]
+    File {
+        /// What was being done (`creating …`, `writing …`).
+        what: String,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// rcgen refused a host's name or address.
+    #[error("host {host:?}: {cause}")]
+    HostRefused {
+        /// The host's name.
+        host: String,
+        /// rcgen's error.
+        cause: rcgen::Error,
+    },
+    /// rcgen failed to make a key or a certificate.
+    #[error(transparent)]
+    Rcgen(#[from] rcgen::Error),
+}
+
+/// `what` (made only on failure) around an I/O error.
+fn file_error(what: impl FnOnce() -> String) -> impl FnOnce(std::io::Error) -> CertsError {
+    move |source| CertsError::File { what: what(), source }
+}
 
 /// One host of the deployment: its name and the other addresses it is reached at.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -34,20 +79,19 @@ impl Host {
     /// Parses `NAME` or `NAME=ADDR[+ADDR…]`.
     ///
     /// # Errors
-    /// An empty name or address, or characters outside letters, digits, `-._:`.
-    pub fn parse(s: &str) -> Result<Self> {
+    /// [`CertsError::BadHost`]: an empty name or address, or characters outside letters,
+    /// digits, `-._:`; [`CertsError::HostNamedCa`].
+    pub fn parse(s: &str) -> Result<Self, CertsError> {
         let (name, rest) = s.split_once('=').map_or((s, None), |(n, r)| (n, Some(r)));
         let addresses: Vec<String> =
             rest.map(|r| r.split('+').map(str::to_string).collect()).unwrap_or_default();
         let ok =
             |x: &str| !x.is_empty() && x.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._:".contains(&b));
         if name == "ca" {
-            bail!("host \"ca\": the CA's own files are ca.pem and ca.key; give the host another name");
+            return Err(CertsError::HostNamedCa);
         }
         if !ok(name) || !addresses.iter().all(|a| ok(a)) {
-            bail!(
-                "host {s:?}: expected NAME or NAME=ADDR[+ADDR], e.g. plant.local or plant.local=192.168.1.20"
-            );
+            return Err(CertsError::BadHost(s.to_string()));
         }
         Ok(Self { name: name.to_string(), addresses })
     }
@@ -55,16 +99,17 @@ impl Host {
     /// A list `a,b=addr,…` (as `--hosts` takes it).
     ///
     /// # Errors
-    /// As [`Host::parse`], an empty list, or a name given twice.
-    pub fn parse_list(s: &str) -> Result<Vec<Self>> {
-        let hosts: Vec<Self> = s.split(',').map(str::trim).map(Self::parse).collect::<Result<_>>()?;
+    /// As [`Host::parse`], an empty list ([`CertsError::NoHost`]), or a name given twice
+    /// ([`CertsError::HostTwice`]).
+    pub fn parse_list(s: &str) -> Result<Vec<Self>, CertsError> {
+        let hosts: Vec<Self> = s.split(',').map(str::trim).map(Self::parse).collect::<Result<_, _>>()?;
         for (i, h) in hosts.iter().enumerate() {
             if hosts[..i].iter().any(|o| o.name == h.name) {
-                bail!("host {:?} given twice", h.name);
+                return Err(CertsError::HostTwice(h.name.clone()));
             }
         }
         if hosts.is_empty() {
-            bail!("no host: give e.g. --hosts plant.local,ctrl.local");
+            return Err(CertsError::NoHost);
         }
         Ok(hosts)
     }
@@ -101,18 +146,14 @@ pub struct Material {
     pub hosts: Vec<(String, PathBuf, PathBuf)>,
 }
 
-fn write_new(path: &Path, text: &str, mode: u32) -> Result<()> {
+fn write_new(path: &Path, text: &str, mode: u32) -> Result<(), CertsError> {
     let mut f = OpenOptions::new()
         .write(true)
         .create_new(true)
         .mode(mode)
         .open(path)
-        .with_context(|| format!("creating {} (it must not exist yet)", path.display()))?;
-    f.write_all(text.as_bytes()).with_context(|| format!("writing {}", path.display()))
-}
-
-fn rc(e: rcgen::Error) -> anyhow::Error {
-    anyhow!("{e}")
+        .map_err(file_error(|| format!("creating {} (it must not exist yet)", path.display())))?;
+    f.write_all(text.as_bytes()).map_err(file_error(|| format!("writing {}", path.display())))
 }
 
 /// A deployment's CA in memory: signs the hosts' certificates.
@@ -140,10 +181,10 @@ impl Deployment {
     /// A new CA (ECDSA P-256), valid over `validity`.
     ///
     /// # Errors
-    /// rcgen fails.
-    pub fn new(validity: Validity) -> Result<Self> {
-        let key = KeyPair::generate().map_err(rc)?;
-        let mut ca = CertificateParams::new(Vec::<String>::new()).map_err(rc)?;
+    /// [`CertsError::Rcgen`]: rcgen fails.
+    pub fn new(validity: Validity) -> Result<Self, CertsError> {
+        let key = KeyPair::generate()?;
+        let mut ca = CertificateParams::new(Vec::<String>::new())?;
         // A name of its own (from its public key): a verifier looks a certificate's issuer up
         // by name, so two deployments' CAs of one name would make "another CA" look like a
         // bad signature instead of an unknown issuer.
@@ -155,7 +196,7 @@ impl Deployment {
         ca.not_before = validity.start.into();
         ca.not_after = validity.end.into();
         let key_pem = key.serialize_pem();
-        Ok(Self { issuer: CertifiedIssuer::self_signed(ca, key).map_err(rc)?, key_pem })
+        Ok(Self { issuer: CertifiedIssuer::self_signed(ca, key)?, key_pem })
     }
 
     /// The CA's certificate and key.
@@ -168,19 +209,21 @@ impl Deployment {
     /// client authentication.
     ///
     /// # Errors
-    /// A name or address rcgen refuses.
-    pub fn host(&self, host: &Host, validity: Validity) -> Result<Pem> {
+    /// A name or address rcgen refuses ([`CertsError::HostRefused`]), or rcgen fails
+    /// ([`CertsError::Rcgen`]).
+    pub fn host(&self, host: &Host, validity: Validity) -> Result<Pem, CertsError> {
         let sans: Vec<String> =
             std::iter::once(host.name.clone()).chain(host.addresses.iter().cloned()).collect();
-        let mut p = CertificateParams::new(sans).map_err(|e| anyhow!("host {:?}: {e}", host.name))?;
+        let mut p = CertificateParams::new(sans)
+            .map_err(|cause| CertsError::HostRefused { host: host.name.clone(), cause })?;
         p.distinguished_name.push(DnType::CommonName, host.name.as_str());
         p.key_usages = vec![KeyUsagePurpose::DigitalSignature];
         p.extended_key_usages =
             vec![ExtendedKeyUsagePurpose::ServerAuth, ExtendedKeyUsagePurpose::ClientAuth];
         p.not_before = validity.start.into();
         p.not_after = validity.end.into();
-        let key = KeyPair::generate().map_err(rc)?;
-        let cert = p.signed_by(&key, &self.issuer).map_err(rc)?;
+        let key = KeyPair::generate()?;
+        let cert = p.signed_by(&key, &self.issuer)?;
         Ok(Pem { cert: cert.pem(), key: key.serialize_pem() })
     }
 }
@@ -188,8 +231,8 @@ impl Deployment {
 /// Writes `pem` as `dir/NAME.pem` and `dir/NAME.key` (the key `0600`), neither existing.
 ///
 /// # Errors
-/// A file exists already, or cannot be written.
-pub fn write_pair(dir: &Path, name: &str, pem: &Pem) -> Result<(PathBuf, PathBuf)> {
+/// [`CertsError::File`]: a file exists already, or cannot be written.
+pub fn write_pair(dir: &Path, name: &str, pem: &Pem) -> Result<(PathBuf, PathBuf), CertsError> {
     let (cert, key) = (dir.join(format!("{name}.pem")), dir.join(format!("{name}.key")));
     write_new(&cert, &pem.cert, 0o644)?;
     write_new(&key, &pem.key, 0o600)?;
@@ -200,14 +243,15 @@ pub fn write_pair(dir: &Path, name: &str, pem: &Pem) -> Result<(PathBuf, PathBuf
 /// `ca.pem`, `ca.key`, and `NAME.pem`, `NAME.key` per host.
 ///
 /// # Errors
-/// A file that exists already (nothing is overwritten), `out` cannot be made, or rcgen fails.
-pub fn make(out: &Path, hosts: &[Host], validity: Validity) -> Result<Material> {
+/// A file that exists already ([`CertsError::Exists`]: nothing is overwritten), `out` cannot
+/// be made ([`CertsError::File`]), or rcgen fails.
+pub fn make(out: &Path, hosts: &[Host], validity: Validity) -> Result<Material, CertsError> {
     if !out.exists() {
         std::fs::DirBuilder::new()
             .recursive(true)
             .mode(0o700)
             .create(out)
-            .with_context(|| format!("creating {}", out.display()))?;
+            .map_err(file_error(|| format!("creating {}", out.display())))?;
     }
     let names: Vec<PathBuf> = [out.join("ca.pem"), out.join("ca.key")]
         .into_iter()
@@ -218,10 +262,10 @@ pub fn make(out: &Path, hosts: &[Host], validity: Validity) -> Result<Material> 
         )
         .collect();
     if let Some(p) = names.iter().find(|p| p.exists()) {
-        bail!("{} exists already: give another --out (nothing was written)", p.display());
+        return Err(CertsError::Exists(p.clone()));
     }
     let ca = Deployment::new(validity)?;
-    let pems: Vec<Pem> = hosts.iter().map(|h| ca.host(h, validity)).collect::<Result<_>>()?;
+    let pems: Vec<Pem> = hosts.iter().map(|h| ca.host(h, validity)).collect::<Result<_, _>>()?;
     let (ca_cert, ca_key) = write_pair(out, "ca", &ca.ca())?;
     let mut material = Material { ca: ca_cert, ca_key, hosts: Vec::new() };
     for (h, pem) in hosts.iter().zip(&pems) {
@@ -249,6 +293,14 @@ mod tests {
         for bad in ["", "a,,b", "a=", "a/b", "a,a", "=1.2.3.4", "ca"] {
             assert!(Host::parse_list(bad).is_err(), "{bad}");
         }
+        assert!(matches!(Host::parse_list("a,a"), Err(CertsError::HostTwice(h)) if h == "a"));
+        assert!(matches!(Host::parse_list("ca"), Err(CertsError::HostNamedCa)));
+        let e = Host::parse_list("p,a/b").unwrap_err();
+        assert!(matches!(&e, CertsError::BadHost(h) if h == "a/b"), "{e}");
+        assert_eq!(
+            e.to_string(),
+            "host \"a/b\": expected NAME or NAME=ADDR[+ADDR], e.g. plant.local or plant.local=192.168.1.20"
+        );
     }
 
     #[test]
@@ -266,7 +318,12 @@ mod tests {
         }
         // Nothing is overwritten.
         let e = make(&dir, &Host::parse_list("other").unwrap(), Validity::days(1)).unwrap_err();
+        assert!(matches!(&e, CertsError::Exists(p) if *p == dir.join("ca.pem")), "{e}");
         assert!(e.to_string().contains("exists already"), "{e}");
+        let e = write_pair(&dir, "ca", &Pem { cert: String::new(), key: String::new() }).unwrap_err();
+        let CertsError::File { what, source } = &e else { panic!("not File: {e}") };
+        assert_eq!(source.kind(), std::io::ErrorKind::AlreadyExists);
+        assert_eq!(*what, format!("creating {} (it must not exist yet)", dir.join("ca.pem").display()));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -55,7 +55,6 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
 use iceoryx2::identifiers::UniqueNodeId;
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::{Listener, ListenerWaitError};
@@ -70,7 +69,9 @@ use iceoryx2::service::static_config::message_type_details::TypeDetail;
 use iceoryx2::service::static_config::messaging_pattern::MessagingPattern as StaticPattern;
 
 use crate::sys::lock::{NameInUse, Role};
-use crate::transport::link::{Link, PeerState};
+pub use crate::transport::error::OtherVersion;
+use crate::transport::error::{OpenError, StartError};
+use crate::transport::link::{Link, LinkError, PeerState};
 use crate::transport::wire::{CommandMsg, MeasurementMsg, WireMessage, PROTOCOL_VERSION};
 
 /// iceoryx2's `global.prefix` for every file and shared-memory segment of this project.
@@ -93,28 +94,11 @@ fn services(role: Role) -> (&'static str, &'static str) {
     }
 }
 
-/// A peer of another protocol version is waiting on the same demo.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error(
-    "protocol version mismatch: process {pid} waits on demo '{name}' with protocol version {version} (service \
-     {service}); this program speaks version {PROTOCOL_VERSION} (services companion/{name}/v{PROTOCOL_VERSION}/…)"
-)]
-pub struct OtherVersion {
-    /// The demo's name.
-    pub name: String,
-    /// The peer's version.
-    pub version: u32,
-    /// The service it opened.
-    pub service: String,
-    /// Its process id.
-    pub pid: i32,
-}
-
 /// The iceoryx2 configuration of this project: the global one with `global.prefix` =
 /// [`PREFIX`].
 ///
 /// # Errors
-/// The prefix is not a valid file name (never, it is a constant).
+/// [`StartError::Iceoryx2`]: the prefix is not a valid file name (never, it is a constant).
 ///
 /// iceoryx2's implicit clean-up of *every* dead node of the prefix, whenever any node is
 /// created or dropped, is turned off: it let any other process of this project (another demo,
@@ -122,9 +106,9 @@ pub struct OtherVersion {
 /// and the partner then said "left" for a process that died. Each side removes only what is
 /// its demo's: the dead peer it found ([`Endpoint::cleanup_dead_nodes`]) and, at start-up, the
 /// dead nodes an earlier run of the same name left ([`remove_dead_nodes_of_demo`]).
-pub fn config() -> Result<Config> {
+pub fn config() -> Result<Config, StartError> {
     let mut cfg = Config::global_config().clone();
-    cfg.global.prefix = FileName::new(PREFIX).map_err(|e| anyhow!("iceoryx2 prefix: {e:?}"))?;
+    cfg.global.prefix = FileName::new(PREFIX).map_err(|e| iceoryx2_error("iceoryx2 prefix", e))?;
     cfg.global.node.cleanup_dead_nodes_on_creation = false;
     cfg.global.node.cleanup_dead_nodes_on_destruction = false;
     Ok(cfg)
@@ -185,9 +169,41 @@ pub fn service_name(name: &str, what: &str) -> String {
     format!("companion/{name}/v{PROTOCOL_VERSION}/{what}")
 }
 
-fn service(name: &str, what: &str) -> Result<ServiceName> {
+/// iceoryx2 refused a set-up step: `what` and its error's words.
+fn iceoryx2_error(what: impl Into<String>, e: impl std::fmt::Debug) -> StartError {
+    StartError::Iceoryx2 { what: what.into(), cause: format!("{e:?}") }
+}
+
+fn service(name: &str, what: &str) -> Result<ServiceName, StartError> {
     let s = service_name(name, what);
-    ServiceName::new(&s).map_err(|e| anyhow!("service name {s}: {e:?}"))
+    ServiceName::new(&s).map_err(|e| iceoryx2_error(format!("service name {s}"), e))
+}
+
+/// Publishing failed at iceoryx2's `step` (formatted only then).
+#[cold]
+fn publish_failed(step: &'static str, e: impl std::fmt::Debug) -> LinkError {
+    LinkError::Publish { step, cause: format!("{e:?}") }
+}
+
+/// iceoryx2's node list could not be read (its words): a [`LinkError::PeerUnreadable`] on a
+/// running link, a [`StartError::Iceoryx2`] while starting.
+#[derive(Debug)]
+struct NodeListError(String);
+
+impl NodeListError {
+    const WHAT: &'static str = "listing iceoryx2 nodes";
+}
+
+impl From<NodeListError> for LinkError {
+    fn from(e: NodeListError) -> Self {
+        Self::PeerUnreadable { step: NodeListError::WHAT, cause: e.0 }
+    }
+}
+
+impl From<NodeListError> for StartError {
+    fn from(e: NodeListError) -> Self {
+        Self::Iceoryx2 { what: NodeListError::WHAT.into(), cause: e.0 }
+    }
 }
 
 fn own_pid() -> i32 {
@@ -200,7 +216,10 @@ fn own_pid() -> i32 {
 /// Nodes are told apart by id, never by process: the two ends of a demo may live in one
 /// process (the in-process tests do), and a filter on the own pid made each end find its peer
 /// "absent" after the first silence, as if it had left.
-fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -> Result<PeerState> {
+fn node_state(
+    cfg: &Config,
+    mut keep: impl FnMut(&UniqueNodeId, &str) -> bool,
+) -> Result<PeerState, NodeListError> {
     let mut found = PeerState::Absent;
     Node::<ipc::Service>::list(cfg, |state| {
         let (id, details, alive) = match &state {
@@ -218,25 +237,25 @@ fn node_state(cfg: &Config, mut keep: impl FnMut(&UniqueNodeId, &str) -> bool) -
         }
         CallbackProgression::Continue
     })
-    .map_err(|e| anyhow!("listing iceoryx2 nodes: {e:?}"))?;
+    .map_err(|e| NodeListError(format!("{e:?}")))?;
     Ok(found)
 }
 
 /// Finds this program's node of `role` in demo `name` (by its node name, `NAME/ROLE`).
 ///
 /// # Errors
-/// The node list cannot be read.
-pub fn find_node(cfg: &Config, name: &str, role: Role) -> Result<PeerState> {
+/// [`StartError::Iceoryx2`]: the node list cannot be read.
+pub fn find_node(cfg: &Config, name: &str, role: Role) -> Result<PeerState, StartError> {
     let want = node_name(name, role);
-    node_state(cfg, |_, n| n == want)
+    Ok(node_state(cfg, |_, n| n == want)?)
 }
 
 /// Fails with [`NameInUse`] if a live process of this program already plays `role` in demo
 /// `name`.
 ///
 /// # Errors
-/// [`NameInUse`], or the node list cannot be read.
-pub fn ensure_name_free(cfg: &Config, name: &str, role: Role) -> Result<()> {
+/// [`StartError::NameInUse`], or [`StartError::Iceoryx2`]: the node list cannot be read.
+pub fn ensure_name_free(cfg: &Config, name: &str, role: Role) -> Result<(), StartError> {
     if let PeerState::Alive(pid) = find_node(cfg, name, role)? {
         return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
     }
@@ -248,8 +267,8 @@ pub fn ensure_name_free(cfg: &Config, name: &str, role: Role) -> Result<()> {
 /// (K ≠ [`PROTOCOL_VERSION`]) with a live node of another process.
 ///
 /// # Errors
-/// The service list cannot be read.
-pub fn other_version(cfg: &Config, name: &str) -> Result<Option<OtherVersion>> {
+/// [`StartError::Iceoryx2`]: the service list cannot be read.
+pub fn other_version(cfg: &Config, name: &str) -> Result<Option<OtherVersion>, StartError> {
     let base = format!("companion/{name}/");
     let own = own_pid();
     let mut found = None;
@@ -281,7 +300,7 @@ pub fn other_version(cfg: &Config, name: &str) -> Result<Option<OtherVersion>> {
         }
         CallbackProgression::Continue
     })
-    .map_err(|e| anyhow!("listing iceoryx2 services: {e:?}"))?;
+    .map_err(|e| iceoryx2_error("listing iceoryx2 services", e))?;
     Ok(found)
 }
 
@@ -290,8 +309,8 @@ fn describe_type(t: &TypeDetail) -> String {
 }
 
 /// The error for a service `sn` that exists with another payload type than `T`: both types,
-/// and the user headers if they differ.
-pub fn incompatible_types<T: WireMessage>(cfg: &Config, sn: &str) -> anyhow::Error {
+/// and the user headers if they differ ([`StartError::IncompatibleTypes`]).
+pub fn incompatible_types<T: WireMessage>(cfg: &Config, sn: &str) -> StartError {
     let ours = format!("{} ({} bytes, alignment {})", T::TYPE_NAME, size_of::<T>(), align_of::<T>());
     let mut theirs = None;
     let _ = ipc::Service::list(cfg, |details| {
@@ -308,11 +327,11 @@ pub fn incompatible_types<T: WireMessage>(cfg: &Config, sn: &str) -> anyhow::Err
         }
         CallbackProgression::Continue
     });
-    anyhow!(
-        "incompatible payload type on iceoryx2 service {sn}: the peer created it with {}; this program \
-         (protocol version {PROTOCOL_VERSION}) uses {ours} and no user header",
-        theirs.unwrap_or_else(|| "another type".into())
-    )
+    StartError::IncompatibleTypes {
+        service: sn.to_string(),
+        theirs: theirs.unwrap_or_else(|| "another type".into()),
+        ours,
+    }
 }
 
 /// Opens service `sn` as it is (any settings), or creates it with this project's settings.
@@ -320,7 +339,7 @@ fn pubsub<T: WireMessage>(
     cfg: &Config,
     node: &Node<ipc::Service>,
     sn: &ServiceName,
-) -> Result<pubsub_factory::PortFactory<ipc::Service, T, ()>> {
+) -> Result<pubsub_factory::PortFactory<ipc::Service, T, ()>, StartError> {
     let start = Instant::now();
     loop {
         let err = match node.service_builder(sn).publish_subscribe::<T>().open() {
@@ -349,14 +368,17 @@ fn pubsub<T: WireMessage>(
         };
         // Transient (being created or removed by the peer): retry briefly.
         if start.elapsed() > OPEN_RETRY {
-            return Err(anyhow!("opening iceoryx2 service {sn}: {err}"));
+            return Err(StartError::Iceoryx2 { what: format!("opening iceoryx2 service {sn}"), cause: err });
         }
         std::thread::sleep(Duration::from_millis(5));
     }
 }
 
 /// Opens event service `sn` as it is, or creates it with iceoryx2's defaults.
-fn event(node: &Node<ipc::Service>, sn: &ServiceName) -> Result<event_factory::PortFactory<ipc::Service>> {
+fn event(
+    node: &Node<ipc::Service>,
+    sn: &ServiceName,
+) -> Result<event_factory::PortFactory<ipc::Service>, StartError> {
     let start = Instant::now();
     loop {
         let err = match node.service_builder(sn).event().open() {
@@ -369,7 +391,10 @@ fn event(node: &Node<ipc::Service>, sn: &ServiceName) -> Result<event_factory::P
             Err(e) => format!("{e:?}"),
         };
         if start.elapsed() > OPEN_RETRY {
-            return Err(anyhow!("opening iceoryx2 event service {sn}: {err}"));
+            return Err(StartError::Iceoryx2 {
+                what: format!("opening iceoryx2 event service {sn}"),
+                cause: err,
+            });
         }
         std::thread::sleep(Duration::from_millis(5));
     }
@@ -418,23 +443,24 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// event services too (a notifier on ours, a listener on the peer's).
     ///
     /// # Errors
-    /// [`NameInUse`], incompatible payload types, or an iceoryx2 failure.
-    pub fn open(name: &str, role: Role, events: bool) -> Result<Self> {
+    /// [`StartError::BadName`], [`StartError::NameInUse`], [`StartError::IncompatibleTypes`],
+    /// or an iceoryx2 failure ([`StartError::Iceoryx2`]).
+    pub fn open(name: &str, role: Role, events: bool) -> Result<Self, StartError> {
         crate::sys::lock::validate_name(name)?;
         let cfg = config()?;
         ensure_name_free(&cfg, name, role)?;
         remove_dead_nodes_of_demo(&cfg, name);
         let (tx, rx) = services(role);
-        let node_name = NodeName::new(&node_name(name, role)).map_err(|e| anyhow!("node name: {e:?}"))?;
+        let node_name = NodeName::new(&node_name(name, role)).map_err(|e| iceoryx2_error("node name", e))?;
         let node = NodeBuilder::new()
             .name(&node_name)
             .config(&cfg)
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| anyhow!("creating iceoryx2 node: {e:?}"))?;
+            .map_err(|e| iceoryx2_error("creating iceoryx2 node", e))?;
         let tx_service = pubsub::<Tx>(&cfg, &node, &service(name, tx)?)?;
         let rx_service = pubsub::<Rx>(&cfg, &node, &service(name, rx)?)?;
-        let in_use = |pid: i32| -> anyhow::Error {
+        let in_use = |pid: i32| -> StartError {
             NameInUse { name: name.to_string(), role: role.as_str(), pid }.into()
         };
         // Another live publisher on our service (whatever its node's name) plays our role.
@@ -454,19 +480,23 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
                 };
                 return Err(in_use(pid));
             }
-            Err(e) => return Err(anyhow!("creating publisher on {}: {e:?}", service_name(name, tx))),
+            Err(e) => {
+                return Err(iceoryx2_error(format!("creating publisher on {}", service_name(name, tx)), e))
+            }
         };
         let buffer = BUFFER.min(rx_service.static_config().subscriber_max_buffer_size()).max(1);
         let subscriber = match rx_service.subscriber_builder().buffer_size(buffer).create() {
             Ok(s) => s,
             Err(SubscriberCreateError::ExceedsMaxSupportedSubscribers) => return Err(in_use(0)),
-            Err(e) => return Err(anyhow!("creating subscriber on {}: {e:?}", service_name(name, rx))),
+            Err(e) => {
+                return Err(iceoryx2_error(format!("creating subscriber on {}", service_name(name, rx)), e))
+            }
         };
         let (notifier, listener) = if events {
             let tx_ev = event(&node, &service(name, &format!("{tx}-ready"))?)?;
             let rx_ev = event(&node, &service(name, &format!("{rx}-ready"))?)?;
-            let n = tx_ev.notifier_builder().create().map_err(|e| anyhow!("creating notifier: {e:?}"))?;
-            let l = rx_ev.listener_builder().create().map_err(|e| anyhow!("creating listener: {e:?}"))?;
+            let n = tx_ev.notifier_builder().create().map_err(|e| iceoryx2_error("creating notifier", e))?;
+            let l = rx_ev.listener_builder().create().map_err(|e| iceoryx2_error("creating listener", e))?;
             (Some(n), Some(l))
         } else {
             (None, None)
@@ -494,13 +524,13 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// Publishes one message (zero copy: loan, write, send), then notifies in event mode.
     ///
     /// # Errors
-    /// An iceoryx2 failure.
+    /// [`LinkError::Publish`]: an iceoryx2 failure.
     #[inline]
-    pub fn send(&self, msg: &Tx) -> Result<()> {
-        let sample = self.publisher.loan_uninit().map_err(|e| anyhow!("loan: {e:?}"))?;
-        sample.write_payload(*msg).send().map_err(|e| anyhow!("send: {e:?}"))?;
+    pub fn send(&self, msg: &Tx) -> Result<(), LinkError> {
+        let sample = self.publisher.loan_uninit().map_err(|e| publish_failed("loan", e))?;
+        sample.write_payload(*msg).send().map_err(|e| publish_failed("send", e))?;
         if let Some(n) = &self.notifier {
-            n.notify().map_err(|e| anyhow!("notify: {e:?}"))?;
+            n.notify().map_err(|e| publish_failed("notify", e))?;
         }
         Ok(())
     }
@@ -508,16 +538,16 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// Takes the oldest waiting message, if any, and remembers its publisher's node.
     ///
     /// # Errors
-    /// An iceoryx2 failure.
+    /// [`LinkError::Receive`]: an iceoryx2 failure.
     #[inline]
-    pub fn try_receive(&mut self) -> Result<Option<Rx>> {
+    pub fn try_receive(&mut self) -> Result<Option<Rx>, LinkError> {
         match self.subscriber.receive() {
             Ok(Some(s)) => {
                 self.peer = Some(s.header().node_id());
                 Ok(Some(*s.payload()))
             }
             Ok(None) => Ok(None),
-            Err(e) => Err(anyhow!("receive: {e:?}")),
+            Err(e) => Err(LinkError::Receive { step: "receive", cause: format!("{e:?}") }),
         }
     }
 
@@ -525,20 +555,20 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// draining all pending notifications. Without events: returns at once.
     ///
     /// # Errors
-    /// An iceoryx2 failure.
+    /// [`LinkError::Wait`]: an iceoryx2 failure.
     #[inline]
-    pub fn wait_event(&self, timeout: Duration) -> Result<()> {
+    pub fn wait_event(&self, timeout: Duration) -> Result<(), LinkError> {
         if let Some(l) = &self.listener {
             // Not `l.timed_wait`: it rounds a short timeout up to whole scheduler ticks (8 ms
             // here; see `sys::rt::wait_readable`). Poll the listener's descriptor with a precise
             // timeout, then take what arrived without blocking.
             let readable = crate::sys::rt::wait_readable(l.file_descriptor(), timeout)
-                .map_err(|e| anyhow!("waiting for the peer's event: {e}"))?;
+                .map_err(|e| LinkError::Wait { step: "ppoll", cause: e.to_string() })?;
             if readable {
                 match l.try_wait(|_| {}) {
                     // A signal (SIGSTOP/SIGCONT, SIGINT) ended the wait early: the caller re-checks.
                     Ok(_) | Err(ListenerWaitError::InterruptSignal) => {}
-                    Err(e) => return Err(anyhow!("try_wait: {e:?}")),
+                    Err(e) => return Err(LinkError::Wait { step: "try_wait", cause: format!("{e:?}") }),
                 }
             }
         }
@@ -557,16 +587,22 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// peer of another protocol version on the same demo ([`OtherVersion`]).
     ///
     /// # Errors
-    /// The timeout passed, a peer of another version waits, or `abort` said so.
-    pub fn wait_for_peer(&self, timeout: Duration, mut abort: impl FnMut() -> Option<String>) -> Result<()> {
+    /// The timeout passed ([`StartError::NoPeer`]), a peer of another version waits
+    /// ([`StartError::OtherVersion`]), `abort` said so ([`StartError::Aborted`]), a signal came
+    /// ([`StartError::Interrupted`]), or iceoryx2's service list cannot be read.
+    pub fn wait_for_peer(
+        &self,
+        timeout: Duration,
+        mut abort: impl FnMut() -> Option<String>,
+    ) -> Result<(), StartError> {
         let start = Instant::now();
         let mut next_scan = start;
         while !self.peer_connected() {
             if let Some(why) = abort() {
-                return Err(anyhow!("{why}"));
+                return Err(StartError::Aborted(why));
             }
             if crate::sys::signals::termination_requested() {
-                return Err(anyhow!("interrupted while waiting for the {}", self.role.peer().as_str()));
+                return Err(StartError::Interrupted(self.role.peer().as_str()));
             }
             if Instant::now() >= next_scan {
                 if let Some(other) = other_version(&self.cfg, &self.name)? {
@@ -577,7 +613,7 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
                 next_scan += VERSION_SCAN_EVERY;
             }
             if start.elapsed() > timeout {
-                return Err(anyhow!(
+                return Err(StartError::NoPeer(format!(
                     "no {} joined demo '{}' within {:.0} s (services {} and {}, iceoryx2 prefix {})",
                     self.role.peer().as_str(),
                     self.name,
@@ -585,7 +621,7 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
                     service_name(&self.name, "measurement"),
                     service_name(&self.name, "command"),
                     String::from_utf8_lossy(PREFIX)
-                ));
+                )));
             }
             std::thread::sleep(Duration::from_millis(1));
         }
@@ -607,12 +643,13 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// publisher, looked up in iceoryx2's node list.
     ///
     /// # Errors
-    /// The node list cannot be read.
-    pub fn peer_state(&self) -> Result<PeerState> {
-        match self.peer {
+    /// [`LinkError::PeerUnreadable`]: the node list cannot be read.
+    pub fn peer_state(&self) -> Result<PeerState, LinkError> {
+        let state = match self.peer {
             Some(id) => node_state(&self.cfg, |n, _| *n == id),
             None => publisher_state(&self.cfg, &self.rx_service),
-        }
+        };
+        Ok(state?)
     }
 
     /// Removes the dead peer's resources (its shared memory), and only its: the peer that
@@ -639,7 +676,7 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
 fn publisher_state<T: std::fmt::Debug + ZeroCopySend + 'static>(
     cfg: &Config,
     s: &pubsub_factory::PortFactory<ipc::Service, T, ()>,
-) -> Result<PeerState> {
+) -> Result<PeerState, NodeListError> {
     let mut ids = Vec::new();
     s.dynamic_config().list_publishers(|p| {
         ids.push(p.node_id);
@@ -656,21 +693,21 @@ impl<Tx: WireMessage, Rx: WireMessage> Link for Endpoint<Tx, Rx> {
     type Rx = Rx;
 
     #[inline]
-    fn publish(&mut self, msg: &Tx) -> Result<()> {
+    fn publish(&mut self, msg: &Tx) -> Result<(), LinkError> {
         self.send(msg)
     }
 
     #[inline]
-    fn try_receive(&mut self) -> Result<Option<Rx>> {
+    fn try_receive(&mut self) -> Result<Option<Rx>, LinkError> {
         Endpoint::try_receive(self)
     }
 
     #[inline]
-    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+    fn wait_event(&mut self, timeout: Duration) -> Result<(), LinkError> {
         Endpoint::wait_event(self, timeout)
     }
 
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         Endpoint::peer_state(self)
     }
 
@@ -683,9 +720,9 @@ impl PlantEndpoint {
     /// The plant's side of demo `name`.
     ///
     /// # Errors
-    /// As [`Endpoint::open`].
-    pub fn plant(name: &str, events: bool) -> Result<Self> {
-        Self::open(name, Role::Plant, events).context("opening the plant's transport")
+    /// [`OpenError`], its cause as [`Endpoint::open`]'s.
+    pub fn plant(name: &str, events: bool) -> Result<Self, OpenError> {
+        Self::open(name, Role::Plant, events).map_err(|cause| OpenError { role: Role::Plant, cause })
     }
 }
 
@@ -693,9 +730,9 @@ impl ControlEndpoint {
     /// The controller's side of demo `name`.
     ///
     /// # Errors
-    /// As [`Endpoint::open`].
-    pub fn control(name: &str, events: bool) -> Result<Self> {
-        Self::open(name, Role::Control, events).context("opening the controller's transport")
+    /// [`OpenError`], its cause as [`Endpoint::open`]'s.
+    pub fn control(name: &str, events: bool) -> Result<Self, OpenError> {
+        Self::open(name, Role::Control, events).map_err(|cause| OpenError { role: Role::Control, cause })
     }
 }
 

@@ -5,9 +5,50 @@
 
 use std::time::Duration;
 
-use anyhow::Result;
-
 use crate::transport::wire::{CommandMsg, MeasurementMsg};
+
+/// What went wrong on a [`Link`]: which of its four operations failed, the transport's step
+/// (`loan`, `send`, `notify`, `zenoh put`, `receive`, `timed_wait`, `listing iceoryx2 nodes`)
+/// and the transport's own words.
+///
+/// Made only when something failed: the success path of every operation neither allocates nor
+/// formats (`tests/no_alloc.rs`). The cause is a string because the transports' error types
+/// differ per step and per transport, and a message is all a loop does with one.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LinkError {
+    /// Publishing a message failed.
+    #[error("{step}: {cause}")]
+    Publish {
+        /// The transport's step.
+        step: &'static str,
+        /// The transport's words.
+        cause: String,
+    },
+    /// Taking a message failed.
+    #[error("{step}: {cause}")]
+    Receive {
+        /// The transport's step.
+        step: &'static str,
+        /// The transport's words.
+        cause: String,
+    },
+    /// Waiting on the transport's event failed.
+    #[error("{step}: {cause}")]
+    Wait {
+        /// The transport's step.
+        step: &'static str,
+        /// The transport's words.
+        cause: String,
+    },
+    /// The peer's state cannot be read.
+    #[error("{step}: {cause}")]
+    PeerUnreadable {
+        /// The transport's step.
+        step: &'static str,
+        /// The transport's words.
+        cause: String,
+    },
+}
 
 /// What [`Link::peer_state`] found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,27 +75,27 @@ pub trait Link {
     /// Publishes a message.
     ///
     /// # Errors
-    /// A transport failure.
-    fn publish(&mut self, msg: &Self::Tx) -> Result<()>;
+    /// [`LinkError::Publish`]: a transport failure.
+    fn publish(&mut self, msg: &Self::Tx) -> Result<(), LinkError>;
 
     /// Takes the oldest waiting message.
     ///
     /// # Errors
-    /// A transport failure.
-    fn try_receive(&mut self) -> Result<Option<Self::Rx>>;
+    /// [`LinkError::Receive`]: a transport failure.
+    fn try_receive(&mut self) -> Result<Option<Self::Rx>, LinkError>;
 
     /// Waits on the transport's event for at most `timeout` (event mode; else returns at
     /// once).
     ///
     /// # Errors
-    /// A transport failure.
-    fn wait_event(&mut self, timeout: Duration) -> Result<()>;
+    /// [`LinkError::Wait`]: a transport failure.
+    fn wait_event(&mut self, timeout: Duration) -> Result<(), LinkError>;
 
     /// Whether the peer is alive (a few system calls: call it only after a silence).
     ///
     /// # Errors
-    /// The peer's state cannot be read.
-    fn peer_state(&mut self) -> Result<PeerState>;
+    /// [`LinkError::PeerUnreadable`]: the peer's state cannot be read.
+    fn peer_state(&mut self) -> Result<PeerState, LinkError>;
 
     /// Whether this side notifies the peer's event after each message (so that the peer may
     /// sleep on it; announced on the wire as `flags::NOTIFIES`).
@@ -70,3 +111,19 @@ impl<L: Link<Tx = MeasurementMsg, Rx = CommandMsg>> PlantLink for L {}
 /// The controller's side: sends commands, receives measurements.
 pub trait ControlLink: Link<Tx = CommandMsg, Rx = MeasurementMsg> {}
 impl<L: Link<Tx = CommandMsg, Rx = MeasurementMsg>> ControlLink for L {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_link_error_says_the_step_and_the_transports_words() {
+        let e = LinkError::Publish { step: "loan", cause: "ExceedsMaxLoans".into() };
+        assert_eq!(e.to_string(), "loan: ExceedsMaxLoans");
+        let e = LinkError::PeerUnreadable {
+            step: "listing iceoryx2 nodes",
+            cause: "InsufficientPermissions".into(),
+        };
+        assert_eq!(e.to_string(), "listing iceoryx2 nodes: InsufficientPermissions");
+    }
+}

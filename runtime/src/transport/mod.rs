@@ -1,7 +1,8 @@
 //! The transport layer: how the two HIL processes exchange the wire's messages.
 //!
 //! - [`wire`]: the two `#[repr(C)]` messages, the interface a hardware bridge implements;
-//! - [`link`]: the transport as the loops see it ([`Link`], [`PeerState`]);
+//! - [`link`]: the transport as the loops see it ([`Link`], [`PeerState`], [`LinkError`]);
+//! - [`error`]: what goes wrong before the first message ([`StartError`], [`OpenError`]);
 //! - [`ipc`]: iceoryx2 shared memory on one machine (the default);
 //! - `zenoh_link` (QUIC under mutual TLS across machines), `zenoh_log` (zenoh's refusals as
 //!   messages) and `certs` (the deployment's certificates), with the cargo feature `zenoh`.
@@ -9,9 +10,16 @@
 //! This module's own items are `--transport`'s choice and the one endpoint type the two
 //! processes open: iceoryx2 ([`ipc`]) or Zenoh (`zenoh_link`). Both carry the same wire
 //! messages under the same policies; the loops see only [`Link`].
+//!
+//! Errors are typed: [`LinkError`] once the link runs (made only on failure: the hot path
+//! neither allocates nor formats), [`StartError`] before the first message (choosing,
+//! opening, meeting the peer), [`OpenError`] naming the side that failed to open.
+//! [`name_in_use`] finds a [`NameInUse`](crate::sys::lock::NameInUse) in any of them, for the
+//! command line's exit code 5.
 
 #[cfg(feature = "zenoh")]
 pub mod certs;
+pub mod error;
 pub mod ipc;
 pub mod link;
 pub mod wire;
@@ -22,17 +30,12 @@ pub mod zenoh_log;
 
 use std::time::Duration;
 
-use anyhow::{bail, Result};
+pub use error::{name_in_use, OpenError, StartError, BUILD_WITH_ZENOH};
 
 use crate::sys::lock::Role;
-use link::{Link, PeerState};
+use link::{Link, LinkError, PeerState};
 use wire::{CommandMsg, MeasurementMsg, WireMessage};
 use zerocopy::{FromBytes, Immutable, IntoBytes};
-
-/// How this program was told to build when it lacks the Zenoh transport.
-pub const BUILD_WITH_ZENOH: &str =
-    "this companion was built without the Zenoh transport; rebuild it with `cargo build --release -p \
-     companion-runtime --features zenoh` (or `cargo install --path runtime --features zenoh`)";
 
 /// A wire message as both transports carry it: an iceoryx2 payload and plain bytes.
 pub trait Message: WireMessage + IntoBytes + FromBytes + Immutable + Send {}
@@ -99,24 +102,37 @@ pub struct SecurityFlags {
 ///
 /// # Errors
 /// Both or neither endpoint given, a malformed endpoint, a `tcp/` endpoint without
-/// `--insecure`, a missing TLS flag, or a build without the feature ([`BUILD_WITH_ZENOH`]).
-pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -> Result<Transport> {
+/// `--insecure`, a missing TLS flag, or a build without the feature ([`BUILD_WITH_ZENOH`]):
+/// [`StartError::Endpoints`], [`StartError::BadEndpoint`], [`StartError::PlaintextRefused`],
+/// [`StartError::Insecure`], [`StartError::TlsFlag`], [`StartError::TlsFile`],
+/// [`StartError::NoZenoh`].
+pub fn zenoh(
+    listen: Option<&str>,
+    connect: Option<&str>,
+    sec: &SecurityFlags,
+) -> Result<Transport, StartError> {
     #[cfg(feature = "zenoh")]
     {
         use crate::transport::zenoh_link::{Security, TcpEndpoint, TlsFiles, ZenohLink};
         let link = match (listen, connect) {
             (Some(l), None) => ZenohLink::Listen(TcpEndpoint::parse(l)?),
             (None, Some(c)) => ZenohLink::Connect(TcpEndpoint::parse(c)?),
-            (Some(_), Some(_)) => bail!("--transport zenoh: give --listen or --connect, not both"),
-            (None, None) => bail!(
-                "--transport zenoh needs an endpoint: --listen quic/ADDR:PORT (usually the plant) or --connect \
-                 quic/ADDR:PORT (usually the controller)"
-            ),
+            (Some(_), Some(_)) => {
+                return Err(StartError::Endpoints("--transport zenoh: give --listen or --connect, not both"))
+            }
+            (None, None) => {
+                return Err(StartError::Endpoints(
+                    "--transport zenoh needs an endpoint: --listen quic/ADDR:PORT (usually the plant) or \
+                     --connect quic/ADDR:PORT (usually the controller)",
+                ))
+            }
         };
         let tls_given = sec.ca.is_some() || sec.cert.is_some() || sec.key.is_some() || sec.peer.is_some();
         let security = if sec.insecure {
             if tls_given {
-                bail!("--insecure turns TLS off: drop it, or drop --tls-ca, --tls-cert, --tls-key and --tls-peer");
+                return Err(StartError::Insecure(
+                    "--insecure turns TLS off: drop it, or drop --tls-ca, --tls-cert, --tls-key and --tls-peer".into(),
+                ));
             }
             Security::Insecure
         } else if link.endpoint().scheme == crate::transport::zenoh_link::Scheme::Tcp {
@@ -124,20 +140,21 @@ pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -
         } else {
             let need = |v: &Option<std::path::PathBuf>, flag: &str, what: &str| {
                 v.clone().ok_or_else(|| {
-                    anyhow::anyhow!(
+                    StartError::TlsFlag(format!(
                         "--transport zenoh over TLS needs {flag} FILE ({what}; `companion certs --out DIR --hosts \
                          plant.local,ctrl.local` makes them)"
-                    )
+                    ))
                 })
             };
             let ca = need(&sec.ca, "--tls-ca", "the deployment's CA certificate, ca.pem")?;
             let cert = need(&sec.cert, "--tls-cert", "this host's certificate, HOST.pem")?;
             let key = need(&sec.key, "--tls-key", "this host's private key, HOST.key")?;
             let Some(peer) = &sec.peer else {
-                bail!(
+                return Err(StartError::TlsFlag(
                     "--transport zenoh over TLS needs --tls-peer NAME: the name on the certificate of the peer \
                      this side may serve (e.g. ctrl.local on the plant, plant.local on the controller)"
-                );
+                        .into(),
+                ));
             };
             let peer_names = peer.split(',').map(|n| n.trim().to_string()).collect();
             Security::Tls(TlsFiles { ca, cert, key, peer_names })
@@ -148,7 +165,7 @@ pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -
     #[cfg(not(feature = "zenoh"))]
     {
         let _ = (listen, connect, sec);
-        bail!("--transport zenoh: {BUILD_WITH_ZENOH}")
+        Err(StartError::NoZenoh)
     }
 }
 
@@ -156,17 +173,17 @@ pub fn zenoh(listen: Option<&str>, connect: Option<&str>, sec: &SecurityFlags) -
 /// kernel's pick): where `companion hil --transport zenoh` lets its plant listen.
 ///
 /// # Errors
-/// No local TCP port can be bound.
-pub fn free_local_endpoint(insecure: bool) -> Result<String> {
+/// [`StartError::NoFreePort`]: no local port can be bound.
+pub fn free_local_endpoint(insecure: bool) -> Result<String, StartError> {
     let port = if insecure {
         let l = std::net::TcpListener::bind(("127.0.0.1", 0));
         l.and_then(|l| l.local_addr())
-            .map_err(|e| anyhow::anyhow!("finding a free local TCP port: {e}"))?
+            .map_err(|cause| StartError::NoFreePort { protocol: "TCP", cause })?
             .port()
     } else {
         let s = std::net::UdpSocket::bind(("127.0.0.1", 0));
         s.and_then(|s| s.local_addr())
-            .map_err(|e| anyhow::anyhow!("finding a free local UDP port: {e}"))?
+            .map_err(|cause| StartError::NoFreePort { protocol: "UDP", cause })?
             .port()
     };
     Ok(format!("{}/127.0.0.1:{port}", if insecure { "tcp" } else { "quic" }))
@@ -206,31 +223,26 @@ pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
 /// (over Zenoh's QUIC it sets the lease, [`crate::transport::zenoh_link::quic_lease`]).
 ///
 /// # Errors
-/// As [`ipc::Endpoint::open`] or [`crate::transport::zenoh_link::ZenohEndpoint::open`].
+/// [`OpenError`], its cause as [`ipc::Endpoint::open`] or
+/// [`crate::transport::zenoh_link::ZenohEndpoint::open`].
 pub fn open<Tx: Message, Rx: Message>(
     transport: &Transport,
     name: &str,
     role: Role,
     events: bool,
     peer_timeout: Duration,
-) -> Result<Endpoint<Tx, Rx>> {
-    let what = if role == Role::Plant {
-        "opening the plant's transport"
-    } else {
-        "opening the controller's transport"
-    };
+) -> Result<Endpoint<Tx, Rx>, OpenError> {
     #[cfg(not(feature = "zenoh"))]
     let _ = peer_timeout;
-    match transport {
-        Transport::Iceoryx2 => {
-            Ok(Endpoint::Iceoryx2(anyhow::Context::context(ipc::Endpoint::open(name, role, events), what)?))
-        }
+    let opened = match transport {
+        Transport::Iceoryx2 => ipc::Endpoint::open(name, role, events).map(Endpoint::Iceoryx2),
         #[cfg(feature = "zenoh")]
-        Transport::Zenoh(l, sec) => Ok(Endpoint::Zenoh(anyhow::Context::context(
-            crate::transport::zenoh_link::ZenohEndpoint::open(name, role, l.clone(), sec, peer_timeout),
-            what,
-        )?)),
-    }
+        Transport::Zenoh(l, sec) => {
+            crate::transport::zenoh_link::ZenohEndpoint::open(name, role, l.clone(), sec, peer_timeout)
+                .map(Endpoint::Zenoh)
+        }
+    };
+    opened.map_err(|cause| OpenError { role, cause })
 }
 
 impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
@@ -238,9 +250,15 @@ impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
     /// waiting whether to give up.
     ///
     /// # Errors
-    /// The timeout passed, a peer of another version waits, a second process of this role
-    /// is on the demo (Zenoh), or `abort` said so.
-    pub fn wait_for_peer(&self, timeout: Duration, abort: impl FnMut() -> Option<String>) -> Result<()> {
+    /// The timeout passed ([`StartError::NoPeer`]), a peer of another version waits
+    /// ([`StartError::OtherVersion`]), a second process of this role is on the demo
+    /// ([`StartError::NameInUse`], Zenoh), `abort` said so ([`StartError::Aborted`]), or a
+    /// signal came ([`StartError::Interrupted`]).
+    pub fn wait_for_peer(
+        &self,
+        timeout: Duration,
+        abort: impl FnMut() -> Option<String>,
+    ) -> Result<(), StartError> {
         match self {
             Self::Iceoryx2(e) => e.wait_for_peer(timeout, abort),
             #[cfg(feature = "zenoh")]
@@ -310,7 +328,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
     type Rx = Rx;
 
     #[inline]
-    fn publish(&mut self, msg: &Tx) -> Result<()> {
+    fn publish(&mut self, msg: &Tx) -> Result<(), LinkError> {
         match self {
             Self::Iceoryx2(e) => e.send(msg),
             #[cfg(feature = "zenoh")]
@@ -319,7 +337,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
     }
 
     #[inline]
-    fn try_receive(&mut self) -> Result<Option<Rx>> {
+    fn try_receive(&mut self) -> Result<Option<Rx>, LinkError> {
         match self {
             Self::Iceoryx2(e) => e.try_receive(),
             #[cfg(feature = "zenoh")]
@@ -328,7 +346,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
     }
 
     #[inline]
-    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+    fn wait_event(&mut self, timeout: Duration) -> Result<(), LinkError> {
         match self {
             Self::Iceoryx2(e) => e.wait_event(timeout),
             #[cfg(feature = "zenoh")]
@@ -339,7 +357,7 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
         }
     }
 
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         match self {
             Self::Iceoryx2(e) => e.peer_state(),
             #[cfg(feature = "zenoh")]
@@ -353,5 +371,84 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
             #[cfg(feature = "zenoh")]
             Self::Zenoh(_) => true,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sys::lock::BadName;
+
+    #[test]
+    fn a_bad_name_is_refused_before_iceoryx2_is_touched() {
+        let e = ipc::Endpoint::<CommandMsg, MeasurementMsg>::open("a/b", Role::Control, false).unwrap_err();
+        assert!(matches!(&e, StartError::BadName(BadName(n)) if n == "a/b"), "{e}");
+        let e = open::<MeasurementMsg, CommandMsg>(
+            &Transport::Iceoryx2,
+            "",
+            Role::Plant,
+            false,
+            Duration::from_secs(1),
+        )
+        .unwrap_err();
+        assert!(matches!(e, OpenError { role: Role::Plant, cause: StartError::BadName(_) }), "{e}");
+    }
+
+    #[test]
+    fn a_second_process_of_a_role_is_a_name_in_use() {
+        let name = format!("starterr-{}", std::process::id());
+        let first = ipc::PlantEndpoint::plant(&name, false).unwrap();
+        let own = i32::try_from(std::process::id()).unwrap();
+        let e = ipc::PlantEndpoint::plant(&name, false).unwrap_err();
+        let StartError::NameInUse(n) = &e.cause else { panic!("not NameInUse: {e}: {}", e.cause) };
+        assert_eq!((n.name.as_str(), n.role, n.pid), (name.as_str(), "plant", own));
+        assert_eq!(e.role, Role::Plant);
+        let cfg = ipc::config().unwrap();
+        let e = ipc::ensure_name_free(&cfg, &name, Role::Plant).unwrap_err();
+        assert_eq!(e.name_in_use().map(|n| n.pid), Some(own));
+        assert!(ipc::ensure_name_free(&cfg, &name, Role::Control).is_ok());
+        drop(first);
+    }
+
+    #[cfg(not(feature = "zenoh"))]
+    #[test]
+    fn zenoh_without_the_feature_says_how_to_build_it() {
+        let e = zenoh(Some("quic/127.0.0.1:7447"), None, &SecurityFlags::default()).unwrap_err();
+        assert!(matches!(e, StartError::NoZenoh), "{e}");
+        assert_eq!(e.to_string(), format!("--transport zenoh: {BUILD_WITH_ZENOH}"));
+    }
+
+    #[cfg(feature = "zenoh")]
+    #[test]
+    fn zenoh_flags_give_their_variants() {
+        let none = SecurityFlags::default();
+        let e = zenoh(Some("tcp/127.0.0.1:7447"), None, &none).unwrap_err();
+        assert!(
+            matches!(&e, StartError::PlaintextRefused { endpoint, host, port: 7447 }
+                if endpoint == "tcp/127.0.0.1:7447" && host == "127.0.0.1"),
+            "{e}"
+        );
+        assert_eq!(
+            e.to_string(),
+            "tcp/127.0.0.1:7447 is plain TCP: whoever reaches that port could drive the robot, and anyone on the \
+             path read and alter its traffic. Use quic/127.0.0.1:7447 with --tls-ca, --tls-cert, --tls-key and \
+             --tls-peer (make them with `companion certs --out DIR --hosts plant.local,ctrl.local`), or pass \
+             --insecure to accept that risk"
+        );
+        let insecure = SecurityFlags { insecure: true, ..SecurityFlags::default() };
+        assert!(matches!(zenoh(Some("tcp/127.0.0.1:7447"), None, &insecure), Ok(Transport::Zenoh(..))));
+        let e = zenoh(Some("quic/h:1"), Some("quic/h:2"), &none).unwrap_err();
+        assert_eq!(e.to_string(), "--transport zenoh: give --listen or --connect, not both");
+        assert!(matches!(e, StartError::Endpoints(_)));
+        assert!(matches!(zenoh(None, None, &none), Err(StartError::Endpoints(_))));
+        let e = zenoh(None, Some("quic/h"), &none).unwrap_err();
+        assert!(matches!(&e, StartError::BadEndpoint(m) if m.contains("no port")), "{e}");
+        let e = zenoh(None, Some("quic/h:1"), &none).unwrap_err();
+        assert!(matches!(&e, StartError::TlsFlag(m) if m.contains("--tls-ca FILE")), "{e}");
+        let both = SecurityFlags { insecure: true, peer: Some("ctrl".into()), ..SecurityFlags::default() };
+        let e = zenoh(None, Some("tcp/h:1"), &both).unwrap_err();
+        assert!(matches!(&e, StartError::Insecure(m) if m.starts_with("--insecure turns TLS off")), "{e}");
+        let e = zenoh(None, Some("quic/h:1"), &insecure).unwrap_err();
+        assert_eq!(e.to_string(), "--insecure is for plain tcp/ endpoints; quic/h:1 is TLS: drop --insecure");
     }
 }

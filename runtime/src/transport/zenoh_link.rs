@@ -64,14 +64,14 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::Thread;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context, Result};
 use zenoh::sample::SampleKind;
 use zenoh::Wait;
 use zerocopy::{FromBytes, Immutable, IntoBytes};
 
 use crate::sys::lock::{NameInUse, Role};
+use crate::transport::error::StartError;
 use crate::transport::ipc::OtherVersion;
-use crate::transport::link::{Link, PeerState};
+use crate::transport::link::{Link, LinkError, PeerState};
 use crate::transport::wire::{CommandMsg, MeasurementMsg, PROTOCOL_VERSION};
 
 /// Received messages waiting for the loop (allocated once).
@@ -125,8 +125,8 @@ impl TcpEndpoint {
     /// Parses `quic/HOST:PORT`, `tls/HOST:PORT` or `tcp/HOST:PORT`.
     ///
     /// # Errors
-    /// Another protocol, no host, or no valid port.
-    pub fn parse(s: &str) -> Result<Self> {
+    /// [`StartError::BadEndpoint`]: another protocol, no host, or no valid port.
+    pub fn parse(s: &str) -> Result<Self, StartError> {
         let (scheme, rest) = if let Some(rest) = s.strip_prefix("tls/") {
             (Scheme::Tls, rest)
         } else if let Some(rest) = s.strip_prefix("quic/") {
@@ -134,25 +134,29 @@ impl TcpEndpoint {
         } else if let Some(rest) = s.strip_prefix("tcp/") {
             (Scheme::Tcp, rest)
         } else {
-            bail!(
+            return Err(StartError::BadEndpoint(format!(
                 "endpoint {s:?}: expected quic/HOST:PORT, e.g. quic/192.168.1.20:7447 (tls/HOST:PORT for TLS over \
                  TCP, or tcp/HOST:PORT with --insecure)"
-            );
+            )));
         };
         let p = scheme.as_str();
         let Some((host, port)) = rest.rsplit_once(':') else {
-            bail!("endpoint {s:?}: no port; expected {p}/HOST:PORT, e.g. {p}/127.0.0.1:7447");
+            return Err(StartError::BadEndpoint(format!(
+                "endpoint {s:?}: no port; expected {p}/HOST:PORT, e.g. {p}/127.0.0.1:7447"
+            )));
         };
         let port: u16 = port.parse().map_err(|_| {
-            anyhow!(
+            StartError::BadEndpoint(format!(
                 "endpoint {s:?}: the port {port:?} is not a number from 0 to 65535; expected {p}/HOST:PORT"
-            )
+            ))
         })?;
         let bad_host = host.is_empty()
             || !host.bytes().all(|b| b.is_ascii_alphanumeric() || b"-._:[]".contains(&b))
             || host.contains(':') && !(host.starts_with('[') && host.ends_with(']'));
         if bad_host {
-            bail!("endpoint {s:?}: bad host {host:?}; expected {p}/HOST:PORT (an IPv6 address in brackets)");
+            return Err(StartError::BadEndpoint(format!(
+                "endpoint {s:?}: bad host {host:?}; expected {p}/HOST:PORT (an IPv6 address in brackets)"
+            )));
         }
         Ok(Self { scheme, host: host.to_string(), port })
     }
@@ -179,15 +183,14 @@ pub struct TlsFiles {
     pub peer_names: Vec<String>,
 }
 
-/// Why a `tcp/` endpoint is refused without `--insecure`, and what to do instead.
-pub fn plaintext_refused(endpoint: &TcpEndpoint) -> anyhow::Error {
-    anyhow!(
-        "{endpoint} is plain TCP: whoever reaches that port could drive the robot, and anyone on the path read \
-         and alter its traffic. Use quic/{}:{} with --tls-ca, --tls-cert, --tls-key and --tls-peer (make them \
-         with `companion certs --out DIR --hosts plant.local,ctrl.local`), or pass --insecure to accept that risk",
-        endpoint.host,
-        endpoint.port
-    )
+/// Why a `tcp/` endpoint is refused without `--insecure`, and what to do instead
+/// ([`StartError::PlaintextRefused`]).
+pub fn plaintext_refused(endpoint: &TcpEndpoint) -> StartError {
+    StartError::PlaintextRefused {
+        endpoint: endpoint.to_string(),
+        host: endpoint.host.clone(),
+        port: endpoint.port,
+    }
 }
 
 /// Who may join this side's demo.
@@ -212,21 +215,27 @@ impl Security {
     /// insecure), the files can be read and the names are not empty.
     ///
     /// # Errors
-    /// A message saying what to change.
-    pub fn check(&self, endpoint: &TcpEndpoint) -> Result<()> {
+    /// A message saying what to change: [`StartError::Insecure`],
+    /// [`StartError::PlaintextRefused`], [`StartError::TlsFile`] or [`StartError::TlsFlag`].
+    pub fn check(&self, endpoint: &TcpEndpoint) -> Result<(), StartError> {
         match (self, endpoint.scheme) {
             (Self::Insecure, Scheme::Tcp) => Ok(()),
-            (Self::Insecure, Scheme::Tls | Scheme::Quic) => {
-                bail!("--insecure is for plain tcp/ endpoints; {endpoint} is TLS: drop --insecure")
-            }
+            (Self::Insecure, Scheme::Tls | Scheme::Quic) => Err(StartError::Insecure(format!(
+                "--insecure is for plain tcp/ endpoints; {endpoint} is TLS: drop --insecure"
+            ))),
             (Self::Tls(_), Scheme::Tcp) => Err(plaintext_refused(endpoint)),
             (Self::Tls(t), Scheme::Tls | Scheme::Quic) => {
                 for (flag, p) in [("--tls-ca", &t.ca), ("--tls-cert", &t.cert), ("--tls-key", &t.key)] {
-                    std::fs::metadata(p)
-                        .with_context(|| format!("{flag} {}: cannot read it", p.display()))?;
+                    std::fs::metadata(p).map_err(|source| StartError::TlsFile {
+                        flag,
+                        path: p.clone(),
+                        source,
+                    })?;
                 }
                 if t.peer_names.is_empty() || t.peer_names.iter().any(|n| n.trim().is_empty()) {
-                    bail!("--tls-peer: the name on the peer's certificate, e.g. ctrl.local (not empty)");
+                    return Err(StartError::TlsFlag(
+                        "--tls-peer: the name on the peer's certificate, e.g. ctrl.local (not empty)".into(),
+                    ));
                 }
                 Ok(())
             }
@@ -373,8 +382,9 @@ pub type ZenohPlant = ZenohEndpoint<MeasurementMsg, CommandMsg>;
 /// The controller's endpoint.
 pub type ZenohControl = ZenohEndpoint<CommandMsg, MeasurementMsg>;
 
-fn zerr(e: zenoh::Error) -> anyhow::Error {
-    anyhow!("{e}")
+/// Zenoh refused a set-up step: `what` (made only on failure) and zenoh's words.
+fn zerr(what: impl FnOnce() -> String) -> impl FnOnce(zenoh::Error) -> StartError {
+    move |e| StartError::Zenoh { what: what(), cause: e.to_string() }
 }
 
 /// A JSON string (a path or a name, quoted and escaped).
@@ -414,9 +424,9 @@ fn config(
     link: &ZenohLink,
     security: &Security,
     peer_timeout: Duration,
-) -> Result<zenoh::Config> {
+) -> Result<zenoh::Config, StartError> {
     let mut c = zenoh::Config::default();
-    let mut set = |k: &str, v: &str| c.insert_json5(k, v).map_err(|e| anyhow!("zenoh config {k} = {v}: {e}"));
+    let mut set = |k: &str, v: &str| c.insert_json5(k, v).map_err(zerr(|| format!("zenoh config {k} = {v}")));
     set("mode", "\"peer\"")?;
     if let Security::Tls(t) = security {
         let path = |p: &PathBuf| json(&p.to_string_lossy());
@@ -488,15 +498,17 @@ where
     /// ([`quic_lease`]).
     ///
     /// # Errors
-    /// A bad name, an endpoint that `security` does not allow ([`Security::check`]), or Zenoh
-    /// cannot open the session (e.g. the port to listen on is taken, a TLS file is bad).
+    /// A bad name ([`StartError::BadName`]), an endpoint that `security` does not allow
+    /// ([`Security::check`]), or Zenoh cannot open the session ([`StartError::Listen`],
+    /// [`StartError::Connect`]: e.g. the port to listen on is taken, a TLS file is bad) or set
+    /// up its parts ([`StartError::Zenoh`]).
     pub fn open(
         name: &str,
         role: Role,
         link: ZenohLink,
         security: &Security,
         peer_timeout: Duration,
-    ) -> Result<Self> {
+    ) -> Result<Self, StartError> {
         crate::sys::lock::validate_name(name)?;
         let (tx, rx_what) = match role {
             Role::Plant => ("measurement", "command"),
@@ -506,10 +518,12 @@ where
         crate::transport::zenoh_log::install();
         let session =
             zenoh::open(config(name, &link, security, peer_timeout)?).wait().map_err(|e| match &link {
-                ZenohLink::Listen(ep) => anyhow!(
-                "cannot listen on {ep}: {e} (is the port in use, or the address not one of this machine's?)"
-            ),
-                ZenohLink::Connect(ep) => anyhow!("cannot open a Zenoh session to {ep}: {e}"),
+                ZenohLink::Listen(ep) => {
+                    StartError::Listen { endpoint: ep.to_string(), cause: e.to_string() }
+                }
+                ZenohLink::Connect(ep) => {
+                    StartError::Connect { endpoint: ep.to_string(), cause: e.to_string() }
+                }
             })?;
         let shared = Arc::new(Shared::default());
         let (producer, consumer) = rtrb::RingBuffer::<Rx>::new(RING);
@@ -534,16 +548,14 @@ where
                 }
             })
             .wait()
-            .map_err(zerr)
-            .with_context(|| format!("subscribing to {}", key(name, rx_what)))?;
+            .map_err(zerr(|| format!("subscribing to {}", key(name, rx_what))))?;
         let publisher = session
             .declare_publisher(key(name, tx))
             .congestion_control(zenoh::qos::CongestionControl::Drop)
             .priority(zenoh::qos::Priority::RealTime)
             .express(true)
             .wait()
-            .map_err(zerr)
-            .with_context(|| format!("declaring the publisher of {}", key(name, tx)))?;
+            .map_err(zerr(|| format!("declaring the publisher of {}", key(name, tx))))?;
         // Every token of this demo, of any version: the peer's, a rival's, another version's.
         let watch_key = format!("companion/{name}/*/alive/*/*");
         let sh = Arc::clone(&shared);
@@ -579,8 +591,7 @@ where
                 }
             })
             .wait()
-            .map_err(zerr)
-            .with_context(|| format!("watching {watch_key}"))?;
+            .map_err(zerr(|| format!("watching {watch_key}")))?;
         if let Security::Tls(t) = security {
             // Name the peers access control refuses (zenoh gives their certificate's CN).
             let (sh, expected) = (Arc::clone(&shared), t.peer_names.clone());
@@ -613,16 +624,14 @@ where
                 })
                 .background()
                 .wait()
-                .map_err(zerr)
-                .context("watching the links of the session")?;
+                .map_err(zerr(|| "watching the links of the session".into()))?;
         }
         let own_key = key(name, &format!("alive/{}/{}", role.as_str(), own_pid()));
         let token = session
             .liveliness()
             .declare_token(&own_key)
             .wait()
-            .map_err(zerr)
-            .with_context(|| format!("declaring the liveliness token {own_key}"))?;
+            .map_err(zerr(|| format!("declaring the liveliness token {own_key}")))?;
         Ok(Self {
             name: name.to_string(),
             role,
@@ -641,10 +650,13 @@ where
     /// Publishes one message (its bytes; Zenoh copies them into a buffer of its own).
     ///
     /// # Errors
-    /// A Zenoh failure.
+    /// [`LinkError::Publish`]: a Zenoh failure.
     #[inline]
-    pub fn send(&self, msg: &Tx) -> Result<()> {
-        self.publisher.put(msg.as_bytes()).wait().map_err(|e| anyhow!("zenoh put: {e}"))
+    pub fn send(&self, msg: &Tx) -> Result<(), LinkError> {
+        self.publisher
+            .put(msg.as_bytes())
+            .wait()
+            .map_err(|e| LinkError::Publish { step: "zenoh put", cause: e.to_string() })
     }
 
     /// Takes the oldest waiting message, if any.
@@ -746,8 +758,14 @@ where
     /// asked each time whether to give up.
     ///
     /// # Errors
-    /// The timeout passed (the message names the endpoint), or `abort` said so.
-    pub fn wait_for_peer(&self, timeout: Duration, mut abort: impl FnMut() -> Option<String>) -> Result<()> {
+    /// The timeout passed ([`StartError::NoPeer`], the message names the endpoint), `abort`
+    /// said so ([`StartError::Aborted`]), a signal came ([`StartError::Interrupted`]), or
+    /// [`Self::check_mismatch`] failed.
+    pub fn wait_for_peer(
+        &self,
+        timeout: Duration,
+        mut abort: impl FnMut() -> Option<String>,
+    ) -> Result<(), StartError> {
         let start = Instant::now();
         loop {
             self.check_mismatch()?;
@@ -757,10 +775,10 @@ where
                 return self.check_mismatch();
             }
             if let Some(why) = abort() {
-                return Err(anyhow!("{why}"));
+                return Err(StartError::Aborted(why));
             }
             if crate::sys::signals::termination_requested() {
-                return Err(anyhow!("interrupted while waiting for the {}", self.role.peer().as_str()));
+                return Err(StartError::Interrupted(self.role.peer().as_str()));
             }
             if start.elapsed() > timeout {
                 let peer = self.role.peer().as_str();
@@ -782,14 +800,14 @@ where
                     (0, ZenohLink::Listen(_)) => String::new(),
                     (n, _) => format!("; {n} connection(s) refused, the last: {}", last.unwrap_or_default()),
                 };
-                return Err(anyhow!(
+                return Err(StartError::NoPeer(format!(
                     "no {peer} joined demo '{}' over Zenoh within {:.0} s: {hint}{refused}; key expressions {} \
                      and {}, protocol version {PROTOCOL_VERSION}",
                     self.name,
                     timeout.as_secs_f64(),
                     key(&self.name, "measurement"),
                     key(&self.name, "command"),
-                ));
+                )));
             }
             std::thread::sleep(Duration::from_millis(1));
         }
@@ -799,8 +817,8 @@ where
     /// this demo.
     ///
     /// # Errors
-    /// [`OtherVersion`] or [`NameInUse`].
-    pub fn check_mismatch(&self) -> Result<()> {
+    /// [`StartError::OtherVersion`] or [`StartError::NameInUse`].
+    pub fn check_mismatch(&self) -> Result<(), StartError> {
         if let Some(o) = self.shared.other.lock().unwrap_or_else(std::sync::PoisonError::into_inner).clone() {
             // Stay a moment, so that the other side's own check finds us and says so too.
             std::thread::sleep(Duration::from_millis(300));
@@ -837,22 +855,22 @@ where
     type Rx = Rx;
 
     #[inline]
-    fn publish(&mut self, msg: &Tx) -> Result<()> {
+    fn publish(&mut self, msg: &Tx) -> Result<(), LinkError> {
         self.send(msg)
     }
 
     #[inline]
-    fn try_receive(&mut self) -> Result<Option<Rx>> {
+    fn try_receive(&mut self) -> Result<Option<Rx>, LinkError> {
         Ok(ZenohEndpoint::try_receive(self))
     }
 
     #[inline]
-    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+    fn wait_event(&mut self, timeout: Duration) -> Result<(), LinkError> {
         ZenohEndpoint::wait_event(self, timeout);
         Ok(())
     }
 
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         Ok(ZenohEndpoint::peer_state(self))
     }
 
@@ -907,9 +925,44 @@ mod tests {
             "quic/h",
             "quic/h:x",
         ] {
-            let e = TcpEndpoint::parse(bad).unwrap_err().to_string();
+            let e = TcpEndpoint::parse(bad).unwrap_err();
+            assert!(matches!(e, StartError::BadEndpoint(_)), "{bad}: {e}");
+            let e = e.to_string();
             assert!(e.contains("/HOST:PORT") || e.contains("port"), "{bad}: {e}");
         }
+    }
+
+    #[test]
+    fn opening_a_plaintext_endpoint_with_tls_is_refused_before_zenoh_starts() {
+        let files = TlsFiles {
+            ca: "/nonexistent/ca.pem".into(),
+            cert: "/nonexistent/c.pem".into(),
+            key: "/nonexistent/c.key".into(),
+            peer_names: vec!["ctrl".into()],
+        };
+        let ep = TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap();
+        let e = ZenohPlant::open(
+            "d",
+            Role::Plant,
+            ZenohLink::Listen(ep),
+            &Security::Tls(files),
+            Duration::from_secs(2),
+        )
+        .unwrap_err();
+        assert!(
+            matches!(&e, StartError::PlaintextRefused { endpoint, .. } if endpoint == "tcp/127.0.0.1:7447"),
+            "{e}"
+        );
+        let ep = TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap();
+        let e = ZenohPlant::open(
+            "a b",
+            Role::Plant,
+            ZenohLink::Listen(ep),
+            &Security::Insecure,
+            Duration::from_secs(2),
+        )
+        .unwrap_err();
+        assert!(matches!(e, StartError::BadName(_)), "{e}");
     }
 
     #[test]
@@ -917,7 +970,9 @@ mod tests {
         let tcp = TcpEndpoint::parse("tcp/127.0.0.1:7447").unwrap();
         let tls = TcpEndpoint::parse("tls/127.0.0.1:7447").unwrap();
         assert!(Security::Insecure.check(&tcp).is_ok());
-        let e = Security::Insecure.check(&tls).unwrap_err().to_string();
+        let e = Security::Insecure.check(&tls).unwrap_err();
+        assert!(matches!(e, StartError::Insecure(_)), "{e}");
+        let e = e.to_string();
         assert!(e.contains("drop --insecure"), "{e}");
         let files = TlsFiles {
             ca: "/nonexistent/ca.pem".into(),
@@ -925,12 +980,26 @@ mod tests {
             key: "/nonexistent/c.key".into(),
             peer_names: vec!["ctrl".into()],
         };
-        let e = Security::Tls(files.clone()).check(&tcp).unwrap_err().to_string();
+        let e = Security::Tls(files.clone()).check(&tcp).unwrap_err();
+        assert!(matches!(e, StartError::PlaintextRefused { port: 7447, .. }), "{e}");
+        let e = e.to_string();
         assert!(
             e.contains("is plain TCP") && e.contains("--insecure") && e.contains("quic/127.0.0.1:7447"),
             "{e}"
         );
-        let e = format!("{:#}", Security::Tls(files).check(&tls).unwrap_err());
+        let e = Security::Tls(files.clone()).check(&tls).unwrap_err();
+        let StartError::TlsFile { flag, path, source } = &e else { panic!("not TlsFile: {e}") };
+        assert_eq!(
+            (*flag, path.as_path(), source.kind()),
+            ("--tls-ca", files.ca.as_path(), std::io::ErrorKind::NotFound)
+        );
+        let e = format!("{e:#}");
         assert!(e.contains("--tls-ca /nonexistent/ca.pem"), "{e}");
+        // Files that can be read (their content is zenoh's to check), an empty peer name.
+        let null = PathBuf::from("/dev/null");
+        let blank =
+            TlsFiles { ca: null.clone(), cert: null.clone(), key: null, peer_names: vec![" ".into()] };
+        let e = Security::Tls(blank).check(&tls).unwrap_err();
+        assert!(matches!(&e, StartError::TlsFlag(m) if m.starts_with("--tls-peer: ")), "{e}");
     }
 }

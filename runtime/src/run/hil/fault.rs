@@ -9,7 +9,7 @@ use std::time::Duration;
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
 
-use crate::transport::link::{Link, PeerState};
+use crate::transport::link::{Link, LinkError, PeerState};
 use crate::transport::wire::CommandMsg;
 
 /// A corrupted command to send.
@@ -108,7 +108,7 @@ impl<L: Link<Tx = CommandMsg>> Link for Injecting<L> {
     type Tx = CommandMsg;
     type Rx = L::Rx;
 
-    fn publish(&mut self, msg: &CommandMsg) -> Result<()> {
+    fn publish(&mut self, msg: &CommandMsg) -> Result<(), LinkError> {
         while let Some(&(at, kind)) = self.plan.get(self.next) {
             if at > msg.seq {
                 break;
@@ -132,15 +132,15 @@ impl<L: Link<Tx = CommandMsg>> Link for Injecting<L> {
         self.inner.publish(msg)
     }
 
-    fn try_receive(&mut self) -> Result<Option<L::Rx>> {
+    fn try_receive(&mut self) -> Result<Option<L::Rx>, LinkError> {
         self.inner.try_receive()
     }
 
-    fn wait_event(&mut self, timeout: Duration) -> Result<()> {
+    fn wait_event(&mut self, timeout: Duration) -> Result<(), LinkError> {
         self.inner.wait_event(timeout)
     }
 
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         self.inner.peer_state()
     }
 
@@ -159,17 +159,17 @@ mod tests {
     impl Link for Sink {
         type Tx = CommandMsg;
         type Rx = ();
-        fn publish(&mut self, c: &CommandMsg) -> Result<()> {
+        fn publish(&mut self, c: &CommandMsg) -> Result<(), LinkError> {
             self.0.push(*c);
             Ok(())
         }
-        fn try_receive(&mut self) -> Result<Option<()>> {
+        fn try_receive(&mut self) -> Result<Option<()>, LinkError> {
             Ok(None)
         }
-        fn wait_event(&mut self, _: Duration) -> Result<()> {
+        fn wait_event(&mut self, _: Duration) -> Result<(), LinkError> {
             Ok(())
         }
-        fn peer_state(&mut self) -> Result<PeerState> {
+        fn peer_state(&mut self) -> Result<PeerState, LinkError> {
             Ok(PeerState::Absent)
         }
     }

@@ -205,12 +205,12 @@ impl Opened {
             crate::transport::wire::canonical::describe_arm(self.stamp.arm_hash)
         ));
         // Peers refused on the way (their certificate, their name) are named as they come.
-        self.ep.wait_for_peer(cfg.startup_timeout, || {
+        Ok(self.ep.wait_for_peer(cfg.startup_timeout, || {
             for r in self.ep.take_refusals() {
                 observer.warn(&format!("plant: {r}"));
             }
             None
-        })
+        })?)
     }
 }
 

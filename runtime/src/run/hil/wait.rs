@@ -25,11 +25,11 @@
 
 use std::time::Duration;
 
-use anyhow::Result;
 use serde::Serialize;
 
 use super::config::WaitMode;
 use crate::sys::clock::Clock;
+use crate::transport::link::LinkError;
 
 /// After this long spinning without a message, hybrid waiting naps instead (ns).
 pub const SPIN_BUDGET_NS: u64 = 200_000;
@@ -236,15 +236,16 @@ impl Idler {
     /// waits on the transport's event (event mode, and adaptive after a preemption).
     ///
     /// # Errors
-    /// The event wait failed.
+    /// The event wait failed ([`Link::wait_event`](crate::transport::link::Link::wait_event)'s
+    /// error).
     #[inline]
     pub fn idle<C: Clock>(
         &mut self,
         clock: &C,
         expected_ns: Option<u64>,
         limit_ns: u64,
-        event_wait: impl FnOnce(Duration) -> Result<()>,
-    ) -> Result<()> {
+        event_wait: impl FnOnce(Duration) -> Result<(), LinkError>,
+    ) -> Result<(), LinkError> {
         let now = clock.now_ns();
         let event = || Duration::from_nanos(limit_ns.saturating_sub(now).clamp(1_000, MAX_EVENT_WAIT_NS));
         match self.mode {
@@ -305,7 +306,7 @@ mod tests {
     fn hybrid_sleeps_to_the_margin_then_spins_then_naps() {
         let c = FakeClock::new(0, 1_000);
         let mut idler = Idler::new(WaitMode::Hybrid, 100_000);
-        let no_event = |_d: Duration| -> Result<()> { panic!("no event in hybrid mode") };
+        let no_event = |_d: Duration| -> Result<(), LinkError> { panic!("no event in hybrid mode") };
         idler.idle(&c, Some(1_000_000), u64::MAX, no_event).unwrap();
         assert_eq!(c.now_ns(), 900_000);
         // Spinning: 1 µs per step while within the budget.

@@ -89,22 +89,23 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
+    use crate::transport::link::LinkError;
 
     struct Peer(PeerState, u32);
 
     impl Link for Peer {
         type Tx = ();
         type Rx = ();
-        fn publish(&mut self, (): &()) -> Result<()> {
+        fn publish(&mut self, (): &()) -> Result<(), LinkError> {
             Ok(())
         }
-        fn try_receive(&mut self) -> Result<Option<()>> {
+        fn try_receive(&mut self) -> Result<Option<()>, LinkError> {
             Ok(None)
         }
-        fn wait_event(&mut self, _: Duration) -> Result<()> {
+        fn wait_event(&mut self, _: Duration) -> Result<(), LinkError> {
             Ok(())
         }
-        fn peer_state(&mut self) -> Result<PeerState> {
+        fn peer_state(&mut self) -> Result<PeerState, LinkError> {
             self.1 += 1;
             Ok(self.0)
         }

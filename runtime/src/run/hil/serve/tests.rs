@@ -13,7 +13,7 @@ use crate::run::hil::fault::{Corruption, Injecting};
 use crate::run::hil::handshake::controller_hash;
 use crate::run::hil::messages::Stamp;
 use crate::sys::clock::FakeClock;
-use crate::transport::link::{Link, PeerState};
+use crate::transport::link::{Link, LinkError, PeerState};
 use crate::transport::wire::{platform, refusal, CommandMsg};
 
 /// A plant whose measurements arrive at given times on a fake clock.
@@ -28,21 +28,21 @@ struct Fake {
 impl Link for Fake {
     type Tx = CommandMsg;
     type Rx = MeasurementMsg;
-    fn publish(&mut self, c: &CommandMsg) -> Result<()> {
+    fn publish(&mut self, c: &CommandMsg) -> Result<(), LinkError> {
         self.sent.push(*c);
         Ok(())
     }
-    fn try_receive(&mut self) -> Result<Option<MeasurementMsg>> {
+    fn try_receive(&mut self) -> Result<Option<MeasurementMsg>, LinkError> {
         match self.inbox.front() {
             Some((at, _)) if *at <= self.clock.now_ns() => Ok(self.inbox.pop_front().map(|x| x.1)),
             _ => Ok(None),
         }
     }
-    fn wait_event(&mut self, d: Duration) -> Result<()> {
+    fn wait_event(&mut self, d: Duration) -> Result<(), LinkError> {
         self.clock.advance(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX));
         Ok(())
     }
-    fn peer_state(&mut self) -> Result<PeerState> {
+    fn peer_state(&mut self) -> Result<PeerState, LinkError> {
         self.checks += 1;
         Ok(self.peer)
     }
