@@ -4,7 +4,7 @@
 usage: callgrind_run.py STEPS BINARY MAIN.out [OTHER_THREAD.out ...]
 
 MAIN.out is the callgrind output (`--dump-instr=yes --separate-threads=yes`) of the thread
-that runs `companion_runtime::sim::run_loop`; the others are the remaining threads (the CSV
+that runs `companion_runtime::run::sim::run_loop`; the others are the remaining threads (the CSV
 writer). Made by benches/profile_run.sh.
 
 Robust to inlining: every instruction of the function that holds the loop (run_loop, or
@@ -18,7 +18,7 @@ import sys
 
 from callgrind_format import inline_chains, parse
 
-LOOP = "companion_runtime::sim::run_loop"
+LOOP = "companion_runtime::run::sim::run_loop"
 
 HANDOFF = "recording: logged rows (CSV, or hand-off)"
 # The parts, by the first matching fragment of the charged frame's name.
@@ -62,7 +62,7 @@ def part_of(below, callee):
 
 # The hand-off of a row to the writer thread (the summary is accumulated on that thread since
 # the simulation and the HIL plant share one writer; a direct Recorder still splits it here).
-RECORD = "<companion_runtime::record::writer::RecordWriter as companion_runtime::record::recorder::RowSink>::record"
+RECORD = "<companion_runtime::domain::record::writer::RecordWriter as companion_runtime::domain::record::recorder::RowSink>::record"
 
 
 def summary_in(prefix, self_cost, calls, binary):
@@ -84,7 +84,7 @@ def summary_in(prefix, self_cost, calls, binary):
 def main():
     steps, binary, main_out = float(sys.argv[1]), sys.argv[2], sys.argv[3]
     self_cost, calls, main_total = load(main_out)
-    holders = [f for f in self_cost if f and (f.startswith(LOOP) or f.startswith("companion_runtime::sim::run_one"))]
+    holders = [f for f in self_cost if f and (f.startswith(LOOP) or f.startswith("companion_runtime::run::sim::run_one"))]
     items = []  # (address, callee or None, cost)
     for f in holders:
         items += [(a, None, c) for a, c in self_cost[f].items()]

@@ -6,7 +6,7 @@
 #
 # Runs `companion sim ... --no-plots` once under callgrind (one output per thread) and
 # prints, per controller step, the instructions of the parts of the loop
-# (`companion_runtime::sim::run_loop`): controller step, plant step, measurement and sample,
+# (`companion_runtime::run::sim::run_loop`): controller step, plant step, measurement and sample,
 # summary, hand-off of logged rows — whatever the compiler inlined (callgrind_run.py) — and
 # of the CSV writer thread. Needs valgrind (scripts/setup), python3 and addr2line; takes
 # 10–20 s per 120 s of simulated time.
@@ -31,7 +31,7 @@ valgrind --tool=callgrind --dump-instr=yes --separate-threads=yes --callgrind-ou
 }
 steps=$(awk -F'"steps": ' '/"steps"/ { sub(/,.*/, "", $2); print $2 }' "$work/run/summary.json")
 # The thread that runs the loop is the one whose output names run_loop or run_one.
-main_out=$(grep -l "companion_runtime::sim::run_\(loop\|one\)" "$work"/cg.out-* | head -1)
+main_out=$(grep -l "companion_runtime::run::sim::run_\(loop\|one\)" "$work"/cg.out-* | head -1)
 others=()
 for f in "$work"/cg.out-*; do
   [ "$f" != "$main_out" ] && [ -s "$f" ] && others+=("$f")

@@ -20,7 +20,7 @@
 
 use companion_core::{wrap_angle, Controller, PaperRun, PlatformKind, Rpr, Unicycle};
 use companion_plant::{paper_initial, PaperTrajectory, Plant, PlantConfig, Trajectory};
-use companion_runtime::controller::{ControllerSpec, Scalar};
+use companion_runtime::domain::controller::{ControllerSpec, Scalar};
 use companion_tests::pointwise::{reference, reference_alpha, worst, Sample};
 
 /// One step of the default law: the plant's state at `t_k` and what the law reported.

@@ -8,7 +8,7 @@ use std::time::Duration;
 use crate::transport::wire::{CommandMsg, MeasurementMsg};
 
 /// What went wrong on a [`Link`]: which of its four operations failed, the transport's step
-/// (`loan`, `send`, `notify`, `zenoh put`, `receive`, `timed_wait`, `listing iceoryx2 nodes`)
+/// (`loan`, `send`, `notify`, `zenoh put`, `receive`, `ppoll`, `try_wait`, `listing iceoryx2 nodes`)
 /// and the transport's own words.
 ///
 /// Made only when something failed: the success path of every operation neither allocates nor
