@@ -595,6 +595,9 @@ class Bridge:
         self.counts = {"fresh": 0, "deadline_misses": 0, "late": 0, "held": 0, "stopped": 0, "stop_events": 0}
         self.invalid = {}
         self.delays = []
+        # --rows: one tuple per period (kept in memory, written at the end: no file I/O in
+        # the loop).
+        self.rows = [] if a.rows else None
         # The controller's logged joint guard factor (CommandMsg.joint_scale) over the fresh
         # commands the law computed (status 0): its largest value, how often it acted, and how
         # many carried no valid factor (not finite or below 1).
@@ -813,6 +816,9 @@ class Bridge:
                         self.counts["stop_events"] += 1
                     stopped = True
             self.summary.add(self.robot, cmd)
+            if self.rows is not None:
+                outcome = "fresh" if got else ("held" if not stopped else "stopped")
+                self.rows.append((n, self.robot.t, self.summary.final_ep, outcome, switch_at, late))
             if n == steps:
                 break
             self.robot.advance(acting, cmd, switch_at)
@@ -864,6 +870,11 @@ class Bridge:
         if self.a.out:
             with open(self.a.out, "w") as f:
                 json.dump(out, f, indent=2)
+        if self.rows is not None:
+            with open(self.a.rows, "w") as f:
+                f.write("period,t,ep_norm,outcome,switch_at_s,release_late_ns\n")
+                for r in self.rows:
+                    f.write(f"{r[0]},{r[1]:.6f},{r[2]:.6e},{r[3]},{r[4]:.6e},{r[5]}\n")
 
 
 def describe_refusal(c, mine):
@@ -952,6 +963,7 @@ def main(argv=None):
     p.add_argument("--pause-ms", type=float, default=100.0)
     p.add_argument("--stall-at", type=int, default=-1, help="(tests) stop publishing, stay alive")
     p.add_argument("--out", help="write the run's figures as JSON here")
+    p.add_argument("--rows", help="(real time) write one CSV row per period here: t, |e_p|, fresh/held/stopped, delay")
     p.add_argument(
         "--progress", type=int, default=0, help="print 'bridge: period N' every N periods (0: never)"
     )
