@@ -4,6 +4,8 @@
 //! The loop here ([`run_loop`]) is also the HIL plant's lockstep loop: only the way a
 //! measurement becomes a [`StepReport`] differs ([`Exchange`]), so both write the same bytes.
 
+use std::convert::Infallible;
+use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
@@ -24,11 +26,20 @@ use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
 
 /// Turns a measurement into the controller's report: in process, or over the wire.
 pub trait Exchange {
-    /// The report for the measurement of step `n`.
+    /// Why an exchange may end the run before its last step, as a value the loop hands back
+    /// ([`LoopEnd::Ended`]): the HIL plant's lost or refusing controller
+    /// ([`PlantEnd`](crate::run::hil::PlantEnd)); [`Infallible`] in process.
+    type End;
+
+    /// The report for the measurement of step `n`, or the end of the run.
     ///
     /// # Errors
-    /// The controller could not be reached (HIL).
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport>;
+    /// The exchange itself failed (HIL: the transport).
+    fn exchange(
+        &mut self,
+        n: u64,
+        meas: &Measurement<f64, JOINTS>,
+    ) -> Result<ControlFlow<Self::End, StepReport>>;
 }
 
 /// The controller in this process.
@@ -54,9 +65,15 @@ impl InProcess {
 }
 
 impl Exchange for InProcess {
+    type End = Infallible;
+
     #[inline]
-    fn exchange(&mut self, _n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
-        Ok(self.controller.step(meas, self.dt, self.delay))
+    fn exchange(
+        &mut self,
+        _n: u64,
+        meas: &Measurement<f64, JOINTS>,
+    ) -> Result<ControlFlow<Infallible, StepReport>> {
+        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, self.delay)))
     }
 }
 
@@ -130,9 +147,9 @@ pub fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose
 /// How often the loop reports progress and looks for SIGINT/SIGTERM (steps).
 const PROGRESS_EVERY: u64 = 4096;
 
-/// How [`run_loop`] ended.
+/// How [`run_loop`] ended; `X` is the exchange's [`Exchange::End`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum LoopEnd {
+pub enum LoopEnd<X = Infallible> {
     /// Every step ran.
     Completed,
     /// SIGINT or SIGTERM: the loop recorded step `last` as the last one and stopped.
@@ -140,6 +157,8 @@ pub enum LoopEnd {
         /// The last step recorded.
         last: u64,
     },
+    /// The exchange ended the run (its step not recorded).
+    Ended(X),
 }
 
 /// Runs steps `0..=steps` of a scenario in lockstep: measure, exchange, record, advance.
@@ -154,13 +173,16 @@ pub fn run_loop<E: Exchange, R: RowSink>(
     exchange: &mut E,
     sink: &mut R,
     observer: &dyn Observer,
-) -> Result<LoopEnd> {
+) -> Result<LoopEnd<E::End>> {
     let steps = s.steps();
     let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
     let star = s.controller.params::<f64>().primary.target_in_effector;
     for n in 0..=steps {
         let meas = plant.measure();
-        let report = exchange.exchange(n, &meas)?;
+        let report = match exchange.exchange(n, &meas)? {
+            ControlFlow::Continue(report) => report,
+            ControlFlow::Break(end) => return Ok(LoopEnd::Ended(end)),
+        };
         let interrupted =
             n % PROGRESS_EVERY == 0 && n < steps && crate::sys::signals::termination_requested();
         let last = n == steps || interrupted;

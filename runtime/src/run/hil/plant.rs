@@ -11,7 +11,7 @@ use super::config::{HilConfig, HilScenario};
 use super::end::PlantEnd;
 use super::handshake::controller_hash;
 use super::messages::Stamp;
-use super::plant_loop::{run_real_time, Lockstep, Lost, PlantSide};
+use super::plant_loop::{run_real_time, Lockstep, PlantSide};
 use super::report::{self, LatencyReport};
 use super::robot::{PlanarRobot, SpatialRobot};
 use super::stats::{LiveFigures, PlantStats};
@@ -346,7 +346,8 @@ fn run_planar(
         let end = match r {
             Ok(LoopEnd::Completed) => PlantEnd::Completed,
             Ok(LoopEnd::Interrupted { last }) => PlantEnd::Interrupted { cycle: last },
-            Err(e) => lost_or(e)?,
+            Ok(LoopEnd::Ended(end)) => end,
+            Err(e) => return Err(e),
         };
         recorder.flush()?;
         if let Some(w) = rt_report.as_ref().and_then(|r| r.warning("plant")) {
@@ -414,14 +415,6 @@ fn run_planar(
     Ok(PlantOutcome { end, run: PlantRun::Planar(run), latency })
 }
 
-/// How a lost controller ended the loop ([`Lost`]), or the loop's other error.
-fn lost_or(e: anyhow::Error) -> Result<PlantEnd> {
-    match e.downcast_ref::<Lost>() {
-        Some(Lost(end)) => Ok(*end),
-        None => Err(e),
-    }
-}
-
 /// The plant of a spatial arm of `N` joints (§5): the spatial plant of `companion sim --arm`,
 /// its rows the [`SpatialRecord`]s of every `--log-every`-th step (in real time written as
 /// the run goes by a thread of its own, [`SpatialStream`]).
@@ -472,7 +465,8 @@ where
         let end = match failed {
             None if outcome.summary.ended_early => PlantEnd::Interrupted { cycle: outcome.summary.steps },
             None => PlantEnd::Completed,
-            Some(e) => lost_or(e)?,
+            Some(spatial::Halt::Ended(end)) => end,
+            Some(spatial::Halt::Failed(e)) => return Err(e),
         };
         crate::sys::rt::reset_thread();
         (outcome, end)

@@ -22,6 +22,7 @@
 //! deadline miss (counted as `aged_commands`). With `K = 0` (the default) an answer to an
 //! earlier period is late and dropped, as before.
 
+use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
@@ -209,18 +210,292 @@ fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
     }
 }
 
+/// What the real-time loop carries from one period to the next.
+#[derive(Debug)]
+struct Cycle<const N: usize> {
+    /// Release 0's time, moved on by each stall (ns).
+    start: u64,
+    /// The run's last step: the scenario's, or earlier once the run ends early.
+    last_step: u64,
+    /// How the run ends (so far).
+    end: PlantEnd,
+    /// The command acting at the end of the last period.
+    acting: Command<f64, N>,
+    /// The last measured delay (s), announced in the next measurement.
+    delay: f64,
+    /// Publication times of the last measurements ([`PUBLISHED`]).
+    published: [u64; PUBLISHED],
+    /// The `seq` of the last applied command.
+    applied: Option<u64>,
+    /// How the loop waits.
+    idler: Idler,
+    /// Hold, then stop, after misses.
+    policy: HoldPolicy<N>,
+    /// The controller's liveness.
+    watch: PeerWatch,
+}
+
+impl<const N: usize> Cycle<N> {
+    fn new(timing: &Timing, steps: u64, now: u64) -> Self {
+        Self {
+            start: now,
+            last_step: steps,
+            end: PlantEnd::Completed,
+            acting: Command::zero(),
+            delay: 0.0,
+            published: [0; PUBLISHED],
+            applied: None,
+            idler: Idler::new(timing.wait, timing.spin_margin_ns),
+            policy: HoldPolicy::new(timing.hold_periods),
+            watch: PeerWatch::new(timing.silence_ns, now),
+        }
+    }
+
+    /// Ends the run after step `last` with `why`.
+    fn end_after(&mut self, last: u64, why: PlantEnd) {
+        self.end = why;
+        self.last_step = last;
+    }
+}
+
+/// The slot of measurement `seq` in [`Cycle::published`].
+fn slot(seq: u64) -> usize {
+    (seq % PUBLISHED as u64) as usize
+}
+
+/// A period's measurement, published: when, and until when its answer is awaited (ns).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Released {
+    /// The publication time.
+    t_pub: u64,
+    /// The deadline for its answer.
+    deadline: u64,
+}
+
+/// What the plant heard in one period by its deadline.
+#[derive(Clone, Copy, Debug, Default)]
+struct Heard {
+    /// The answer taken (to this period, or an older one under `--max-command-age`).
+    fresh: Option<Fresh>,
+    /// The controller's refusal of this plant.
+    refused: Option<Refusal>,
+}
+
+/// What a period applies: the report, where its command came from, and when within the
+/// period it takes effect (s).
+#[derive(Clone, Copy, Debug)]
+struct Applied<const N: usize> {
+    report: StepReport<N>,
+    source: CommandSource,
+    switch_at: f64,
+}
+
+impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
+    /// **Release**: waits for period `n`'s release, skips the releases a stall missed, and
+    /// publishes `meas` (its flags: the end of the run, a stopped robot).
+    ///
+    /// A plant more than a period behind its schedule (not scheduled, or stopped) does not
+    /// replay the periods it missed in a burst: it counts a stall and goes on from now.
+    fn release<const N: usize, S: WireSpace>(
+        &mut self,
+        cy: &mut Cycle<N>,
+        n: u64,
+        meas: &Measurement<f64, N, S>,
+    ) -> Result<Released> {
+        let period = self.timing.period_ns;
+        let mut fl = 0;
+        if n == cy.last_step {
+            fl |= flags::END_OF_RUN;
+        }
+        if cy.policy.stopped() {
+            fl |= flags::STOPPED;
+        }
+        let mut release = cy.start + n * period;
+        cy.idler.until(self.clock, release);
+        let now = self.clock.now_ns();
+        if n > 0 && now > release + period {
+            let behind = now - release;
+            let skipped = behind / period;
+            cy.start += skipped * period;
+            release += skipped * period;
+            let st = &mut *self.stats;
+            st.plant_stalls += 1;
+            st.skipped_releases += skipped;
+            st.longest_stall_ns = st.longest_stall_ns.max(behind);
+        }
+        let t_pub = self.publish(n, fl, cy.delay, meas)?;
+        cy.published[slot(n)] = t_pub;
+        // The handshake's answer (a cold first step) and, at the end of a completed run, the
+        // last answer (the controller's confirmation) are awaited up to the peer timeout.
+        let patient = n == 0 || (n == cy.last_step && cy.end == PlantEnd::Completed);
+        let deadline =
+            if patient { t_pub + self.timing.peer_timeout_ns } else { release + self.timing.deadline_ns };
+        if n > 0 {
+            self.stats.jitter.record(t_pub - release);
+        }
+        if t_pub > deadline {
+            self.stats.plant_overruns += 1;
+        }
+        Ok(Released { t_pub, deadline })
+    }
+
+    /// **Await the command**: drains and waits until the answer to `n` (or a refusal) came or
+    /// the deadline passed — not at all once the controller is known to be gone. Real time
+    /// starts when the handshake (`n = 0`) is answered.
+    fn await_command<const N: usize>(&mut self, cy: &mut Cycle<N>, n: u64, deadline: u64) -> Result<Heard> {
+        let mut heard = Heard::default();
+        cy.idler.reset();
+        let peer_lost = matches!(cy.end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
+        if !peer_lost {
+            let want = Wanted { n, max_age: u64::from(self.timing.max_command_age), applied: cy.applied };
+            loop {
+                match self.drain::<N>(want, true)? {
+                    // The answer to `n`, or an older one newer than any found before.
+                    Ok(Some(f)) if heard.fresh.is_none_or(|(c, _): Fresh| c.seq <= f.0.seq) => {
+                        if heard.fresh.is_some_and(|(c, _)| c.seq < f.0.seq) {
+                            self.stats.late_commands += 1;
+                        }
+                        heard.fresh = Some(f);
+                    }
+                    Ok(_) => {}
+                    Err(why) => heard.refused = Some(why),
+                }
+                let current = heard.fresh.is_some_and(|(c, _)| c.seq == n);
+                if current || heard.refused.is_some() || self.clock.now_ns() >= deadline {
+                    break;
+                }
+                let link = &mut *self.link;
+                cy.idler.idle(self.clock, None, deadline, |d| link.wait_event(d))?;
+            }
+        }
+        if n == 0 {
+            cy.start = self.clock.now_ns();
+            self.stats.run_window_ns.0 = cy.start;
+        }
+        Ok(heard)
+    }
+
+    /// **Apply**: what period `n` applies — the fresh command from its arrival (its delay
+    /// measured for the next measurement), or the hold policy's after a miss, or the stop
+    /// after a refusal (which ends the run) — counted. `t` is the plant's time (s).
+    fn apply<const N: usize>(
+        &mut self,
+        cy: &mut Cycle<N>,
+        n: u64,
+        t_pub: u64,
+        heard: Heard,
+        t: f64,
+    ) -> Applied<N> {
+        let timing = self.timing;
+        let (period, dt) = (timing.period_ns, self.stamp.dt);
+        let stats = &mut *self.stats;
+        let mut switch_at = 0.0;
+        let (report, source) = match heard {
+            Heard { refused: Some(why), .. } => {
+                cy.end_after(n, PlantEnd::Refused(why));
+                (super::hold::stop_report(), CommandSource::Stopped)
+            }
+            Heard { fresh: Some((c, t_rx)), refused: None } => {
+                stats.fresh += 1;
+                if n > 0 {
+                    let gap = t_rx.saturating_sub(cy.watch.last_heard_ns());
+                    stats.longest_command_gap_ns = stats.longest_command_gap_ns.max(gap);
+                    if gap > (u64::from(timing.hold_periods) + 1) * period {
+                        stats.command_gaps_over_hold += 1;
+                    }
+                }
+                cy.watch.heard(t_rx);
+                if timing.wait.uses_events() && !c.has(flags::NOTIFIES) && !stats.event_fallback {
+                    // The controller does not notify: poll instead of sleeping on its event.
+                    cy.idler = Idler::new(WaitMode::Hybrid, timing.spin_margin_ns);
+                    stats.event_fallback = true;
+                }
+                if n > 0 {
+                    let scale = |ns: u64| ns as f64 * dt / period as f64;
+                    switch_at = scale(t_rx.saturating_sub(t_pub)).min(dt * (1.0 - 1e-9));
+                    cy.delay = if c.seq == n {
+                        switch_at
+                    } else {
+                        // An older answer: its delay counts from its own measurement.
+                        stats.aged_commands += 1;
+                        scale(t_rx.saturating_sub(cy.published[slot(c.seq)]))
+                    };
+                }
+                cy.applied = Some(c.seq);
+                cy.policy.fresh(report_of::<N>(&c))
+            }
+            Heard { fresh: None, refused: None } => {
+                stats.deadline_misses += 1;
+                let was_stopped = cy.policy.stopped();
+                let r = cy.policy.missed();
+                // A stop event is the hold running out on a moving robot (not the start of a
+                // run before the first command).
+                if cy.policy.stopped() && !was_stopped && cy.policy.has_commanded() {
+                    stats.stop_events += 1;
+                    stats.first_stop_t.get_or_insert(t);
+                }
+                stats.max_consecutive_misses =
+                    stats.max_consecutive_misses.max(u64::from(cy.policy.consecutive()));
+                r
+            }
+        };
+        Applied { report, source, switch_at }
+    }
+
+    /// **Account**: period `n`'s counts (held or stopped, a log row the sink could not keep)
+    /// and the live figures.
+    fn account<const N: usize>(&mut self, cy: &Cycle<N>, n: u64, source: CommandSource, kept: bool) {
+        let stats = &mut *self.stats;
+        match source {
+            CommandSource::Held => stats.held_periods += 1,
+            CommandSource::Stopped => stats.stopped_periods += 1,
+            CommandSource::Fresh => {}
+        }
+        if !kept {
+            stats.log_rows_dropped += 1;
+        }
+        stats.cycles += 1;
+        let live = self.live;
+        live.cycle.store(n + 1, Ordering::Relaxed);
+        live.misses.store(stats.deadline_misses, Ordering::Relaxed);
+        live.stopped.store(cy.policy.stopped(), Ordering::Relaxed);
+        if n % 256 == 255 {
+            // A bucket scan (tens of µs) in the slack before the next release.
+            live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
+        }
+    }
+
+    /// **Liveness**: after a period without an answer, whether the controller is still there
+    /// (a few syscalls, in the degraded state only); and SIGINT/SIGTERM. Either ends the run
+    /// after the next step.
+    fn look_out<const N: usize>(&mut self, cy: &mut Cycle<N>, n: u64, answered: bool) -> Result<()> {
+        if !answered && cy.last_step > n + 1 {
+            let now = self.clock.now_ns();
+            if let Some(loss) = cy.watch.check(now, self.timing.peer_timeout_ns, self.link)? {
+                cy.end_after(n + 1, lost(loss, n));
+            }
+        }
+        if termination_requested() && cy.last_step > n + 1 {
+            cy.end_after(n + 1, PlantEnd::Interrupted { cycle: n + 1 });
+        }
+        Ok(())
+    }
+}
+
 /// Runs the real-time loop over steps `0..=steps`. `sink` gets every row (returns `false` if
 /// it could not keep it: counted as a dropped log row).
 ///
+/// Each period is five phases, in this order: [release](PlantSide::release) (wait for the
+/// release time, publish the measurement), [await the command](PlantSide::await_command)
+/// (until the deadline), [apply](PlantSide::apply) (the fresh command, or the hold policy's),
+/// log the row and [account](PlantSide::account), advance the robot, and
+/// [look out](PlantSide::look_out) for a lost controller or a signal.
+///
 /// Step 0 is a handshake: published at once, its command awaited up to the peer timeout (a
 /// cold controller's first step, page faults and all, is not a deadline miss). Real time
-/// starts when it is answered: release `n` = start + n·period.
-///
-/// A plant that finds itself more than a period behind its schedule (it was not scheduled,
-/// or was stopped) does not replay the periods it missed in a burst: it counts a stall, skips
-/// the missed releases and goes on from now (simulated time then lags the wall clock by the
-/// skipped periods). After the last step it waits up to a second for the controller's answer
-/// to the last measurement, so that the controller sees the end of the run.
+/// starts when it is answered: release `n` = start + n·period. After the last step the plant
+/// waits up to a second for the controller's answer to the last measurement, so that the
+/// controller sees the end of the run.
 ///
 /// # Errors
 /// A transport failure.
@@ -230,190 +505,35 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
     steps: u64,
     sink: &mut impl FnMut(u64, &R::Row, bool) -> bool,
 ) -> Result<PlantEnd> {
-    let timing = side.timing;
-    let period = timing.period_ns;
-    let dt = side.stamp.dt;
-    let mut idler = Idler::new(timing.wait, timing.spin_margin_ns);
-    let mut policy = HoldPolicy::new(timing.hold_periods);
-    let mut start = side.clock.now_ns();
-    let mut watch = PeerWatch::new(timing.silence_ns, start);
-    let mut last_step = steps;
-    let mut end = PlantEnd::Completed;
+    let mut cy = Cycle::<N>::new(&side.timing, steps, side.clock.now_ns());
     let mut answered_last;
-    // The command acting at the end of the last period, and the last measured delay (s).
-    let mut acting = Command::<f64, N>::zero();
-    let mut delay = 0.0;
-    let mut published = [0_u64; PUBLISHED];
-    let mut applied = None;
     let mut n: u64 = 0;
     loop {
-        let mut release = start + n * period;
         let meas = plant.measure();
-        let mut fl = 0;
-        if n == last_step {
-            fl |= flags::END_OF_RUN;
-        }
-        if policy.stopped() {
-            fl |= flags::STOPPED;
-        }
-        idler.until(side.clock, release);
-        let now = side.clock.now_ns();
-        if n > 0 && now > release + period {
-            // A stall: skip the releases missed and go on from now.
-            let behind = now - release;
-            let skipped = behind / period;
-            start += skipped * period;
-            release += skipped * period;
-            let st = &mut *side.stats;
-            st.plant_stalls += 1;
-            st.skipped_releases += skipped;
-            st.longest_stall_ns = st.longest_stall_ns.max(behind);
-        }
-        let t_pub = side.publish(n, fl, delay, &meas)?;
-        let slot = |seq: u64| (seq % PUBLISHED as u64) as usize;
-        published[slot(n)] = t_pub;
-        // The handshake's answer (a cold first step) and, at the end of a completed run, the
-        // last answer (the controller's confirmation) are awaited up to the peer timeout.
-        let patient = n == 0 || (n == last_step && end == PlantEnd::Completed);
-        let deadline = if patient { t_pub + timing.peer_timeout_ns } else { release + timing.deadline_ns };
-        if n > 0 {
-            side.stats.jitter.record(t_pub - release);
-        }
-        if t_pub > deadline {
-            side.stats.plant_overruns += 1;
-        }
-        // Wait for command n (not once the controller is known to be gone).
-        let mut fresh = None;
-        let mut refused = None;
-        idler.reset();
-        let peer_lost = matches!(end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
-        if !peer_lost {
-            let want = Wanted { n, max_age: u64::from(timing.max_command_age), applied };
-            loop {
-                match side.drain::<N>(want, true)? {
-                    // The answer to `n`, or an older one newer than any found before.
-                    Ok(Some(f)) if fresh.is_none_or(|(c, _): Fresh| c.seq <= f.0.seq) => {
-                        if fresh.is_some_and(|(c, _)| c.seq < f.0.seq) {
-                            side.stats.late_commands += 1;
-                        }
-                        fresh = Some(f);
-                    }
-                    Ok(_) => {}
-                    Err(why) => refused = Some(why),
-                }
-                let current = fresh.is_some_and(|(c, _)| c.seq == n);
-                if current || refused.is_some() || side.clock.now_ns() >= deadline {
-                    break;
-                }
-                let link = &mut *side.link;
-                idler.idle(side.clock, None, deadline, |d| link.wait_event(d))?;
-            }
-        }
-        if n == 0 {
-            start = side.clock.now_ns();
-            side.stats.run_window_ns.0 = start;
-        }
-        answered_last = fresh.is_some();
-        let stats = &mut *side.stats;
-        // Within period n, the fresh command takes effect when it arrived (from the start at
-        // n = 0, whose arrival starts the clock).
-        let mut switch_at = 0.0;
-        let (report, source) = match (fresh, refused) {
-            (_, Some(why)) => {
-                end = PlantEnd::Refused(why);
-                last_step = n;
-                (super::hold::stop_report(), CommandSource::Stopped)
-            }
-            (Some((c, t_rx)), None) => {
-                stats.fresh += 1;
-                if n > 0 {
-                    let gap = t_rx.saturating_sub(watch.last_heard_ns());
-                    stats.longest_command_gap_ns = stats.longest_command_gap_ns.max(gap);
-                    if gap > (u64::from(timing.hold_periods) + 1) * period {
-                        stats.command_gaps_over_hold += 1;
-                    }
-                }
-                watch.heard(t_rx);
-                if timing.wait.uses_events() && !c.has(flags::NOTIFIES) && !stats.event_fallback {
-                    // The controller does not notify: poll instead of sleeping on its event.
-                    idler = Idler::new(WaitMode::Hybrid, timing.spin_margin_ns);
-                    stats.event_fallback = true;
-                }
-                if n > 0 {
-                    let scale = |ns: u64| ns as f64 * dt / period as f64;
-                    switch_at = scale(t_rx.saturating_sub(t_pub)).min(dt * (1.0 - 1e-9));
-                    delay = if c.seq == n {
-                        switch_at
-                    } else {
-                        // An older answer: its delay counts from its own measurement.
-                        stats.aged_commands += 1;
-                        scale(t_rx.saturating_sub(published[slot(c.seq)]))
-                    };
-                }
-                applied = Some(c.seq);
-                policy.fresh(report_of::<N>(&c))
-            }
-            (None, None) => {
-                stats.deadline_misses += 1;
-                let was_stopped = policy.stopped();
-                let r = policy.missed();
-                // A stop event is the hold running out on a moving robot (not the start of a
-                // run before the first command).
-                if policy.stopped() && !was_stopped && policy.has_commanded() {
-                    stats.stop_events += 1;
-                    stats.first_stop_t.get_or_insert(plant.time());
-                }
-                stats.max_consecutive_misses =
-                    stats.max_consecutive_misses.max(u64::from(policy.consecutive()));
-                r
-            }
-        };
-        match source {
-            CommandSource::Held => stats.held_periods += 1,
-            CommandSource::Stopped => stats.stopped_periods += 1,
-            CommandSource::Fresh => {}
-        }
-        let row = plant.row(&report, source);
-        let last = n == last_step;
-        if !sink(n, &row, last) {
-            stats.log_rows_dropped += 1;
-        }
-        stats.cycles += 1;
-        let live = side.live;
-        live.cycle.store(n + 1, Ordering::Relaxed);
-        live.misses.store(stats.deadline_misses, Ordering::Relaxed);
-        live.stopped.store(policy.stopped(), Ordering::Relaxed);
+        let released = side.release(&mut cy, n, &meas)?;
+        let heard = side.await_command(&mut cy, n, released.deadline)?;
+        answered_last = heard.fresh.is_some();
+        let applied = side.apply(&mut cy, n, released.t_pub, heard, plant.time());
+        let row = plant.row(&applied.report, applied.source);
+        let last = n == cy.last_step;
+        let kept = sink(n, &row, last);
+        side.account(&cy, n, applied.source, kept);
         if last {
             break;
         }
-        plant.advance(&acting, &report.command, switch_at, dt)?;
-        acting = report.command;
-        if n % 256 == 255 {
-            // A bucket scan (tens of µs) in the slack before the next release.
-            live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
-        }
-        // A silent controller: is it still there? (Degraded state only: a few syscalls.)
-        if fresh.is_none() && last_step > n + 1 {
-            let now = side.clock.now_ns();
-            if let Some(loss) = watch.check(now, timing.peer_timeout_ns, side.link)? {
-                end = lost(loss, n);
-                last_step = n + 1;
-            }
-        }
-        if termination_requested() && last_step > n + 1 {
-            end = PlantEnd::Interrupted { cycle: n + 1 };
-            last_step = n + 1;
-        }
+        plant.advance(&cy.acting, &applied.report.command, applied.switch_at, side.stamp.dt)?;
+        cy.acting = applied.report.command;
+        side.look_out(&mut cy, n, heard.fresh.is_some())?;
         n += 1;
     }
-    if !answered_last && matches!(end, PlantEnd::Completed | PlantEnd::Interrupted { .. }) {
-        side.goodbye(last_step, &mut watch)?;
+    if !answered_last && matches!(cy.end, PlantEnd::Completed | PlantEnd::Interrupted { .. }) {
+        side.goodbye(cy.last_step, &mut cy.watch)?;
     }
     let stats = &mut *side.stats;
     stats.run_window_ns.1 = side.clock.now_ns();
-    stats.wait = idler.counts();
+    stats.wait = cy.idler.counts();
     side.live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
-    Ok(end)
+    Ok(cy.end)
 }
 
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
@@ -436,11 +556,6 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     }
 }
 
-/// The controller was lost during a lockstep exchange.
-#[derive(Clone, Copy, Debug, thiserror::Error)]
-#[error("{}", .0.describe())]
-pub struct Lost(pub PlantEnd);
-
 /// The lockstep exchange: publish, then wait for the answer however long it takes (while the
 /// controller is alive and answers within the peer timeout).
 #[derive(Debug)]
@@ -459,7 +574,7 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
         &mut self,
         n: u64,
         meas: &Measurement<f64, N, S>,
-    ) -> Result<StepReport<N>> {
+    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>> {
         let fl = if n == self.steps { flags::END_OF_RUN } else { 0 };
         let side = &mut self.side;
         let t_pub = side.publish(n, fl, self.delay, meas)?;
@@ -476,17 +591,17 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
                         // The controller does not notify: poll instead of sleeping on its event.
                         side.stats.event_fallback = true;
                     }
-                    return Ok(report_of::<N>(&c));
+                    return Ok(ControlFlow::Continue(report_of::<N>(&c)));
                 }
                 Ok(None) => {}
-                Err(why) => return Err(Lost(PlantEnd::Refused(why)).into()),
+                Err(why) => return Ok(ControlFlow::Break(PlantEnd::Refused(why))),
             }
             let now = side.clock.now_ns();
             if let Some(loss) = watch.check(now, side.timing.peer_timeout_ns, side.link)? {
-                return Err(Lost(lost(loss, n)).into());
+                return Ok(ControlFlow::Break(lost(loss, n)));
             }
             if termination_requested() {
-                return Err(Lost(PlantEnd::Interrupted { cycle: n }).into());
+                return Ok(ControlFlow::Break(PlantEnd::Interrupted { cycle: n }));
             }
             let link = &mut *side.link;
             idler.idle(side.clock, None, u64::MAX, |d| link.wait_event(d))?;
@@ -495,13 +610,28 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
 }
 
 impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
+    type End = PlantEnd;
+
+    fn exchange(
+        &mut self,
+        n: u64,
+        meas: &Measurement<f64, JOINTS>,
+    ) -> Result<ControlFlow<PlantEnd, StepReport>> {
         self.exchange_any(n, meas)
     }
 }
 
 impl<C: Clock, L: PlantLink, const N: usize> SpatialExchange<N> for Lockstep<'_, C, L> {
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>> {
+    type End = PlantEnd;
+
+    fn exchange(
+        &mut self,
+        n: u64,
+        meas: &Measurement<f64, N, Spatial>,
+    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>> {
         self.exchange_any(n, meas)
     }
 }
+
+#[cfg(test)]
+mod tests;

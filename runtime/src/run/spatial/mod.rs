@@ -16,6 +16,8 @@
 pub mod replay;
 pub mod stream;
 
+use std::convert::Infallible;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -214,7 +216,8 @@ where
     let (outcome, failed) = execute(s, &mut plant, &star, &mut exchange, dir, observer, max_rejected)?;
     match failed {
         None => Ok(outcome),
-        Some(e) => Err(e),
+        Some(Halt::Failed(e)) => Err(e),
+        Some(Halt::Ended(never)) => match never {},
     }
 }
 
@@ -244,11 +247,30 @@ pub fn check(s: &SpatialScenario) -> Result<()> {
 /// Turns a spatial measurement into the controller's report: in this process, or over the
 /// wire (the HIL plant's lockstep exchange), so that both write the same bytes.
 pub trait SpatialExchange<const N: usize> {
-    /// The report for the measurement of step `n`.
+    /// Why an exchange may end the run early, as a value (as [`Exchange::End`]).
+    ///
+    /// [`Exchange::End`]: crate::run::sim::Exchange::End
+    type End;
+
+    /// The report for the measurement of step `n`, or the end of the run.
     ///
     /// # Errors
-    /// The controller could not be reached (HIL).
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>>;
+    /// The exchange itself failed (HIL: the transport).
+    fn exchange(
+        &mut self,
+        n: u64,
+        meas: &Measurement<f64, N, Spatial>,
+    ) -> Result<ControlFlow<Self::End, StepReport<N>>>;
+}
+
+/// Why [`execute`] stopped before its last step (its records up to there are kept and
+/// written).
+#[derive(Debug)]
+pub enum Halt<X> {
+    /// The exchange ended the run ([`SpatialExchange::End`]).
+    Ended(X),
+    /// The exchange or the plant failed.
+    Failed(anyhow::Error),
 }
 
 /// The controller in this process.
@@ -258,9 +280,15 @@ struct InProcess<'c, const N: usize> {
 }
 
 impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
+    type End = Infallible;
+
     #[inline]
-    fn exchange(&mut self, _n: u64, meas: &Measurement<f64, N, Spatial>) -> Result<StepReport<N>> {
-        Ok(self.controller.step(meas, self.dt, 0.0))
+    fn exchange(
+        &mut self,
+        _n: u64,
+        meas: &Measurement<f64, N, Spatial>,
+    ) -> Result<ControlFlow<Infallible, StepReport<N>>> {
+        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, 0.0)))
     }
 }
 
@@ -395,15 +423,15 @@ pub(crate) fn record_of<const N: usize>(
 ///
 /// # Errors
 /// An I/O failure.
-pub fn execute<const N: usize>(
+pub fn execute<const N: usize, X: SpatialExchange<N>>(
     s: &SpatialScenario,
     plant: &mut SpatialPlant<N>,
     star: &Pose3<f64>,
-    exchange: &mut dyn SpatialExchange<N>,
+    exchange: &mut X,
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<(SpatialOutcome, Option<anyhow::Error>)> {
+) -> Result<(SpatialOutcome, Option<Halt<X::End>>)> {
     let (lower, upper) = limits(plant.chain());
     let mut acc = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
     let steps = s.steps();
@@ -415,9 +443,13 @@ pub fn execute<const N: usize>(
     for n in 0..=steps {
         let meas = plant.measure();
         let report = match exchange.exchange(n, &meas) {
-            Ok(r) => r,
+            Ok(ControlFlow::Continue(r)) => r,
+            Ok(ControlFlow::Break(end)) => {
+                failed = Some(Halt::Ended(end));
+                break;
+            }
             Err(e) => {
-                failed = Some(e);
+                failed = Some(Halt::Failed(e));
                 break;
             }
         };
@@ -436,7 +468,7 @@ pub fn execute<const N: usize>(
         }
         if n < steps {
             if let Err(e) = plant.try_advance(&report.command, s.base.dt) {
-                failed = Some(e.into());
+                failed = Some(Halt::Failed(e.into()));
                 break;
             }
         }
