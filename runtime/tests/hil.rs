@@ -405,7 +405,8 @@ fn killed_plant_is_noticed_as_dead_its_data_kept_and_the_next_run_succeeds() {
     assert!(seen.iter().any(|l| l.contains("killed by signal 9")), "{seen:#?}");
     // What was recorded up to the fault is on disk and every line is complete.
     let statuses = csv_statuses(&d.join("timeseries.csv"));
-    assert!(statuses.len() > 500, "{} rows", statuses.len());
+    // At least the 500 rows seen before the kill (a starved plant may have written none since).
+    assert!(statuses.len() >= 500, "{} rows", statuses.len());
     let fault = json(&d.join("fault.json"));
     assert_eq!(fault["plant_exit"], "killed by signal 9");
     assert_eq!(fault["rows_on_disk"].as_u64(), Some(statuses.len() as u64));
@@ -516,14 +517,16 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     assert!(gap >= 150_000_000, "{lat:#}");
     // The plant keeps its schedule through the silence: each of the ~200 silent periods is a
     // miss. (It ran only ~30 of them while iceoryx2's timed wait overslept every missed
-    // deadline by 8 ms, a scheduler tick; `sys::rt::wait_readable`.) A plant that was itself
-    // stalled for 50 ms or more on a loaded machine skipped those releases (counted apart):
-    // then only the sum is asked.
+    // deadline by 8 ms, a scheduler tick; `sys::rt::wait_readable`.) A plant starved of a CPU
+    // on a loaded machine skips the releases it could not keep (counted apart): it ran 83 in
+    // the 20-run soak at load 9, in 43 stalls of up to 18 ms. The kernel tells the two apart:
+    // a plant that overslept its own wait was asleep, one that was starved waited on the run
+    // queue — at least 50 ms of it, here, excuses a shorter run; then only the sum is asked.
     let run = lat["max_consecutive_misses"].as_u64().unwrap();
     let skipped = lat["skipped_releases"].as_u64().unwrap();
-    let stalled = lat["longest_stall_ns"].as_u64().unwrap() >= 50_000_000;
+    let starved = lat["plant_runqueue_wait_ns"].as_u64().is_none_or(|w| w >= 50_000_000);
     assert!(run + skipped >= 150, "{lat:#}");
-    assert!(run >= 100 || stalled, "the plant ran {run} of the silence's ~200 periods: {lat:#}");
+    assert!(run >= 100 || starved, "the plant ran {run} of the silence's ~200 periods: {lat:#}");
     assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");

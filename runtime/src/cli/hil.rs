@@ -929,8 +929,12 @@ fn print_latency(r: &LatencyReport) {
             r.invalid_total
         );
         if r.plant_stalls > 0 {
+            let starved = r
+                .plant_runqueue_wait_ns
+                .map(|w| format!("; its loop waited {} in all for a CPU", fmt_ns(w)))
+                .unwrap_or_default();
             println!(
-                "the plant fell behind its schedule {} times (longest {}) and skipped {} releases",
+                "the plant fell behind its schedule {} times (longest {}) and skipped {} releases{starved}",
                 r.plant_stalls,
                 fmt_ns(r.longest_stall_ns),
                 r.skipped_releases

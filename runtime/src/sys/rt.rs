@@ -226,6 +226,24 @@ fn parse_pressure(text: &[u8]) -> Option<f64> {
     field.parse().ok()
 }
 
+/// How long the calling thread has been runnable but waiting for a CPU since it started (ns):
+/// the kernel's own account (`/proc/thread-self/schedstat`, its second field, `run_delay`),
+/// if it keeps one. A thread that sleeps does not accrue it; a thread that wants to run while
+/// others hold the CPUs does — so it tells a starved loop from one that overslept its own
+/// wait. Reads into a buffer on the stack: a few system calls, no allocation.
+pub fn runqueue_wait_ns() -> Option<u64> {
+    use std::io::Read;
+    let mut buf = [0u8; 128];
+    let mut f = std::fs::File::open("/proc/thread-self/schedstat").ok()?;
+    let n = f.read(&mut buf).ok()?;
+    parse_schedstat(buf.get(..n)?)
+}
+
+/// "on-CPU run_delay timeslices" → run_delay.
+fn parse_schedstat(text: &[u8]) -> Option<u64> {
+    std::str::from_utf8(text).ok()?.split_whitespace().nth(1)?.parse().ok()
+}
+
 /// Sets the calling thread's timer slack to 1 ns (threads it creates afterwards inherit it).
 ///
 /// Linux lets a normal thread's timed sleep end up to 50 µs late by default, so that wake-ups
@@ -294,6 +312,72 @@ mod tests {
         if let Some(p) = cpu_pressure() {
             assert!((0.0..=100.0).contains(&p), "{p}");
         }
+    }
+
+    #[test]
+    fn the_runqueue_wait_is_the_schedstat_lines_second_field() {
+        assert_eq!(parse_schedstat(b"5795492 2999649 12\n"), Some(2_999_649));
+        assert_eq!(parse_schedstat(b"5795492"), None);
+        assert_eq!(parse_schedstat(b"a b c"), None);
+    }
+
+    /// The second method: a thread made to share one CPU with a busy one waits for it. Pinned
+    /// to the same CPU, a thread that spins for 200 ms of its own CPU time has, by then, been
+    /// kept waiting by the busy one — the kernel splits one CPU between the two, so the wait
+    /// comes near the CPU time; asked here only for a fifth of it (a lower bound that a
+    /// loaded machine only makes truer).
+    #[test]
+    fn a_thread_sharing_its_cpu_with_a_busy_one_accrues_runqueue_wait() {
+        if runqueue_wait_ns().is_none() {
+            eprintln!("SKIPPED: this kernel keeps no schedstat");
+            return;
+        }
+        let cpu = current_cpu();
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let busy = {
+            let stop = stop.clone();
+            std::thread::spawn(move || {
+                let _ = pin_to(cpu);
+                while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                    core::hint::spin_loop();
+                }
+            })
+        };
+        let waited = std::thread::spawn(move || {
+            let _ = pin_to(cpu);
+            let before = runqueue_wait_ns().unwrap();
+            let cpu0 = thread_cpu_ns();
+            while thread_cpu_ns() - cpu0 < 200_000_000 {
+                core::hint::spin_loop();
+            }
+            runqueue_wait_ns().unwrap() - before
+        })
+        .join()
+        .unwrap();
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        busy.join().unwrap();
+        assert!(waited >= 40_000_000, "waited {waited} ns for the CPU in 200 ms of CPU time");
+    }
+
+    fn current_cpu() -> usize {
+        // SAFETY: sched_getcpu takes no arguments.
+        usize::try_from(unsafe { libc::sched_getcpu() }).unwrap_or(0)
+    }
+
+    fn pin_to(cpu: usize) -> bool {
+        // SAFETY: a zeroed cpu_set_t is a valid empty set; CPU_SET writes within it.
+        unsafe {
+            let mut set: libc::cpu_set_t = core::mem::zeroed();
+            libc::CPU_SET(cpu, &mut set);
+            libc::sched_setaffinity(0, core::mem::size_of::<libc::cpu_set_t>(), &set) == 0
+        }
+    }
+
+    fn thread_cpu_ns() -> u64 {
+        let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+        // SAFETY: ts is a valid timespec to write.
+        unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+        u64::try_from(ts.tv_sec).unwrap_or(0) * 1_000_000_000 + u64::try_from(ts.tv_nsec).unwrap_or(0)
     }
 
     #[test]

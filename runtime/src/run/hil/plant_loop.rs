@@ -505,6 +505,7 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
     steps: u64,
     sink: &mut impl FnMut(u64, &R::Row, bool) -> bool,
 ) -> Result<PlantEnd> {
+    let runqueue_before = crate::sys::rt::runqueue_wait_ns();
     let mut cy = Cycle::<N>::new(&side.timing, steps, side.clock.now_ns());
     let mut answered_last;
     let mut n: u64 = 0;
@@ -532,6 +533,8 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
     let stats = &mut *side.stats;
     stats.run_window_ns.1 = side.clock.now_ns();
     stats.wait = cy.idler.counts();
+    stats.runqueue_wait_ns =
+        runqueue_before.zip(crate::sys::rt::runqueue_wait_ns()).map(|(a, b)| b.saturating_sub(a));
     side.live.p99_ns.store(stats.round_trip.quantile(0.99), Ordering::Relaxed);
     Ok(cy.end)
 }

@@ -96,6 +96,9 @@ pub struct LatencyReport {
     pub skipped_releases: u64,
     /// The longest stall (ns).
     pub longest_stall_ns: u64,
+    /// How long the plant's loop thread was runnable but waited for a CPU (ns; the kernel's
+    /// `schedstat`; null where it keeps none): a starved plant, not one that overslept.
+    pub plant_runqueue_wait_ns: Option<u64>,
     /// The plant's loop, first release to end (`CLOCK_MONOTONIC`, ns).
     pub run_window_ns: (u64, u64),
     /// What the plant's adaptive wait did (zero in the other modes).
@@ -179,6 +182,7 @@ impl LatencyReport {
             plant_stalls: st.plant_stalls,
             skipped_releases: st.skipped_releases,
             longest_stall_ns: st.longest_stall_ns,
+            plant_runqueue_wait_ns: st.runqueue_wait_ns,
             run_window_ns: st.run_window_ns,
             wait_counts: st.wait,
             invalid_messages: st.invalid,

@@ -94,6 +94,11 @@ pub struct PlantStats {
     pub skipped_releases: u64,
     /// The longest stall (ns).
     pub longest_stall_ns: u64,
+    /// How long the loop's thread was runnable but waited for a CPU over the loop (ns; the
+    /// kernel's account, [`runqueue_wait_ns`](crate::sys::rt::runqueue_wait_ns); `None`
+    /// where it keeps none): stalls with this near their length were the machine's
+    /// scheduling, not the plant's own waits.
+    pub runqueue_wait_ns: Option<u64>,
     /// The loop's first release and its end (`CLOCK_MONOTONIC`, ns).
     pub run_window_ns: (u64, u64),
     /// What the adaptive wait did.
