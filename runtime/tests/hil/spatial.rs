@@ -188,7 +188,8 @@ fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
     let mut lines = text.lines();
     let cols = lines.next().expect("a header").split(',').count();
     let rows: Vec<&str> = lines.collect();
-    assert!(rows.len() > 500, "{} rows", rows.len());
+    // At least the 500 rows seen before the kill (a starved plant may have written none since).
+    assert!(rows.len() >= 500, "{} rows", rows.len());
     for l in &rows {
         assert_eq!(l.split(',').count(), cols, "malformed line {l:?}");
     }
