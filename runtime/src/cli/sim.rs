@@ -214,8 +214,25 @@ pub fn print_spatial_table(m: &companion_runtime::domain::record::spatial::Spati
         m.rejected_steps,
         num(m.wall_time_s, 9, 3)
     );
+    print_clear_of_holds(
+        m.steps_after_20s,
+        m.steps_after_20s_clear_of_holds,
+        m.max_ep_norm_after_20s_clear_of_holds,
+    );
     if m.rejected_steps > 0 {
         println!("  {} steps rejected by the law: {}", m.rejected_steps, m.rejections.describe());
+    }
+}
+
+/// After a real-time run whose commands were held after 20 s: the maximum without the half
+/// second after each held or stopped period (the law's floor apart from the scheduling).
+fn print_clear_of_holds(steps_after: u64, clear_steps: u64, clear_max: f64) {
+    if steps_after > 0 && clear_steps < steps_after {
+        let max = if clear_steps > 0 { format!("{clear_max:.2e}") } else { "n/a".to_string() };
+        println!(
+            "  max|ep|>20 clear of holds (the {} s after each held or stopped period left out): {max} over {clear_steps} of {steps_after} steps",
+            companion_runtime::domain::record::summary::CLEAR_OF_HOLDS_S
+        );
     }
 }
 
@@ -269,6 +286,11 @@ pub fn print_table(outcomes: &[RunOutcome]) {
             num(s.max_abs_v, 8, 3),
             num(s.max_abs_omega, 8, 3),
             num(s.wall_time_s, 9, 3)
+        );
+        print_clear_of_holds(
+            s.steps_after_20s,
+            s.steps_after_20s_clear_of_holds,
+            s.max_ep_norm_after_20s_clear_of_holds,
         );
         if s.rejected_steps > 0 {
             println!("  {} steps rejected by the law: {}", s.rejected_steps, s.rejections.describe());

@@ -89,6 +89,9 @@ fn a_spatial_arm_in_real_time_tracks_its_target() {
     println!("‖e_p‖ {first:.3e} → {last:.3e}; {held} periods held");
     assert!(last < 0.25 * first, "‖e_p‖ {first} → {last}");
     assert!(s["smallest_joint_margin"].as_f64().unwrap() > 0.1, "{s:#}");
+    // The floor clear of holds is reported beside the maximum; a 4 s run has no step after 20 s.
+    assert_eq!(s["max_ep_norm_after_20s_clear_of_holds"], serde_json::Value::Null, "{s:#}");
+    assert_eq!(s["steps_after_20s_clear_of_holds"], 0, "{s:#}");
     for f in ["top.svg", "side.svg", "latency.svg", "index.html"] {
         assert!(d.join(f).exists(), "{f}");
     }

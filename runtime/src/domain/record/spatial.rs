@@ -9,6 +9,7 @@ use companion_core::{so3, PlatformCommand, Pose3, StepError};
 use serde::Serialize;
 
 use crate::domain::arm::MAX_JOINTS;
+use crate::domain::record::summary::ClearOfHolds;
 use crate::domain::record::verdict::{reasons_in_words, Failure};
 use crate::domain::record::{CommandSource, TrajectoryDigest};
 
@@ -160,6 +161,12 @@ pub struct SpatialSummary {
     pub fraction_ep_below_1e_3_after_20s: f64,
     /// Steps with `t ≥ 20 s` and a finite `‖e_p‖`.
     pub steps_after_20s: u64,
+    /// The largest `‖e_p‖` for `t ≥ 20 s` at least
+    /// [`CLEAR_OF_HOLDS_S`](super::summary::CLEAR_OF_HOLDS_S) after the last held or stopped
+    /// period (as in the planar summary); NaN (`null`) when no such step.
+    pub max_ep_norm_after_20s_clear_of_holds: f64,
+    /// The steps it is taken over.
+    pub steps_after_20s_clear_of_holds: u64,
     /// The last time `‖e_p‖ ≥ 1e−3` (s).
     pub ep_settling_time_s: f64,
     /// Per joint, the smallest distance to the nearer limit over the run (rad or m).
@@ -212,6 +219,7 @@ pub struct SpatialAccumulator {
     below: u64,
     last_pos: Option<(f64, f64)>,
     digest: TrajectoryDigest,
+    clear: ClearOfHolds,
 }
 
 impl SpatialAccumulator {
@@ -235,6 +243,7 @@ impl SpatialAccumulator {
             below: 0,
             last_pos: None,
             digest: TrajectoryDigest::default(),
+            clear: ClearOfHolds::default(),
         }
     }
 
@@ -268,6 +277,7 @@ impl SpatialAccumulator {
         }
         self.last_pos = Some((x, y));
         let ep = r.ep_norm;
+        self.clear.add(r.t, r.source, ep);
         if ep.is_finite() {
             s.final_ep_norm = ep;
             s.final_e_p = r.e_p.into();
@@ -309,6 +319,7 @@ impl SpatialAccumulator {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         }
         s.steps_after_20s = self.after20;
+        (s.max_ep_norm_after_20s_clear_of_holds, s.steps_after_20s_clear_of_holds) = self.clear.finish();
         let (j, m) = s.min_joint_margin.iter().copied().enumerate().fold((0, f64::INFINITY), |a, (i, m)| {
             if m < a.1 {
                 (i, m)

@@ -5,7 +5,39 @@ use serde::Serialize;
 use super::digest::TrajectoryDigest;
 use super::row::Row;
 use super::verdict::{Failure, Rejections};
+use super::CommandSource;
 use crate::domain::controller::JOINTS;
+
+/// How long after a held or stopped period a step is not counted in the maximum "clear of
+/// holds" (s): a held command's disturbance decays over the law's time constants.
+pub const CLEAR_OF_HOLDS_S: f64 = 0.5;
+
+/// The largest `‖e_p‖` for `t ≥ 20 s` at least [`CLEAR_OF_HOLDS_S`] after the last period
+/// whose command was not fresh (held or stopped), accumulated step by step.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ClearOfHolds {
+    last_not_fresh_t: Option<f64>,
+    max: f64,
+    steps: u64,
+}
+
+impl ClearOfHolds {
+    /// Adds the step at `t` whose command came from `source`, with true error `ep`.
+    pub fn add(&mut self, t: f64, source: CommandSource, ep: f64) {
+        if source != CommandSource::Fresh {
+            self.last_not_fresh_t = Some(t);
+        }
+        if t >= 20.0 && ep.is_finite() && self.last_not_fresh_t.is_none_or(|u| t - u >= CLEAR_OF_HOLDS_S) {
+            self.max = self.max.max(ep);
+            self.steps += 1;
+        }
+    }
+
+    /// The maximum (NaN when no step counted) and the steps counted.
+    pub fn finish(&self) -> (f64, u64) {
+        (if self.steps > 0 { self.max } else { f64::NAN }, self.steps)
+    }
+}
 
 /// The run's figures (`summary.json`). "After 20 s" means `t ≥ 20 s`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
@@ -67,6 +99,13 @@ pub struct Summary {
     pub first_rejection_at_s: Option<f64>,
     /// Steps with `t ≥ 20 s` and a finite `‖e_p‖` (0: the figures "after 20 s" say nothing).
     pub steps_after_20s: u64,
+    /// The largest `‖e_p‖` for `t ≥ 20 s` at least [`CLEAR_OF_HOLDS_S`] after the last held or
+    /// stopped period (real time; in lockstep and `sim` every command is fresh, so it equals
+    /// the maximum above): the law's floor apart from the machine's scheduling. NaN (`null`)
+    /// when no such step.
+    pub max_ep_norm_after_20s_clear_of_holds: f64,
+    /// The steps it is taken over.
+    pub steps_after_20s_clear_of_holds: u64,
     /// Wall-clock time of the run (s).
     pub wall_time_s: f64,
     /// The [`TrajectoryDigest`] of every step (16 hex digits): equal for two runs only if
@@ -118,6 +157,7 @@ pub struct SummaryAccumulator {
     lower: [f64; JOINTS],
     upper: [f64; JOINTS],
     digest: TrajectoryDigest,
+    clear: ClearOfHolds,
 }
 
 impl SummaryAccumulator {
@@ -146,6 +186,7 @@ impl SummaryAccumulator {
             lower,
             upper,
             digest: TrajectoryDigest::default(),
+            clear: ClearOfHolds::default(),
         }
     }
 
@@ -180,6 +221,7 @@ impl SummaryAccumulator {
         // The robot's true tracking error (from the plant's exact state), whether or not
         // the controller accepted the step.
         let ep = p.ep_norm;
+        self.clear.add(p.t, row.source, ep);
         if ep.is_finite() {
             s.final_ep_norm = ep;
             if ep >= 1e-3 {
@@ -260,6 +302,7 @@ impl SummaryAccumulator {
             s.fraction_ep_below_1e_3_after_20s = f64::NAN;
         }
         s.steps_after_20s = self.after20;
+        (s.max_ep_norm_after_20s_clear_of_holds, s.steps_after_20s_clear_of_holds) = self.clear.finish();
         s.wall_time_s = wall_time_s;
         s.trajectory_digest = self.digest.hex();
         if s.steps > 0 {
@@ -267,5 +310,37 @@ impl SummaryAccumulator {
             s.rms_omega = (self.sum_w2 / s.steps as f64).sqrt();
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_maximum_clear_of_holds_leaves_out_half_a_second_after_each_held_or_stopped_period() {
+        let mut c = ClearOfHolds::default();
+        let dt = 1e-3;
+        // 19.9–21 s fresh with |e_p| 1e-4, a held period at 21 s and a stopped one at 22 s,
+        // each followed by a disturbance of 1e-2 for 0.4 s; fresh with 1e-4 again after.
+        for k in 19_900..=24_000_u32 {
+            let t = f64::from(k) * dt;
+            let source = match k {
+                21_000 => CommandSource::Held,
+                22_000 => CommandSource::Stopped,
+                _ => CommandSource::Fresh,
+            };
+            let disturbed = (21_000..21_400).contains(&k) || (22_000..22_400).contains(&k);
+            c.add(t, source, if disturbed { 1e-2 } else { 1e-4 });
+        }
+        let (max, steps) = c.finish();
+        assert_eq!(max, 1e-4);
+        // t ≥ 20 s: 4 001 steps, less [21, 21.5) and [22, 22.5) (500 each; float instants).
+        assert!((2_999..=3_003).contains(&steps), "{steps}");
+        // No step after 20 s: NaN, as the maximum including holds is.
+        let mut short = ClearOfHolds::default();
+        short.add(3.0, CommandSource::Fresh, 1e-4);
+        assert!(short.finish().0.is_nan());
+        assert_eq!(short.finish().1, 0);
     }
 }
