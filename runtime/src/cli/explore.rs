@@ -112,12 +112,12 @@ pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
         Ok(o) => o,
         Err(e) => {
             term.finish();
-            return match e.downcast_ref::<explore::Busy>() {
-                Some(busy) => {
+            return match e {
+                explore::ExploreError::Busy(busy) => {
                     eprintln!("error: {busy}");
                     Ok(ExitCode::from(EXIT_FOLDER_BUSY))
                 }
-                None => Err(e),
+                e => Err(e.into()),
             };
         }
     };

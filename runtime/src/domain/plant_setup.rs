@@ -1,12 +1,35 @@
 //! Builds the plant of a scenario.
 
-use anyhow::{Context, Result};
+use std::path::PathBuf;
+
 use companion_core::nalgebra::{SVector, Vector2};
 use companion_core::{Platform, PlatformKind, Pose, Rpr};
-use companion_plant::{Imperfections, InitialConditions, Noise, Plant, PlantConfig, Trajectory};
+use companion_plant::{
+    Imperfections, InitialConditions, Noise, Plant, PlantConfig, PlantError, Trajectory, TrajectoryError,
+};
 
 use crate::domain::controller::JOINTS;
 use crate::domain::scenario::{Scenario, Target};
+
+/// Why the plant of a scenario could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PlantSetupError {
+    /// The target file cannot be read or breaks a rule.
+    #[error("target file {}", path.display())]
+    TargetFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: TrajectoryError,
+    },
+    /// The target file's start (`r_bd(0)`, `q(0)`) is not one.
+    #[error("target file")]
+    Start(#[source] TrajectoryError),
+    /// A plant parameter breaks a rule.
+    #[error("plant parameters")]
+    Plant(#[source] PlantError),
+}
 
 /// The plant of `s`: platform, imperfections, target and initial conditions — the
 /// scenario's own start if it has one, else the target's (`r_bd(0)`, `q(0)`).
@@ -18,12 +41,11 @@ use crate::domain::scenario::{Scenario, Target};
 ///
 /// # Errors
 /// A bad target file or plant parameter, with the reason.
-pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>> {
+pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>, PlantSetupError> {
     let trajectory = match &s.target {
         Target::Paper(t) => Trajectory::from(*t),
-        Target::File(path) => {
-            Trajectory::load(path).with_context(|| format!("target file {}", path.display()))?
-        }
+        Target::File(path) => Trajectory::load(path)
+            .map_err(|source| PlantSetupError::TargetFile { path: path.clone(), source })?,
     };
     let mut initial = match &s.start {
         Some(st) => InitialConditions::with_relative_target(
@@ -31,7 +53,7 @@ pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>> {
             Pose::new(st.target[0], st.target[1], st.target[2]),
             SVector::<f64, JOINTS>::from(st.joints),
         ),
-        None => trajectory.initial_conditions().context("target file")?,
+        None => trajectory.initial_conditions().map_err(PlantSetupError::Start)?,
     };
     if s.controller.platform == PlatformKind::Car {
         initial.steering = match s.start.and_then(|st| st.steering) {
@@ -52,7 +74,7 @@ pub fn build(s: &Scenario) -> Result<Plant<Rpr<f64>, JOINTS>> {
         seed: p.seed.unwrap_or(1),
     };
     let config = PlantConfig::new(s.controller.platform).with_imperfections(imperfections);
-    Plant::new(config, Rpr::paper(), initial, trajectory).context("plant parameters")
+    Plant::new(config, Rpr::paper(), initial, trajectory).map_err(PlantSetupError::Plant)
 }
 
 /// `ξ_f(α(0))` (1/m) of the scenario's car: the steering its transverse function prescribes

@@ -226,7 +226,7 @@ impl RowSink for Background {
     }
 
     #[inline]
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), crate::domain::record::RecordError> {
         self.summary.add(row);
         if self.logs(n, last) {
             self.log.record(n, row, last)?;

@@ -5,14 +5,29 @@
 //! The loop is `sim::run_loop`'s (measure, step, advance — and the same pure delay), with
 //! nothing logged: the summary reads the plant's exact state at every step.
 
-use anyhow::Result;
+use companion_plant::AdvanceError;
 use serde::{Deserialize, Serialize};
 
 use crate::domain::controller::AnyController;
-use crate::domain::plant_setup;
+use crate::domain::plant_setup::{self, PlantSetupError};
 use crate::domain::record::{CommandSource, Row, Summary};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::sim::{summary_sample, DelayLine};
+
+/// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
+/// step.
+#[derive(Debug, thiserror::Error)]
+pub enum TrialError {
+    /// The scenario's plant cannot be built.
+    #[error(transparent)]
+    Plant(#[from] PlantSetupError),
+    /// The scenario is invalid (its controller's parameters included).
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The plant refused a step.
+    #[error(transparent)]
+    Advance(#[from] AdvanceError),
+}
 
 /// How a trial judges its run.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -77,7 +92,7 @@ impl Trial {
 ///
 /// # Errors
 /// A bad scenario (its plant or controller cannot be built) or a plant step refused.
-pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial> {
+pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     let mut plant = plant_setup::build(s)?;
     let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
     let told = if s.delay_compensation { s.delay } else { 0.0 };

@@ -12,7 +12,7 @@ use companion_core::{
 
 use super::report::StepReport;
 use super::spec::{ArmConfig, ControllerSpec, Scalar};
-use crate::domain::arm::SpatialArmSpec;
+use crate::domain::arm::{ArmError, SpatialArmSpec};
 
 /// Where the spatial law puts the target: `r*_ed` this far along the flange's approach axis
 /// (`z`), level at home (m). The same as core's closed-loop tests.
@@ -165,6 +165,17 @@ where
     Ok(c)
 }
 
+/// Why a spatial controller could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum SpatialControllerError {
+    /// The arm's chain does not have the joints asked for, or is invalid.
+    #[error(transparent)]
+    Arm(#[from] ArmError),
+    /// A parameter of the spatial law breaks a rule.
+    #[error("the spatial law's parameters")]
+    Law(#[source] ParamError),
+}
+
 /// The spatial controller of `spec` for `arm` with `N` joints, in the spec's scalar type on
 /// its platform, behind one type (built once, before a run: the box is the only allocation).
 ///
@@ -173,32 +184,31 @@ where
 pub fn boxed_spatial_controller<const N: usize>(
     spec: &ControllerSpec,
     arm: &SpatialArmSpec,
-) -> anyhow::Result<Box<dyn SpatialStep<N> + Send>>
+) -> Result<Box<dyn SpatialStep<N> + Send>, SpatialControllerError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
 {
-    use anyhow::Context as _;
-    let law = "the spatial law's parameters";
+    let law = SpatialControllerError::Law;
     let (c64, c32) = (|| arm.chain::<f64, N>(), || arm.chain::<f32, N>());
     Ok(match (spec.platform, spec.scalar) {
         (PlatformKind::Unicycle, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, spec.unicycle::<f64>()).context(law)?)
+            Box::new(spatial_controller(spec, &c64()?, spec.unicycle::<f64>()).map_err(law)?)
         }
         (PlatformKind::Unicycle, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, spec.unicycle::<f32>()).context(law)?)
+            Box::new(spatial_controller(spec, &c32()?, spec.unicycle::<f32>()).map_err(law)?)
         }
         (PlatformKind::Car, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, spec.car::<f64>()).context(law)?)
+            Box::new(spatial_controller(spec, &c64()?, spec.car::<f64>()).map_err(law)?)
         }
         (PlatformKind::Car, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, spec.car::<f32>()).context(law)?)
+            Box::new(spatial_controller(spec, &c32()?, spec.car::<f32>()).map_err(law)?)
         }
         (PlatformKind::Omni, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, Omnidirectional).context(law)?)
+            Box::new(spatial_controller(spec, &c64()?, Omnidirectional).map_err(law)?)
         }
         (PlatformKind::Omni, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, Omnidirectional).context(law)?)
+            Box::new(spatial_controller(spec, &c32()?, Omnidirectional).map_err(law)?)
         }
     })
 }

@@ -3,9 +3,9 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 
+use super::error::PlotError;
 use crate::domain::histogram::LatencyHistogram;
 
 const COLORS: [RGBColor; 8] = [
@@ -22,8 +22,8 @@ const COLORS: [RGBColor; 8] = [
 /// Bins per decade of the histogram panel.
 const BINS_PER_DECADE: f64 = 20.0;
 
-fn e<E: std::fmt::Debug>(err: E) -> anyhow::Error {
-    anyhow!("drawing: {err:?}")
+fn e<E: std::fmt::Debug>(err: E) -> PlotError {
+    PlotError::Draw { what: "drawing", detail: format!("{err:?}") }
 }
 
 /// `(bin centre µs, count)` of log-spaced bins.
@@ -59,7 +59,7 @@ pub fn latency_svg(
     title: &str,
     series: &[(&str, &LatencyHistogram)],
     deadline_ns: Option<u64>,
-) -> Result<()> {
+) -> Result<(), PlotError> {
     let root = SVGBackend::new(path, (1000, 820)).into_drawing_area();
     root.fill(&WHITE).map_err(e)?;
     let root = root.titled(title, ("sans-serif", 20)).map_err(e)?;

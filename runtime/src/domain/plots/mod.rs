@@ -8,7 +8,6 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use companion_core::Params;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -16,11 +15,13 @@ use plotters::prelude::*;
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 
+pub use self::error::PlotError;
 pub use self::latency::latency_svg;
 use crate::domain::controller::run_name;
 use crate::domain::record::{Row, RunOutcome};
 use crate::domain::scenario::Target;
 
+mod error;
 mod latency;
 pub mod spatial;
 
@@ -32,9 +33,8 @@ const TARGET: RGBColor = RGBColor(214, 39, 40);
 const ARM: RGBColor = RGBColor(44, 160, 44);
 const SECOND: RGBColor = RGBColor(255, 127, 14);
 
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plotting: {e:?}")
-}
+/// The result of writing figures.
+type Result<T, E = PlotError> = std::result::Result<T, E>;
 
 /// The file names of the per-run figures, in display order, with their titles.
 pub const FIGURES: [(&str, &str); 5] = [
@@ -57,7 +57,7 @@ pub fn render_run(dir: &Path, run: &RunOutcome) -> Result<()> {
         let _ = write!(html, "<figure><img src=\"{file}\"><figcaption>{title}</figcaption></figure>");
     }
     html.push_str("</div></body></html>\n");
-    std::fs::write(dir.join("index.html"), html).context("writing index.html")
+    std::fs::write(dir.join("index.html"), html).map_err(PlotError::Index)
 }
 
 /// Renders every run's figures into `dir/<name>/` and an index page `dir/index.html` laid
@@ -128,7 +128,7 @@ pub fn render_all(dir: &Path, runs: &[RunOutcome]) -> Result<()> {
     let refs: Vec<&RunOutcome> = runs.iter().collect();
     html.push_str(&summary_table(&refs));
     html.push_str("</body></html>\n");
-    std::fs::write(dir.join("index.html"), html).context("writing index.html")
+    std::fs::write(dir.join("index.html"), html).map_err(PlotError::Index)
 }
 
 fn page_head(title: &str) -> String {
@@ -178,17 +178,20 @@ fn summary_table(runs: &[&RunOutcome]) -> String {
 }
 
 fn render_figures(dir: &Path, run: &RunOutcome) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).map_err(|source| PlotError::Folder { path: dir.to_path_buf(), source })?;
     let rows = &run.rows;
     if rows.is_empty() {
         return Ok(());
     }
     let name = &run.scenario.name;
-    path_plot(&dir.join("path.svg"), name, rows).map_err(err)?;
-    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.plant.ep_norm).map_err(err)?;
-    log_plot(&dir.join("hs.svg"), &format!("{name}: h_s"), rows, |r| r.report.h_s).map_err(err)?;
-    velocity_plot(&dir.join("velocities.svg"), name, rows, run.scenario.controller.platform).map_err(err)?;
-    joints_plot(&dir.join("joints.svg"), name, rows).map_err(err)?;
+    path_plot(&dir.join("path.svg"), name, rows).map_err(PlotError::plotting)?;
+    log_plot(&dir.join("ep.svg"), &format!("{name}: ‖e_p‖"), rows, |r| r.plant.ep_norm)
+        .map_err(PlotError::plotting)?;
+    log_plot(&dir.join("hs.svg"), &format!("{name}: h_s"), rows, |r| r.report.h_s)
+        .map_err(PlotError::plotting)?;
+    velocity_plot(&dir.join("velocities.svg"), name, rows, run.scenario.controller.platform)
+        .map_err(PlotError::plotting)?;
+    joints_plot(&dir.join("joints.svg"), name, rows).map_err(PlotError::plotting)?;
     Ok(())
 }
 
@@ -430,8 +433,7 @@ pub struct FloorCurve {
 /// # Errors
 /// The file cannot be written.
 pub fn floor_plot(file: &Path, curves: &[FloorCurve]) -> Result<()> {
-    let err = |e: Box<dyn std::error::Error + Send + Sync>| anyhow::anyhow!("{e}");
-    floor_plot_inner(file, curves).map_err(err).with_context(|| format!("writing {}", file.display()))
+    floor_plot_inner(file, curves).map_err(|source| PlotError::Figure { path: file.to_path_buf(), source })
 }
 
 fn floor_plot_inner(

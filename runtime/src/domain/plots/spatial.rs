@@ -7,12 +7,10 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use plotters::prelude::*;
 
-use super::{
-    bounds, equal_scale, err, log_lines, page_head, Area, ARM, BASE, EFFECTOR, H, SECOND, TARGET, W,
-};
+use super::error::PlotError;
+use super::{bounds, equal_scale, log_lines, page_head, Area, ARM, BASE, EFFECTOR, H, SECOND, TARGET, W};
 use crate::domain::record::spatial::{SpatialRecord, SpatialSummary};
 
 type Plot = Result<(), Box<dyn std::error::Error + Send + Sync>>;
@@ -49,12 +47,12 @@ pub struct SpatialFigures<'a> {
 ///
 /// # Errors
 /// Writing a file failed.
-pub fn render(dir: &Path, run: &SpatialFigures<'_>) -> Result<()> {
+pub fn render(dir: &Path, run: &SpatialFigures<'_>) -> Result<(), PlotError> {
     let rows = run.records;
     let name = run.name;
     if !rows.is_empty() {
-        top_view(&dir.join("top.svg"), name, rows).map_err(err)?;
-        side_view(&dir.join("side.svg"), name, rows).map_err(err)?;
+        top_view(&dir.join("top.svg"), name, rows).map_err(PlotError::plotting)?;
+        side_view(&dir.join("side.svg"), name, rows).map_err(PlotError::plotting)?;
         let t1 = rows.last().map_or(1.0, |r| r.t);
         let series = |f: Value| rows.iter().map(|r| (r.t, f(r))).collect::<Vec<_>>();
         log_lines(
@@ -67,11 +65,11 @@ pub fn render(dir: &Path, run: &SpatialFigures<'_>) -> Result<()> {
                 ("rotation ‖φ̃‖ (rad)", ARM, series(|r| r.e_p.fixed_rows::<3>(3).norm())),
             ],
         )
-        .map_err(err)?;
+        .map_err(PlotError::plotting)?;
         log_lines(&dir.join("hs.svg"), &format!("{name}: h_s"), t1, &[("", EFFECTOR, series(|r| r.h_s))])
-            .map_err(err)?;
-        velocities(&dir.join("velocities.svg"), name, rows).map_err(err)?;
-        joints(&dir.join("joints.svg"), name, rows, run.limits).map_err(err)?;
+            .map_err(PlotError::plotting)?;
+        velocities(&dir.join("velocities.svg"), name, rows).map_err(PlotError::plotting)?;
+        joints(&dir.join("joints.svg"), name, rows, run.limits).map_err(PlotError::plotting)?;
     }
     let s = run.summary;
     let mut html = page_head(name);
@@ -96,7 +94,7 @@ pub fn render(dir: &Path, run: &SpatialFigures<'_>) -> Result<()> {
         let _ = write!(html, "<figure><img src=\"{file}\"><figcaption>{title}</figcaption></figure>");
     }
     html.push_str("</div></body></html>\n");
-    std::fs::write(dir.join("index.html"), html).context("writing index.html")
+    std::fs::write(dir.join("index.html"), html).map_err(PlotError::Index)
 }
 
 /// The arm as a polyline: platform origin, the arm's base (the first link's frame before

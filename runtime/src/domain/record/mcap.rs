@@ -44,14 +44,13 @@ use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
 use companion_core::so3;
 use companion_core::Pose3;
 use serde::ser::{SerializeMap, Serializer};
 use serde::Serialize;
 use serde_json::{json, Value};
 
-use super::output::OutputDir;
+use super::output::{OutputDir, OutputError};
 
 /// The names that stay the same over a run: frames, joints, components.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -99,6 +98,73 @@ pub struct ReplayFrame<'a> {
     pub status: &'a str,
 }
 
+/// Why a replay file (`--mcap FILE`) could not be created or written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReplayError {
+    /// A missing parent folder of the file cannot be made, or is not writable.
+    #[error("--mcap: creating {}", path.display())]
+    Folder {
+        /// The file.
+        path: PathBuf,
+        /// Why the folder cannot be used.
+        #[source]
+        source: OutputError,
+    },
+    /// The file cannot be created.
+    #[error("--mcap: creating {}", path.display())]
+    Create {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Writing the file's records failed.
+    #[error("--mcap: writing {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The MCAP writer's error.
+        #[source]
+        source: ::mcap::McapError,
+    },
+    /// Writing the file's last bytes, or reading its size, failed.
+    #[error("--mcap: writing {}", path.display())]
+    Finish {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A channel's schema could not be formatted.
+    #[error("a schema")]
+    Schema(#[source] serde_json::Error),
+    /// A message could not be formatted.
+    #[error("formatting a replay message")]
+    Message(#[source] serde_json::Error),
+    /// A frame's field has another length than the layout's.
+    #[error("{}: a frame has {got} {what}, the layout {want}", path.display())]
+    Layout {
+        /// The file.
+        path: PathBuf,
+        /// The field (`links`, `joints`, …).
+        what: &'static str,
+        /// The frame's length.
+        got: usize,
+        /// The layout's.
+        want: usize,
+    },
+    /// A frame's time is not in `[0, 4e9)` s.
+    #[error("{}: a frame's time must be in [0, 4e9) s, got {t}", path.display())]
+    Time {
+        /// The file.
+        path: PathBuf,
+        /// The frame's time (s).
+        t: f64,
+    },
+}
+
 /// The topics, in the order the channels are made.
 pub const TOPICS: [&str; 5] = ["/tf", "/scene", "/joint_states", "/command", "/tracking_error"];
 
@@ -144,17 +210,19 @@ impl McapRecorder {
     ///
     /// # Errors
     /// The file cannot be created or written.
-    pub fn create(path: &Path, layout: ReplayLayout) -> Result<Self> {
+    pub fn create(path: &Path, layout: ReplayLayout) -> Result<Self, ReplayError> {
         let parent = path.parent().filter(|p| !p.as_os_str().is_empty());
-        let creating = || format!("--mcap: creating {}", path.display());
-        let made = parent.map(OutputDir::prepare).transpose().with_context(creating)?;
+        let made = parent
+            .map(OutputDir::prepare)
+            .transpose()
+            .map_err(|source| ReplayError::Folder { path: path.to_path_buf(), source })?;
         let file = match File::create(path) {
             Ok(f) => f,
-            Err(e) => {
+            Err(source) => {
                 if let Some(d) = made {
                     d.discard();
                 }
-                return Err(e).with_context(creating);
+                return Err(ReplayError::Create { path: path.to_path_buf(), source });
             }
         };
         let options = ::mcap::WriteOptions::new()
@@ -164,15 +232,14 @@ impl McapRecorder {
             .compression_threads(0)
             .profile("")
             .library(concat!("companion ", env!("CARGO_PKG_VERSION")));
-        let mut writer = options.create(BufWriter::new(file)).with_context(|| mcap_context(path))?;
+        let mut writer = options.create(BufWriter::new(file)).map_err(writing(path))?;
         let mut channels = [0; 5];
         for (slot, (topic, (name, schema))) in channels.iter_mut().zip(TOPICS.iter().zip(schemas())) {
-            let text = serde_json::to_vec(&schema).context("a schema")?;
-            let schema_id =
-                writer.add_schema(name, "jsonschema", &text).with_context(|| mcap_context(path))?;
+            let text = serde_json::to_vec(&schema).map_err(ReplayError::Schema)?;
+            let schema_id = writer.add_schema(name, "jsonschema", &text).map_err(writing(path))?;
             *slot = writer
                 .add_channel(schema_id, topic, "json", &std::collections::BTreeMap::new())
-                .with_context(|| mcap_context(path))?;
+                .map_err(writing(path))?;
         }
         Ok(Self {
             writer,
@@ -210,7 +277,7 @@ impl McapRecorder {
     /// # Errors
     /// The frame does not match the layout, its time is not a finite non-negative number of
     /// seconds, or writing failed.
-    pub fn write(&mut self, f: &ReplayFrame<'_>) -> Result<()> {
+    pub fn write(&mut self, f: &ReplayFrame<'_>) -> Result<(), ReplayError> {
         let l = &self.layout;
         for (what, got, want) in [
             ("links", f.links.len(), l.links.len()),
@@ -220,27 +287,25 @@ impl McapRecorder {
             ("e_p", f.e_p.len(), l.e_p.len()),
         ] {
             if got != want {
-                bail!("{}: a frame has {got} {what}, the layout {want}", self.path.display());
+                return Err(ReplayError::Layout { path: self.path.clone(), what, got, want });
             }
         }
         if !(f.t.is_finite() && f.t >= 0.0 && f.t < 4.0e9) {
-            bail!("{}: a frame's time must be in [0, 4e9) s, got {}", self.path.display(), f.t);
+            return Err(ReplayError::Time { path: self.path.clone(), t: f.t });
         }
         let ns = (f.t * 1e9).round() as u64;
         let stamp = Stamp::of(ns);
         let messages = Messages { f, l: &self.layout, stamp };
         for (k, &channel_id) in self.channels.iter().enumerate() {
             self.buf.clear();
-            messages.write(k, &mut self.buf).context("formatting a replay message")?;
+            messages.write(k, &mut self.buf).map_err(ReplayError::Message)?;
             let header = ::mcap::records::MessageHeader {
                 channel_id,
                 sequence: self.frames as u32,
                 log_time: ns,
                 publish_time: ns,
             };
-            self.writer
-                .write_to_known_channel(&header, &self.buf)
-                .with_context(|| mcap_context(&self.path))?;
+            self.writer.write_to_known_channel(&header, &self.buf).map_err(writing(&self.path))?;
         }
         self.frames += 1;
         Ok(())
@@ -250,18 +315,22 @@ impl McapRecorder {
     ///
     /// # Errors
     /// Writing failed.
-    pub fn finish(mut self) -> Result<ReplaySummary> {
-        self.writer.finish().with_context(|| mcap_context(&self.path))?;
+    pub fn finish(mut self) -> Result<ReplaySummary, ReplayError> {
+        self.writer.finish().map_err(writing(&self.path))?;
         let Self { writer, path, frames, .. } = self;
         // The buffer's last bytes, with their error (a drop would swallow it).
         let file = writer.into_inner().into_inner().map_err(std::io::IntoInnerError::into_error);
-        let bytes = file.and_then(|f| f.metadata()).with_context(|| mcap_context(&path))?.len();
+        let bytes = match file.and_then(|f| f.metadata()) {
+            Ok(m) => m.len(),
+            Err(source) => return Err(ReplayError::Finish { path, source }),
+        };
         Ok(ReplaySummary { path, frames, bytes })
     }
 }
 
-fn mcap_context(path: &Path) -> String {
-    format!("--mcap: writing {}", path.display())
+/// The error of writing `path`'s records.
+fn writing(path: &Path) -> impl Fn(::mcap::McapError) -> ReplayError + '_ {
+    move |source| ReplayError::Write { path: path.to_path_buf(), source }
 }
 
 /// A time as Foxglove's JSON writes it.

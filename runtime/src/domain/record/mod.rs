@@ -5,6 +5,7 @@
 //! write byte-identical files for the same scenario in lockstep mode. Numbers are written
 //! with Rust's shortest round-trip formatting (deterministic, exact).
 //!
+//! - [`error`]: why a run's records could not be written;
 //! - [`row`]: one recorded step; [`outcome`]: a run's outcome and its JSON files;
 //! - [`output`]: the output folder, taken away again if the run never started;
 //! - [`summary`]: the figures of `summary.json`; [`digest`]: the trajectory's fingerprint;
@@ -20,6 +21,7 @@
 
 pub mod csv;
 pub mod digest;
+pub mod error;
 pub mod mcap;
 pub mod outcome;
 pub mod output;
@@ -32,9 +34,10 @@ pub mod verdict;
 pub mod writer;
 
 pub use self::digest::TrajectoryDigest;
-pub use self::mcap::{McapRecorder, ReplayFrame, ReplayLayout, ReplaySummary};
+pub use self::error::RecordError;
+pub use self::mcap::{McapRecorder, ReplayError, ReplayFrame, ReplayLayout, ReplaySummary};
 pub use self::outcome::{write_summary, RunOutcome};
-pub use self::output::OutputDir;
+pub use self::output::{OutputDir, OutputError};
 pub use self::recorder::{Recorder, RowSink};
 pub use self::replay::PlanarReplay;
 pub use self::row::{CommandSource, PlantSample, Row};

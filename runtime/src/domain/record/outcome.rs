@@ -2,8 +2,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
-
+use super::error::RecordError;
 use super::row::Row;
 use super::summary::Summary;
 use crate::domain::scenario::Scenario;
@@ -23,12 +22,12 @@ pub struct RunOutcome {
 ///
 /// # Errors
 /// Writing failed.
-pub fn write_summary(dir: &Path, s: &Scenario, summary: &Summary) -> Result<()> {
+pub fn write_summary(dir: &Path, s: &Scenario, summary: &Summary) -> Result<(), RecordError> {
     let path = dir.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(summary)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| RecordError::Json { path, source })?;
     let path = dir.join("scenario.json");
     std::fs::write(&path, serde_json::to_string_pretty(s)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| RecordError::Json { path, source })?;
     Ok(())
 }

@@ -4,7 +4,28 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+/// Why a run's output folder cannot be used.
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The folder (or a missing parent) cannot be made.
+    #[error("creating {}", path.display())]
+    Create {
+        /// The folder.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// No file can be written in the folder.
+    #[error("{} is not writable", path.display())]
+    NotWritable {
+        /// The folder.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+}
 
 /// The output folder of a run that has not started yet.
 #[derive(Debug)]
@@ -19,7 +40,7 @@ impl OutputDir {
     ///
     /// # Errors
     /// The folder cannot be made, or is not writable.
-    pub fn prepare(path: &Path) -> Result<Self> {
+    pub fn prepare(path: &Path) -> Result<Self, OutputError> {
         let mut made = None;
         let mut p = path;
         while !p.as_os_str().is_empty() && !p.exists() {
@@ -29,12 +50,13 @@ impl OutputDir {
                 None => break,
             }
         }
-        std::fs::create_dir_all(path).with_context(|| format!("creating {}", path.display()))?;
+        std::fs::create_dir_all(path)
+            .map_err(|source| OutputError::Create { path: path.to_path_buf(), source })?;
         let probe = path.join(".companion-write-test");
         let dir = Self { path: path.to_path_buf(), made };
-        if let Err(e) = std::fs::write(&probe, b"") {
+        if let Err(source) = std::fs::write(&probe, b"") {
             dir.discard();
-            return Err(e).with_context(|| format!("{} is not writable", path.display()));
+            return Err(OutputError::NotWritable { path: path.to_path_buf(), source });
         }
         let _ = std::fs::remove_file(&probe);
         Ok(dir)

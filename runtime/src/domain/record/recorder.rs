@@ -5,10 +5,10 @@
 use std::fs::File;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use companion_core::PlatformKind;
 
 use super::csv::CsvFile;
+use super::error::RecordError;
 use super::replay::PlanarReplay;
 use super::row::Row;
 use super::summary::SummaryAccumulator;
@@ -31,13 +31,13 @@ pub trait RowSink {
     ///
     /// # Errors
     /// Writing the file failed.
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()>;
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError>;
 
     /// Writes what is buffered to the file.
     ///
     /// # Errors
     /// Writing the file failed.
-    fn flush(&mut self) -> Result<()> {
+    fn flush(&mut self) -> Result<(), RecordError> {
         Ok(())
     }
 }
@@ -61,10 +61,18 @@ impl Log {
     ///
     /// # Errors
     /// The file cannot be created.
-    pub fn create(dir: &Path, kind: PlatformKind, log_every: u64, expected_rows: usize) -> Result<Self> {
+    pub fn create(
+        dir: &Path,
+        kind: PlatformKind,
+        log_every: u64,
+        expected_rows: usize,
+    ) -> Result<Self, RecordError> {
         let path = dir.join("timeseries.csv");
-        let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-        let csv = CsvFile::new(file, kind).with_context(|| format!("writing {}", path.display()))?;
+        let file = match File::create(&path) {
+            Ok(f) => f,
+            Err(source) => return Err(RecordError::Create { path, source }),
+        };
+        let csv = CsvFile::new(file, kind).map_err(|source| RecordError::Header { path, source })?;
         Ok(Self { csv, log_every, rows: Vec::with_capacity(expected_rows), replay: None })
     }
 
@@ -79,7 +87,7 @@ impl Log {
     ///
     /// # Errors
     /// Writing the file failed.
-    pub fn finish_replay(&mut self) -> Result<Option<super::mcap::ReplaySummary>> {
+    pub fn finish_replay(&mut self) -> Result<Option<super::mcap::ReplaySummary>, super::mcap::ReplayError> {
         self.replay.take().map(PlanarReplay::finish).transpose()
     }
 
@@ -87,8 +95,9 @@ impl Log {
     ///
     /// # Errors
     /// The folder or file cannot be created.
-    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self> {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self, RecordError> {
+        std::fs::create_dir_all(dir)
+            .map_err(|source| RecordError::Create { path: dir.to_path_buf(), source })?;
         let rows = (s.steps() / s.log_every) as usize + 2;
         Self::create(dir, s.controller.platform, s.log_every, rows)
     }
@@ -99,9 +108,9 @@ impl RowSink for Log {
         self.log_every
     }
 
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
         if self.logs(n, last) {
-            self.csv.write_row(row).context("writing timeseries.csv")?;
+            self.csv.write_row(row).map_err(RecordError::Row)?;
             self.rows.push(*row);
             if let Some(r) = &mut self.replay {
                 r.write(row)?;
@@ -110,8 +119,8 @@ impl RowSink for Log {
         Ok(())
     }
 
-    fn flush(&mut self) -> Result<()> {
-        self.csv.flush().context("writing timeseries.csv")
+    fn flush(&mut self) -> Result<(), RecordError> {
+        self.csv.flush().map_err(RecordError::Flush)
     }
 }
 
@@ -139,7 +148,7 @@ impl Recorder {
     ///
     /// # Errors
     /// The folder or file cannot be created.
-    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self> {
+    pub fn for_scenario(s: &Scenario, dir: &Path) -> Result<Self, RecordError> {
         Ok(Self { log: Log::for_scenario(s, dir)?, summary: summary_for(s) })
     }
 }
@@ -149,12 +158,12 @@ impl RowSink for Recorder {
         self.log.log_every
     }
 
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
         self.summary.add(row);
         self.log.record(n, row, last)
     }
 
-    fn flush(&mut self) -> Result<()> {
+    fn flush(&mut self) -> Result<(), RecordError> {
         self.log.flush()
     }
 }

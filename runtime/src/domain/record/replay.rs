@@ -13,11 +13,10 @@
 
 use std::path::Path;
 
-use anyhow::Result;
 use companion_core::nalgebra::SVector;
 use companion_core::{Chain, PlatformCommand, PlatformKind, Pose, Pose3};
 
-use super::mcap::{McapRecorder, ReplayFrame, ReplayLayout, ReplaySummary};
+use super::mcap::{McapRecorder, ReplayError, ReplayFrame, ReplayLayout, ReplaySummary};
 use super::row::Row;
 use crate::domain::controller::JOINTS;
 use crate::domain::scenario::Scenario;
@@ -79,7 +78,7 @@ impl PlanarReplay {
     ///
     /// # Errors
     /// The file cannot be created.
-    pub fn create(path: &Path, s: &Scenario) -> Result<Self> {
+    pub fn create(path: &Path, s: &Scenario) -> Result<Self, ReplayError> {
         let kind = s.controller.platform;
         let names = |prefix: &str| (1..=JOINTS).map(|i| format!("{prefix}{i}")).collect();
         let layout = ReplayLayout {
@@ -101,7 +100,7 @@ impl PlanarReplay {
     ///
     /// # Errors
     /// Writing failed.
-    pub fn write(&mut self, row: &Row) -> Result<()> {
+    pub fn write(&mut self, row: &Row) -> Result<(), ReplayError> {
         let p = &row.plant;
         let (links, effector) = link_frames(&self.chain, &p.joints);
         let r_ed = p.end_effector.between(&p.target);
@@ -136,7 +135,7 @@ impl PlanarReplay {
     ///
     /// # Errors
     /// Writing failed.
-    pub fn finish(self) -> Result<ReplaySummary> {
+    pub fn finish(self) -> Result<ReplaySummary, ReplayError> {
         self.mcap.finish()
     }
 }

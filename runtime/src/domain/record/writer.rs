@@ -15,8 +15,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Context, Result};
-
+use super::error::RecordError;
 use super::recorder::RowSink;
 use super::row::Row;
 
@@ -41,7 +40,7 @@ const BACKOFF: Duration = Duration::from_micros(50);
 pub struct RecordWriter<S> {
     tx: rtrb::Producer<LogItem>,
     done: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<S>>>,
+    thread: Option<JoinHandle<Result<S, RecordError>>>,
     log_every: u64,
 }
 
@@ -51,7 +50,7 @@ impl<S: RowSink + Send + 'static> RecordWriter<S> {
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub fn spawn(mut recorder: S, capacity: usize, flush_every: Duration) -> Result<Self> {
+    pub fn spawn(mut recorder: S, capacity: usize, flush_every: Duration) -> Result<Self, RecordError> {
         let (tx, mut rx) = rtrb::RingBuffer::<LogItem>::new(capacity);
         let done = Arc::new(AtomicBool::new(false));
         let finish = Arc::clone(&done);
@@ -80,7 +79,7 @@ impl<S: RowSink + Send + 'static> RecordWriter<S> {
                     }
                 }
             })
-            .context("starting the CSV writer thread")?;
+            .map_err(RecordError::Spawn)?;
         Ok(Self { tx, done, thread: Some(thread), log_every })
     }
 
@@ -95,14 +94,14 @@ impl<S: RowSink + Send + 'static> RecordWriter<S> {
     ///
     /// # Errors
     /// Writing the file failed, or the thread panicked.
-    pub fn finish(mut self) -> Result<S> {
+    pub fn finish(mut self) -> Result<S, RecordError> {
         self.join()
     }
 
-    fn join(&mut self) -> Result<S> {
+    fn join(&mut self) -> Result<S, RecordError> {
         self.done.store(true, Ordering::Release);
-        let thread = self.thread.take().ok_or_else(|| anyhow!("writing timeseries.csv failed earlier"))?;
-        thread.join().map_err(|_| anyhow!("the CSV writer thread panicked"))?
+        let thread = self.thread.take().ok_or(RecordError::FailedEarlier)?;
+        thread.join().map_err(|_| RecordError::Panicked)?
     }
 }
 
@@ -112,7 +111,7 @@ impl<S: RowSink + Send + 'static> RowSink for RecordWriter<S> {
     }
 
     /// Hands the row to the thread, waiting while the ring is full.
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<()> {
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
         let mut item = LogItem { n, row: *row, last };
         loop {
             match self.tx.push(item) {
@@ -122,7 +121,7 @@ impl<S: RowSink + Send + 'static> RowSink for RecordWriter<S> {
                     if self.thread.as_ref().is_none_or(JoinHandle::is_finished) {
                         // The thread stopped early, so it failed: report why.
                         self.join()?;
-                        bail!("the CSV writer thread stopped early");
+                        return Err(RecordError::StoppedEarly);
                     }
                     std::thread::sleep(BACKOFF);
                 }

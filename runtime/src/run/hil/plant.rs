@@ -312,7 +312,7 @@ fn run_planar(
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
     let opened = open(cfg, s, super::handshake::arm_hash())?;
     let (opened, replay) =
-        opened.join(cfg, observer, |p| PlanarReplay::create(p, s), PlanarReplay::discard)?;
+        opened.join(cfg, observer, |p| Ok(PlanarReplay::create(p, s)?), PlanarReplay::discard)?;
     let steps = s.steps();
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
@@ -439,7 +439,7 @@ where
     let opened = open(cfg, s, canonical::arm_hash(&chain))?;
     let layout = spatial::replay::layout(ss);
     let (opened, mcap) =
-        opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
+        opened.join(cfg, observer, |p| Ok(McapRecorder::create(p, layout)?), McapRecorder::discard)?;
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
     let steps = s.steps();

@@ -229,5 +229,5 @@ pub fn write_svg(dir: &Path, st: &PlantStats, r: &LatencyReport) -> Result<()> {
         r.deadline_misses
     );
     let deadline = (r.deadline_ns > 0).then_some(r.deadline_ns);
-    crate::domain::plots::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)
+    Ok(crate::domain::plots::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)?)
 }

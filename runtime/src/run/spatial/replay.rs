@@ -82,7 +82,7 @@ pub fn write(mut mcap: McapRecorder, kind: PlatformKind, records: &[SpatialRecor
         };
         mcap.write(&frame)?;
     }
-    mcap.finish()
+    Ok(mcap.finish()?)
 }
 
 #[cfg(test)]

@@ -35,6 +35,7 @@
 //! folder is refused at once with [`Busy`] (the CLI's exit code 9), and [`merge`] tells a
 //! shard still running (locked) from one that ended unfinished (run its command again).
 
+pub mod error;
 pub mod lock;
 mod plots;
 pub mod results;
@@ -49,13 +50,13 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
 use std::time::Instant;
 
-use anyhow::{bail, Context, Result};
 use companion_core::PlatformKind;
 use rand::rngs::ChaCha12Rng;
 use rand::{Rng as _, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;
 
+pub use self::error::{BadShard, ExploreError};
 pub use self::lock::Busy;
 use self::lock::Lock;
 pub use self::results::{Class, Record};
@@ -64,7 +65,11 @@ pub use self::summary::ExploreSummary;
 use crate::domain::observe::Observer;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 use crate::study::knobs::Knob;
-use crate::study::trial;
+use crate::study::shared;
+use crate::study::trial::{self, TrialError};
+
+/// The result of an exploration's steps.
+type Result<T, E = ExploreError> = std::result::Result<T, E>;
 
 /// Which part of the samples a run takes: `K/N` takes the samples `i` with `i mod N = K − 1`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -83,8 +88,8 @@ impl Shard {
     ///
     /// # Errors
     /// Not of the form `K/N` with `1 ≤ K ≤ N`.
-    pub fn parse(text: &str) -> Result<Self> {
-        let bad = || anyhow::anyhow!("--shard must be K/N with 1 <= K <= N (e.g. 2/8), got `{text}`");
+    pub fn parse(text: &str) -> Result<Self, BadShard> {
+        let bad = || BadShard(text.to_string());
         let (k, n) = text.split_once('/').ok_or_else(bad)?;
         let (index, count) =
             (k.trim().parse::<u64>().map_err(|_| bad())?, n.trim().parse::<u64>().map_err(|_| bad())?);
@@ -175,9 +180,9 @@ impl Exploration {
     /// The scenario or the space is invalid (see [`Space::check`]), or `samples` is 0.
     pub fn new(builder: ScenarioBuilder, file: &SpaceFile, samples: u64, seed: u64) -> Result<Self> {
         if samples == 0 {
-            bail!("--samples must be at least 1");
+            return Err(ExploreError::NoSamples);
         }
-        let base = builder.clone().build().context("the scenario")?;
+        let base = builder.clone().build().map_err(ExploreError::Scenario)?;
         let space = Space::check(file, &builder)?;
         Ok(Self { builder, base, space, samples, seed })
     }
@@ -247,8 +252,11 @@ impl Exploration {
             inputs.push(v.unwrap_or_else(|| k.value(&self.base)));
         }
         let judge = self.space.judge;
-        let result =
-            self.space.scenario(&self.builder, &self.base, &point).and_then(|s| trial::run(&s, &judge));
+        let result = self
+            .space
+            .scenario(&self.builder, &self.base, &point)
+            .map_err(TrialError::from)
+            .and_then(|s| trial::run(&s, &judge));
         match result {
             Ok(t) => (results::line(i, &inputs, Class::of(&t, &judge), Some(&t)), t.summary.steps),
             Err(_) => (results::line(i, &inputs, Class::Invalid, None), 0),
@@ -268,19 +276,12 @@ impl Exploration {
         observer: &dyn Observer,
         stop: &(dyn Fn() -> bool + Sync),
     ) -> Result<ExploreOutcome> {
-        std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+        std::fs::create_dir_all(out).map_err(on_file("creating", out))?;
         let manifest = self.manifest()?;
         let shard_json = (shard != Shard::WHOLE)
             .then(|| serde_json::to_string_pretty(&ShardFile { index: shard.index, count: shard.count }))
             .transpose()?
             .map(|s| s + "\n");
-        let another = || {
-            anyhow::anyhow!(
-                "{} holds another exploration (different scenario, space, samples, seed or shard); \
-                 choose another --out, or remove that folder to start afresh",
-                out.display()
-            )
-        };
         let mut notes = Vec::new();
         let manifest_path = out.join("explore.json");
         let shard_path = out.join("shard.json");
@@ -291,21 +292,17 @@ impl Exploration {
             .create(true)
             .truncate(false)
             .open(&manifest_path)
-            .with_context(|| format!("opening {}", manifest_path.display()))?;
-        match lock::try_lock(&manifest_file, true)
-            .with_context(|| format!("locking {}", manifest_path.display()))?
-        {
+            .map_err(on_file("opening", &manifest_path))?;
+        match lock::try_lock(&manifest_file, true).map_err(on_file("locking", &manifest_path))? {
             Lock::Held => {}
-            Lock::Busy => return Err(Busy { folder: out.to_path_buf() }.into()),
+            Lock::Busy => return Err(ExploreError::Busy(Busy { folder: out.to_path_buf() })),
             Lock::Unsupported => notes.push(format!(
                 "{}'s file system does not support locks: nothing stops a second process on this folder",
                 out.display()
             )),
         }
         let mut old = String::new();
-        manifest_file
-            .read_to_string(&mut old)
-            .with_context(|| format!("reading {}", manifest_path.display()))?;
+        manifest_file.read_to_string(&mut old).map_err(on_file("reading", &manifest_path))?;
         // Empty: a new folder. A proper beginning of this manifest and nothing else in the
         // folder: a first run killed while writing it.
         let unwritten = old.is_empty()
@@ -314,14 +311,15 @@ impl Exploration {
                 && !out.join("journal.csv").exists()
                 && !out.join("results.csv").exists());
         if unwritten {
-            manifest_file.set_len(0).context("writing explore.json")?;
-            manifest_file.seek(SeekFrom::Start(0)).context("writing explore.json")?;
-            manifest_file.write_all(manifest.as_bytes()).context("writing explore.json")?;
+            let writing = output("writing explore.json");
+            manifest_file.set_len(0).map_err(writing)?;
+            manifest_file.seek(SeekFrom::Start(0)).map_err(writing)?;
+            manifest_file.write_all(manifest.as_bytes()).map_err(writing)?;
             if let Some(sj) = &shard_json {
-                std::fs::write(&shard_path, sj).context("writing shard.json")?;
+                std::fs::write(&shard_path, sj).map_err(output("writing shard.json"))?;
             }
         } else if old != manifest || std::fs::read_to_string(&shard_path).ok() != shard_json {
-            return Err(another());
+            return Err(ExploreError::Another { folder: out.to_path_buf() });
         }
         let layout = self.layout();
         let header = &layout.header;
@@ -332,7 +330,7 @@ impl Exploration {
             let text = std::fs::read_to_string(&results_path)?;
             let (lines, cut) = results::read_lines(&text, header, "results.csv")?;
             if cut.is_some() {
-                bail!("results.csv ends in a cut line: it was not written by a finished run; not used");
+                return Err(ExploreError::CutResults);
             }
             layout.take(&mut done, lines, shard, "results.csv")?;
         }
@@ -350,7 +348,7 @@ impl Exploration {
             }
             layout.take(&mut done, lines, shard, "journal.csv")?;
         } else {
-            std::fs::write(&journal_path, header.clone() + "\n").context("creating journal.csv")?;
+            std::fs::write(&journal_path, header.clone() + "\n").map_err(output("creating journal.csv"))?;
         }
         let resumed = done.len() as u64;
         let pending: Vec<u64> = shard.samples(self.samples).filter(|i| !done.contains_key(i)).collect();
@@ -366,16 +364,16 @@ impl Exploration {
             let (line, n) = self.run_sample(i);
             steps.fetch_add(n, Ordering::Relaxed);
             {
-                let mut f = journal.lock().map_err(|_| anyhow::anyhow!("journal lock poisoned"))?;
-                f.write_all(format!("{line}\n").as_bytes()).context("appending to journal.csv")?;
+                let mut f = shared::lock(&journal, "journal lock")?;
+                f.write_all(format!("{line}\n").as_bytes()).map_err(output("appending to journal.csv"))?;
             }
-            finished.lock().map_err(|_| anyhow::anyhow!("lock poisoned"))?.push((i, line));
+            shared::lock(&finished, "lock")?.push((i, line));
             observer.advance(1);
             Ok(())
         })?;
         let wall_s = start.elapsed().as_secs_f64();
         let cpu_s = crate::sys::machine::process_cpu_seconds().zip(cpu_start).map(|(b, a)| b - a);
-        let finished = finished.into_inner().map_err(|_| anyhow::anyhow!("lock poisoned"))?;
+        let finished = shared::into_inner(finished)?;
         let ran = finished.len() as u64;
         done.extend(finished);
         let mut outcome =
@@ -384,7 +382,7 @@ impl Exploration {
             return Ok(outcome);
         }
         outcome.summary = Some(layout.finish(out, &done)?);
-        std::fs::remove_file(&journal_path).context("removing journal.csv")?;
+        std::fs::remove_file(&journal_path).map_err(output("removing journal.csv"))?;
         Ok(outcome)
     }
 }
@@ -418,16 +416,17 @@ impl Layout {
     ) -> Result<()> {
         for (i, line) in lines {
             if i >= self.samples || !shard.owns(i) {
-                bail!(
-                    "{what}: sample {i} is not one of this run's (samples {}, shard {}/{})",
-                    self.samples,
-                    shard.index,
-                    shard.count
-                );
+                return Err(ExploreError::NotThisRuns {
+                    what: what.to_string(),
+                    sample: i,
+                    samples: self.samples,
+                    index: shard.index,
+                    count: shard.count,
+                });
             }
             if let Some(old) = done.get(&i) {
                 if *old != line {
-                    bail!("{what}: sample {i} appears twice with different results; not used");
+                    return Err(ExploreError::Twice { what: what.to_string(), sample: i });
                 }
             }
             done.insert(i, line);
@@ -451,12 +450,12 @@ impl Layout {
             records.push(results::parse(line, columns)?);
         }
         let tmp = out.join("results.csv.tmp");
-        std::fs::write(&tmp, &text).context("writing results.csv")?;
-        std::fs::rename(&tmp, out.join("results.csv")).context("writing results.csv")?;
+        std::fs::write(&tmp, &text).map_err(output("writing results.csv"))?;
+        std::fs::rename(&tmp, out.join("results.csv")).map_err(output("writing results.csv"))?;
         let size = self.knobs.iter().copied().find(|k| matches!(k, Knob::Epsilon | Knob::Epsilon1));
         let summary = summary::summarize(&self.scenario, self.seed, &self.space, &self.knobs, size, &records);
         std::fs::write(out.join("summary.json"), serde_json::to_string_pretty(&summary)? + "\n")
-            .context("writing summary.json")?;
+            .map_err(output("writing summary.json"))?;
         plots::render(out, &summary, &records, &self.knobs)?;
         Ok(summary)
     }
@@ -493,7 +492,7 @@ struct ShardFile {
 /// missing or repeated, or a line is corrupt.
 pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
     if dirs.is_empty() {
-        bail!("explore merge needs the shards' folders");
+        return Err(ExploreError::NoShards);
     }
     let mut manifest: Option<String> = None;
     let mut count = None;
@@ -505,40 +504,33 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
         let path = dir.join("explore.json");
         let mut file = std::fs::File::open(&path).map_err(|e| {
             if e.kind() == std::io::ErrorKind::NotFound {
-                anyhow::anyhow!(
-                    "{}: no explore.json: not an exploration's folder, or its shard has not started \
-                     (run its command)",
-                    dir.display()
-                )
+                ExploreError::NotAnExploration { dir: dir.clone() }
             } else {
-                anyhow::Error::from(e).context(format!("reading {}", path.display()))
+                on_file("reading", &path)(e)
             }
         })?;
         // Shared: a run's exclusive lock conflicts; held until the merge is written, so that no
         // run starts on a shard while it is read.
-        if lock::try_lock(&file, false).with_context(|| format!("locking {}", path.display()))? == Lock::Busy
-        {
-            bail!(
-                "{}: this shard is still running (a process holds the lock on its explore.json); \
-                 merge once it has ended",
-                dir.display()
-            );
+        if lock::try_lock(&file, false).map_err(on_file("locking", &path))? == Lock::Busy {
+            return Err(ExploreError::Running { dir: dir.clone() });
         }
         let mut text = String::new();
-        file.read_to_string(&mut text).with_context(|| format!("reading {}", path.display()))?;
+        file.read_to_string(&mut text).map_err(on_file("reading", &path))?;
         held.push(file);
         match &manifest {
             None => {
                 let m: ManifestIn = serde_json::from_str(&text)
-                    .with_context(|| format!("{} is not an exploration's explore.json", path.display()))?;
+                    .map_err(|source| ExploreError::Manifest { path: path.clone(), source })?;
                 let knobs = m
                     .columns
                     .split(',')
                     .skip(1 + space::INITIAL.len())
                     .take_while(|c| *c != "class")
                     .map(|c| {
-                        Knob::from_name(c)
-                            .ok_or_else(|| anyhow::anyhow!("{}: unknown column `{c}`", path.display()))
+                        Knob::from_name(c).ok_or_else(|| ExploreError::UnknownColumn {
+                            path: path.clone(),
+                            column: c.to_string(),
+                        })
                     })
                     .collect::<Result<Vec<_>>>()?;
                 layout = Some(Layout {
@@ -552,11 +544,7 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
                 manifest = Some(text);
             }
             Some(first) if *first != text => {
-                bail!(
-                    "{} is a shard of another exploration than {} (explore.json differs)",
-                    dir.display(),
-                    dirs[0].display()
-                );
+                return Err(ExploreError::OtherExploration { dir: dir.clone(), first: dirs[0].clone() });
             }
             Some(_) => {}
         }
@@ -564,29 +552,31 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
         let sp = dir.join("shard.json");
         let sf: ShardFile = serde_json::from_str(
             &std::fs::read_to_string(&sp)
-                .with_context(|| format!("{}: not a shard (no shard.json)", dir.display()))?,
+                .map_err(|source| ExploreError::NotAShard { dir: dir.clone(), source })?,
         )
-        .with_context(|| format!("reading {}", sp.display()))?;
+        .map_err(|source| ExploreError::ShardFile { path: sp.clone(), source })?;
         let shard = Shard { index: sf.index, count: sf.count };
         if shard.index == 0 || shard.index > shard.count {
-            bail!("{}: shard {}/{} is not valid", dir.display(), shard.index, shard.count);
+            return Err(ExploreError::InvalidShard {
+                dir: dir.clone(),
+                index: shard.index,
+                count: shard.count,
+            });
         }
         if *count.get_or_insert(shard.count) != shard.count {
-            bail!(
-                "{}: shard of a split into {} parts, the others into {}",
-                dir.display(),
-                shard.count,
-                count.unwrap_or(0)
-            );
+            return Err(ExploreError::Split {
+                dir: dir.clone(),
+                count: shard.count,
+                others: count.unwrap_or(0),
+            });
         }
         if let Some(other) = seen.insert(shard.index, dir.clone()) {
-            bail!(
-                "shard {}/{} given twice: {} and {}",
-                shard.index,
-                shard.count,
-                other.display(),
-                dir.display()
-            );
+            return Err(ExploreError::ShardTwice {
+                index: shard.index,
+                count: shard.count,
+                first: other,
+                second: dir.clone(),
+            });
         }
         let path = dir.join("results.csv");
         let what = path.display().to_string();
@@ -595,35 +585,51 @@ pub fn merge(dirs: &[PathBuf], out: &Path) -> Result<ExploreSummary> {
             // Not running (the lock was free): killed, failed or cancelled before the end.
             let journal = std::fs::read_to_string(dir.join("journal.csv")).unwrap_or_default();
             let in_journal = journal.lines().skip(1).filter(|l| !l.is_empty()).count();
-            bail!(
-                "{}: shard {}/{} is unfinished and no process is running it ({in_journal} of its {expected} \
-                 samples are in its journal.csv): run its command again to resume it, then merge",
-                dir.display(),
-                shard.index,
-                shard.count
-            );
+            return Err(ExploreError::Unfinished {
+                dir: dir.clone(),
+                index: shard.index,
+                count: shard.count,
+                in_journal,
+                expected,
+            });
         };
         let (lines, cut) = results::read_lines(&text, &layout.header, &what)?;
         if cut.is_some() {
-            bail!("{what}: ends in a cut line; not merged");
+            return Err(ExploreError::CutShard { what });
         }
         let n = lines.len();
         layout.take(&mut done, lines, shard, &what)?;
         if n != expected {
-            bail!("{what}: {n} samples, but shard {}/{} has {expected}", shard.index, shard.count);
+            return Err(ExploreError::SampleCount {
+                what,
+                found: n,
+                index: shard.index,
+                count: shard.count,
+                expected,
+            });
         }
     }
     let (Some(layout), Some(manifest), Some(count)) = (layout, manifest, count) else { unreachable!() };
     let missing: Vec<String> =
         (1..=count).filter(|k| !seen.contains_key(k)).map(|k| format!("{k}/{count}")).collect();
     if !missing.is_empty() {
-        bail!("shards missing: {}", missing.join(", "));
+        return Err(ExploreError::Missing(missing));
     }
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
-    std::fs::write(out.join("explore.json"), manifest).context("writing explore.json")?;
+    std::fs::create_dir_all(out).map_err(on_file("creating", out))?;
+    std::fs::write(out.join("explore.json"), manifest).map_err(output("writing explore.json"))?;
     let summary = layout.finish(out, &done)?;
     drop(held); // the shards' locks, held to here
     Ok(summary)
+}
+
+/// The error of `doing` (`creating`, `opening`, `locking`, `reading`) `path`.
+fn on_file<'a>(doing: &'static str, path: &'a Path) -> impl FnOnce(std::io::Error) -> ExploreError + 'a {
+    move |source| ExploreError::File { doing, path: path.to_path_buf(), source }
+}
+
+/// The error of `doing` a file of the output folder (`writing explore.json`, …).
+fn output(doing: &'static str) -> impl Fn(std::io::Error) -> ExploreError + Copy {
+    move |source| ExploreError::Output(doing, source)
 }
 
 #[cfg(test)]

@@ -5,21 +5,17 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use plotters::prelude::*;
 
 use super::results::{Class, Record};
 use super::summary::{input_index, ExploreSummary};
+use crate::domain::plots::PlotError;
 use crate::study::knobs::Knob;
 
 type Plot = Result<(), Box<dyn std::error::Error + Send + Sync>>;
 
 const W: u32 = 640;
 const H: u32 = 440;
-
-fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
-    anyhow::anyhow!("plotting: {e:?}")
-}
 
 /// The figure files, with their captions.
 pub const FIGURES: [(&str, &str); 5] = [
@@ -37,8 +33,13 @@ pub const FIGURES: [(&str, &str); 5] = [
 ///
 /// # Errors
 /// Writing a file failed.
-pub fn render(dir: &Path, summary: &ExploreSummary, records: &[Record], knobs: &[Knob]) -> Result<()> {
-    map(&dir.join("map.svg"), summary).map_err(err)?;
+pub fn render(
+    dir: &Path,
+    summary: &ExploreSummary,
+    records: &[Record],
+    knobs: &[Knob],
+) -> Result<(), PlotError> {
+    map(&dir.join("map.svg"), summary).map_err(PlotError::plotting)?;
     let col = |name: &str, only: Option<Class>| -> Vec<f64> {
         records
             .iter()
@@ -52,12 +53,12 @@ pub fn render(dir: &Path, summary: &ExploreSummary, records: &[Record], knobs: &
         "settling time (s), converged samples",
         &col("settling_time_s", Some(Class::Converged)),
     )
-    .map_err(err)?;
+    .map_err(PlotError::plotting)?;
     histogram(&dir.join("tracked.svg"), "tracked fraction, t ≥ T/2", &col("tracked_fraction", None))
-        .map_err(err)?;
+        .map_err(PlotError::plotting)?;
     histogram(&dir.join("margin.svg"), "smallest joint margin (rad or m)", &col("min_joint_margin", None))
-        .map_err(err)?;
-    bound(&dir.join("ep_bound.svg"), summary, records, knobs).map_err(err)?;
+        .map_err(PlotError::plotting)?;
+    bound(&dir.join("ep_bound.svg"), summary, records, knobs).map_err(PlotError::plotting)?;
     let mut html = String::from(
         "<!doctype html><html><head><meta charset=utf-8><title>exploration</title><style>\
          body{font-family:sans-serif;margin:1em} .grid{display:flex;flex-wrap:wrap} figure{margin:4px} \
@@ -83,7 +84,7 @@ pub fn render(dir: &Path, summary: &ExploreSummary, records: &[Record], knobs: &
         let _ = write!(html, "<figure><img src=\"{file}\"><figcaption>{caption}</figcaption></figure>");
     }
     html.push_str("</div></body></html>\n");
-    std::fs::write(dir.join("index.html"), html).context("writing index.html")
+    std::fs::write(dir.join("index.html"), html).map_err(PlotError::Index)
 }
 
 fn map(file: &Path, s: &ExploreSummary) -> Plot {

@@ -13,12 +13,71 @@
 
 use std::fmt::Write as _;
 
-use anyhow::{bail, Result};
 use serde::Serialize;
 
 use super::space::{Space, INITIAL};
 use crate::study::knobs::Knob;
 use crate::study::trial::{Judge, Trial};
+
+/// Why a line of a results file is not one.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LineError {
+    /// The line has no comma, so no checksum.
+    #[error("not a results line")]
+    NotALine,
+    /// The checksum does not match the line.
+    #[error("checksum {found} does not match the line (expected {expected})")]
+    Checksum {
+        /// The line's checksum.
+        found: String,
+        /// The line's hash.
+        expected: String,
+    },
+    /// The line has the wrong number of fields.
+    #[error("{found} fields, expected {expected}")]
+    Fields {
+        /// The line's fields.
+        found: usize,
+        /// The file's columns.
+        expected: usize,
+    },
+    /// A field that should be a number is not.
+    #[error("`{0}` is not a number")]
+    NotANumber(String),
+    /// The first field is not a sample index.
+    #[error("`{0}` is not a sample index")]
+    NotASample(String),
+    /// The class field is not a class.
+    #[error("unknown class `{0}`")]
+    UnknownClass(String),
+}
+
+/// Why a results file (`results.csv`, `journal.csv`) cannot be used.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ResultsError {
+    /// The file's header is not this exploration's.
+    #[error(
+        "{what}: its header differs from this exploration's:\n  found:    {found}\n  expected: {expected}"
+    )]
+    Header {
+        /// The file.
+        what: String,
+        /// Its header.
+        found: String,
+        /// This exploration's.
+        expected: String,
+    },
+    /// A complete line is corrupt.
+    #[error("{what}, line {line}: corrupt ({cause}); not used")]
+    Corrupt {
+        /// The file.
+        what: String,
+        /// The line's number (the header is line 1).
+        line: usize,
+        /// What is wrong with it.
+        cause: LineError,
+    },
+}
 
 /// How a sample ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
@@ -167,23 +226,22 @@ pub fn line(sample: u64, inputs: &[f64], class: Class, trial: Option<&Trial>) ->
 /// # Errors
 /// The wrong number of fields, a checksum that does not match, or a field that does not
 /// parse.
-pub fn parse(text: &str, columns: usize) -> Result<Record> {
-    let Some((body, check)) = text.rsplit_once(',') else { bail!("not a results line") };
+pub fn parse(text: &str, columns: usize) -> Result<Record, LineError> {
+    let Some((body, check)) = text.rsplit_once(',') else { return Err(LineError::NotALine) };
     let expected = format!("{:016x}", fnv1a(body.as_bytes()));
     if check != expected {
-        bail!("checksum {check} does not match the line (expected {expected})");
+        return Err(LineError::Checksum { found: check.to_string(), expected });
     }
     let fields: Vec<&str> = text.split(',').collect();
     if fields.len() != columns {
-        bail!("{} fields, expected {columns}", fields.len());
+        return Err(LineError::Fields { found: fields.len(), expected: columns });
     }
-    let num = |s: &str| s.parse::<f64>().map_err(|_| anyhow::anyhow!("`{s}` is not a number"));
-    let sample =
-        fields[0].parse::<u64>().map_err(|_| anyhow::anyhow!("`{}` is not a sample index", fields[0]))?;
+    let num = |s: &str| s.parse::<f64>().map_err(|_| LineError::NotANumber(s.to_string()));
+    let sample = fields[0].parse::<u64>().map_err(|_| LineError::NotASample(fields[0].to_string()))?;
     let n_in = columns - 1 - 1 - OUTCOMES.len();
-    let inputs = fields[1..=n_in].iter().map(|s| num(s)).collect::<Result<Vec<_>>>()?;
+    let inputs = fields[1..=n_in].iter().map(|s| num(s)).collect::<Result<Vec<_>, _>>()?;
     let class = Class::parse(fields[1 + n_in])
-        .ok_or_else(|| anyhow::anyhow!("unknown class `{}`", fields[1 + n_in]))?;
+        .ok_or_else(|| LineError::UnknownClass(fields[1 + n_in].to_string()))?;
     let mut outcomes = [0.0; 9];
     for (i, o) in outcomes.iter_mut().enumerate() {
         *o = num(fields[2 + n_in + i])?;
@@ -199,15 +257,18 @@ pub type Lines = (Vec<(u64, String)>, Option<String>);
 ///
 /// # Errors
 /// The header differs, or a complete line is corrupt (named by its line number).
-pub fn read_lines(text: &str, header: &str, what: &str) -> Result<Lines> {
+pub fn read_lines(text: &str, header: &str, what: &str) -> Result<Lines, ResultsError> {
     let columns = header.split(',').count();
     let mut lines = text.split_inclusive('\n');
     match lines.next() {
         Some(h) if h.trim_end_matches('\n') == header => {}
-        Some(h) => bail!(
-            "{what}: its header differs from this exploration's:\n  found:    {}\n  expected: {header}",
-            h.trim_end()
-        ),
+        Some(h) => {
+            return Err(ResultsError::Header {
+                what: what.to_string(),
+                found: h.trim_end().to_string(),
+                expected: header.to_string(),
+            })
+        }
         None => return Ok((Vec::new(), None)),
     }
     let mut out = Vec::new();
@@ -217,8 +278,11 @@ pub fn read_lines(text: &str, header: &str, what: &str) -> Result<Lines> {
             cut = Some(l.to_string());
             break;
         };
-        let rec = parse(body, columns)
-            .map_err(|e| anyhow::anyhow!("{what}, line {}: corrupt ({e}); not used", i + 2))?;
+        let rec = parse(body, columns).map_err(|cause| ResultsError::Corrupt {
+            what: what.to_string(),
+            line: i + 2,
+            cause,
+        })?;
         out.push((rec.sample, body.to_string()));
     }
     Ok((out, cut))

@@ -39,14 +39,135 @@
 
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{anyhow, bail, Context, Result};
 use serde::{Deserialize, Serialize};
 
-use crate::domain::scenario::{Scenario, ScenarioBuilder};
+use crate::domain::plant_setup::PlantSetupError;
+use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
 use crate::study::knobs::{self, Knob};
 use crate::study::trial::Judge;
+
+/// Why a space file cannot be read, or the space it describes cannot be explored; every text
+/// is the message the command line prints.
+#[derive(Debug, thiserror::Error)]
+pub enum SpaceError {
+    /// The space file cannot be read.
+    #[error("reading {}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The space file is not TOML of a space file's shape.
+    #[error("in space file {}", path.display())]
+    Parse {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: toml::de::Error,
+    },
+    /// The base scenario is invalid.
+    #[error("the scenario")]
+    Scenario(#[source] ScenarioError),
+    /// The base scenario's plant, whose start the space is drawn around, cannot be built.
+    #[error(transparent)]
+    Start(#[from] PlantSetupError),
+    /// The scenario at the space's shortest stroke is invalid.
+    #[error(transparent)]
+    Stroke(ScenarioError),
+    /// A fixed value is not finite.
+    #[error("`{name}` = {value} must be finite")]
+    NotFinite {
+        /// The variable.
+        name: String,
+        /// Its value.
+        value: f64,
+    },
+    /// A range has an end that is not finite.
+    #[error("`{name}` = [{lo}, {hi}]: both ends must be finite")]
+    EndNotFinite {
+        /// The variable.
+        name: String,
+        /// The low end.
+        lo: f64,
+        /// The high end.
+        hi: f64,
+    },
+    /// A range is empty or reversed.
+    #[error("`{name}` = [{lo}, {hi}] is an empty range: the low end must be below the high end")]
+    EmptyRange {
+        /// The variable.
+        name: String,
+        /// The low end.
+        lo: f64,
+        /// The high end.
+        hi: f64,
+    },
+    /// The distance can be negative.
+    #[error("`distance` must be >= 0 m, got {0}")]
+    NegativeDistance(f64),
+    /// A key of `[parameters]` is not a knob of the platform: the reason.
+    #[error("[parameters]: {0}")]
+    Knob(String),
+    /// The law rejects the parameters at a corner of the box: the corner and the reason.
+    #[error("the law rejects the parameters at a corner of the space ({at}): {why}")]
+    Corner {
+        /// The corner, `knob = value` joined by commas.
+        at: String,
+        /// The law's reason.
+        why: ScenarioError,
+    },
+    /// A joint's range reaches its limits.
+    #[error("`q{joint}` = {value:?} must lie strictly inside the joint's limits ({lower}, {upper})")]
+    JointRange {
+        /// The joint, from 1.
+        joint: usize,
+        /// Its value in the space.
+        value: Value,
+        /// Its lower limit.
+        lower: f64,
+        /// Its upper limit.
+        upper: f64,
+    },
+    /// No variable is drawn from a range.
+    #[error("the space draws no variable: give at least one range")]
+    NothingDrawn,
+    /// A map axis is not a drawn variable.
+    #[error("map axis `{0}` must be a variable of the space drawn from a range")]
+    MapAxis(String),
+    /// The map's two axes are the same.
+    #[error("the map's two axes must differ (both are `{0}`)")]
+    SameAxes(String),
+    /// A map's bin count is outside 1 to 100.
+    #[error("map bins must be 1 to 100 each, got {0:?}")]
+    MapBins([usize; 2]),
+    /// `judge.track_after` is outside the run.
+    #[error("judge.track_after must be in [0, duration = {duration} s), got {value}")]
+    TrackAfter {
+        /// The run's duration (s).
+        duration: f64,
+        /// The value given.
+        value: f64,
+    },
+    /// `judge.tolerance` is not positive.
+    #[error("judge.tolerance must be > 0, got {0}")]
+    Tolerance(f64),
+    /// `judge.window` is outside the run.
+    #[error("judge.window must be in (0, duration = {duration} s], got {value}")]
+    Window {
+        /// The run's duration (s).
+        duration: f64,
+        /// The value given.
+        value: f64,
+    },
+    /// `judge.divergence` is not above the tolerance.
+    #[error("judge.divergence must be finite and > tolerance, got {0}")]
+    Divergence(f64),
+}
 
 /// A value of the space: fixed, or drawn uniformly from `[low, high)`.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -80,15 +201,14 @@ impl Value {
         matches!(self, Self::Range(_))
     }
 
-    fn check(self, name: &str) -> Result<()> {
+    fn check(self, name: &str) -> Result<(), SpaceError> {
+        let name = name.to_string();
         match self {
-            Self::Fixed(v) if !v.is_finite() => bail!("`{name}` = {v} must be finite"),
+            Self::Fixed(value) if !value.is_finite() => Err(SpaceError::NotFinite { name, value }),
             Self::Range([lo, hi]) if !(lo.is_finite() && hi.is_finite()) => {
-                bail!("`{name}` = [{lo}, {hi}]: both ends must be finite")
+                Err(SpaceError::EndNotFinite { name, lo, hi })
             }
-            Self::Range([lo, hi]) if lo >= hi => {
-                bail!("`{name}` = [{lo}, {hi}] is an empty range: the low end must be below the high end")
-            }
+            Self::Range([lo, hi]) if lo >= hi => Err(SpaceError::EmptyRange { name, lo, hi }),
             _ => Ok(()),
         }
     }
@@ -190,9 +310,10 @@ impl SpaceFile {
     ///
     /// # Errors
     /// The file cannot be read or is not TOML of this shape (unknown keys included).
-    pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-        toml::from_str(&text).with_context(|| format!("in space file {}", path.display()))
+    pub fn load(path: &Path) -> Result<Self, SpaceError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| SpaceError::Read { path: path.to_path_buf(), source })?;
+        toml::from_str(&text).map_err(|source| SpaceError::Parse { path: path.to_path_buf(), source })
     }
 
     /// The default space: starts around the target — any distance from 0.5 to 6 m, any
@@ -243,8 +364,8 @@ impl Space {
     /// An unknown key, an empty, reversed or non-finite range, joints outside their limits, a
     /// parameter of another platform, a corner of the box the law rejects (named, with the
     /// rule), map axes that are not ranges, or a bad judge.
-    pub fn check(file: &SpaceFile, builder: &ScenarioBuilder) -> Result<Self> {
-        let base = builder.clone().build().context("the scenario")?;
+    pub fn check(file: &SpaceFile, builder: &ScenarioBuilder) -> Result<Self, SpaceError> {
+        let base = builder.clone().build().map_err(SpaceError::Scenario)?;
         let platform = base.controller.platform;
         let start = base_start(&base)?;
         let mut initial = [None; 9];
@@ -261,12 +382,12 @@ impl Space {
         }
         if let Some(Value::Range([lo, _]) | Value::Fixed(lo)) = initial[0] {
             if lo < 0.0 {
-                bail!("`distance` must be >= 0 m, got {lo}");
+                return Err(SpaceError::NegativeDistance(lo));
             }
         }
         let mut parameters = Vec::new();
         for (name, v) in &file.parameters {
-            let knob = Knob::parse_for(name, platform).map_err(|e| anyhow!("[parameters]: {e}"))?;
+            let knob = Knob::parse_for(name, platform).map_err(SpaceError::Knob)?;
             v.check(name)?;
             parameters.push((knob, *v));
         }
@@ -287,7 +408,7 @@ impl Space {
             Some(m) => m.clone(),
             None => {
                 let Some(x) = drawn.first() else {
-                    bail!("the space draws no variable: give at least one range");
+                    return Err(SpaceError::NothingDrawn);
                 };
                 MapSpec {
                     x: (*x).to_string(),
@@ -298,14 +419,14 @@ impl Space {
         };
         for axis in std::iter::once(&map.x).chain(map.y.as_ref()) {
             if !drawn.contains(&axis.as_str()) {
-                bail!("map axis `{axis}` must be a variable of the space drawn from a range");
+                return Err(SpaceError::MapAxis(axis.clone()));
             }
         }
         if map.y.as_ref() == Some(&map.x) {
-            bail!("the map's two axes must differ (both are `{}`)", map.x);
+            return Err(SpaceError::SameAxes(map.x));
         }
         if map.bins.iter().any(|b| !(1..=100).contains(b)) {
-            bail!("map bins must be 1 to 100 each, got {:?}", map.bins);
+            return Err(SpaceError::MapBins(map.bins));
         }
         let j = file.judge.unwrap_or_default();
         let d = Judge::default();
@@ -318,17 +439,17 @@ impl Space {
         };
         if let Some(t) = judge.track_after {
             if !(t >= 0.0 && t < base.duration) {
-                bail!("judge.track_after must be in [0, duration = {} s), got {t}", base.duration);
+                return Err(SpaceError::TrackAfter { duration: base.duration, value: t });
             }
         }
         if !(judge.tolerance.is_finite() && judge.tolerance > 0.0) {
-            bail!("judge.tolerance must be > 0, got {}", judge.tolerance);
+            return Err(SpaceError::Tolerance(judge.tolerance));
         }
         if !(judge.window > 0.0 && judge.window <= base.duration) {
-            bail!("judge.window must be in (0, duration = {} s], got {}", base.duration, judge.window);
+            return Err(SpaceError::Window { duration: base.duration, value: judge.window });
         }
         if !(judge.divergence.is_finite() && judge.divergence > judge.tolerance) {
-            bail!("judge.divergence must be finite and > tolerance, got {}", judge.divergence);
+            return Err(SpaceError::Divergence(judge.divergence));
         }
         Ok(Self { initial, parameters, map, judge })
     }
@@ -356,14 +477,19 @@ impl Space {
     ///
     /// # Errors
     /// The point's scenario is invalid (the corner check makes this a bug).
-    pub fn scenario(&self, builder: &ScenarioBuilder, base: &Scenario, p: &Point) -> Result<Scenario> {
+    pub fn scenario(
+        &self,
+        builder: &ScenarioBuilder,
+        base: &Scenario,
+        p: &Point,
+    ) -> Result<Scenario, ScenarioError> {
         let [d, b, h, q1, q2, q3, a1, a2, xi] = p.initial;
         let start = crate::domain::scenario::Start {
             target: [d * b.cos(), d * b.sin(), h],
             joints: [q1, q2, q3],
             steering: xi.is_finite().then_some(xi),
         };
-        Ok(knobs::apply(builder, base, &p.parameters).start(start).initial_alpha([a1, a2]).build()?)
+        knobs::apply(builder, base, &p.parameters).start(start).initial_alpha([a1, a2]).build()
     }
 }
 
@@ -372,7 +498,7 @@ impl Space {
 pub const DRAWS: usize = INITIAL.len() + knobs::ALL.len();
 
 /// The scenario's own start in [`INITIAL`] order (`steering` NaN).
-fn base_start(s: &Scenario) -> Result<[f64; 9]> {
+fn base_start(s: &Scenario) -> Result<[f64; 9], PlantSetupError> {
     let plant = crate::domain::plant_setup::build(s)?;
     let x = plant.truth();
     let r_bd = x.base.between(&x.target);
@@ -391,7 +517,11 @@ fn base_start(s: &Scenario) -> Result<[f64; 9]> {
 }
 
 /// Builds the scenario at every corner of the parameter box (at most 2¹⁴).
-fn check_corners(builder: &ScenarioBuilder, base: &Scenario, parameters: &[(Knob, Value)]) -> Result<()> {
+fn check_corners(
+    builder: &ScenarioBuilder,
+    base: &Scenario,
+    parameters: &[(Knob, Value)],
+) -> Result<(), SpaceError> {
     let ranged: Vec<usize> = (0..parameters.len()).filter(|&i| parameters[i].1.is_range()).collect();
     for corner in 0u32..(1 << ranged.len()) {
         let values: Vec<(Knob, f64)> = parameters
@@ -403,9 +533,9 @@ fn check_corners(builder: &ScenarioBuilder, base: &Scenario, parameters: &[(Knob
                 (*k, if high { hi } else { lo })
             })
             .collect();
-        if let Err(e) = knobs::apply(builder, base, &values).build() {
+        if let Err(why) = knobs::apply(builder, base, &values).build() {
             let at: Vec<String> = values.iter().map(|(k, v)| format!("{} = {v}", k.name())).collect();
-            bail!("the law rejects the parameters at a corner of the space ({}): {e}", at.join(", "));
+            return Err(SpaceError::Corner { at: at.join(", "), why });
         }
     }
     Ok(())
@@ -417,23 +547,22 @@ fn check_joints(
     base: &Scenario,
     parameters: &[(Knob, Value)],
     initial: &[Option<Value>; 9],
-) -> Result<()> {
+) -> Result<(), SpaceError> {
     // The narrowest limits: the shortest stroke, if it is drawn.
     let shortest: Vec<(Knob, f64)> =
         parameters.iter().filter(|(k, _)| *k == Knob::Stroke).map(|(k, v)| (*k, v.bounds().0)).collect();
-    let s = knobs::apply(builder, base, &shortest).build()?;
+    let s = knobs::apply(builder, base, &shortest).build().map_err(SpaceError::Stroke)?;
     let lim = s.controller.params::<f64>().joint_limits;
     for j in 0..3 {
         let Some(v) = initial[3 + j] else { continue };
         let (lo, hi) = v.bounds();
         if lo <= lim.lower[j] || hi >= lim.upper[j] {
-            bail!(
-                "`q{}` = {:?} must lie strictly inside the joint's limits ({}, {})",
-                j + 1,
-                v,
-                lim.lower[j],
-                lim.upper[j]
-            );
+            return Err(SpaceError::JointRange {
+                joint: j + 1,
+                value: v,
+                lower: lim.lower[j],
+                upper: lim.upper[j],
+            });
         }
     }
     Ok(())

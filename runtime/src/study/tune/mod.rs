@@ -38,9 +38,9 @@
 pub mod report;
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Mutex;
 
-use anyhow::{anyhow, bail, Result};
 use argmin::core::{CostFunction, Error as ArgminError, Executor};
 use argmin::solver::neldermead::NelderMead;
 use companion_core::PlatformKind;
@@ -53,7 +53,75 @@ use crate::domain::observe::Observer;
 use crate::domain::record::Summary;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 use crate::study::knobs::{self, Knob};
-use crate::study::trial::{self, Judge};
+use crate::study::shared::{into_inner, lock, Poisoned};
+use crate::study::trial::{self, Judge, TrialError};
+
+/// Why a tuning cannot be set up or its search failed; every text is the message the
+/// command line prints.
+#[derive(Debug, thiserror::Error)]
+pub enum TuneError {
+    /// The set has no runs.
+    #[error("tune needs at least one run in its set")]
+    NoRuns,
+    /// A key of `[parameters]` is not a knob of the platform: the reason.
+    #[error("[parameters]: {0}")]
+    Knob(String),
+    /// A knob's range has an end that is not finite or not positive.
+    #[error("`{knob}` = [{lo}, {hi}]: both ends must be finite and > 0 (knobs are searched on a log scale)")]
+    NotPositive {
+        /// The knob's name.
+        knob: &'static str,
+        /// The low end.
+        lo: f64,
+        /// The high end.
+        hi: f64,
+    },
+    /// A knob's range is empty or reversed.
+    #[error("`{knob}` = [{lo}, {hi}] is an empty range: the low end must be below the high end")]
+    EmptyRange {
+        /// The knob's name.
+        knob: &'static str,
+        /// The low end.
+        lo: f64,
+        /// The high end.
+        hi: f64,
+    },
+    /// `objective.effort_weight` is negative or not finite.
+    #[error("objective.effort_weight must be >= 0, got {0}")]
+    EffortWeight(f64),
+    /// `--budget` is below the number of knobs + 2.
+    #[error("--budget {budget} is too small: at least {least} (the knobs + 2)")]
+    Budget {
+        /// The budget given.
+        budget: usize,
+        /// The least budget.
+        least: usize,
+    },
+    /// No point of the space satisfies the law's rules: why its low corner does not.
+    #[error(
+        "no point of the space satisfies the law's rules (for the car, Lemma 2: 6 eta_2 eta_3 > 8 eta_3 + \
+         eta_1 eta_2); e.g. at its low corner: {0}"
+    )]
+    NoValidPoint(String),
+    /// Nelder–Mead cannot be set up (argmin's words).
+    #[error(transparent)]
+    Solver(Box<dyn std::error::Error + Send + Sync>),
+    /// Nelder–Mead failed for another reason than the spent budget (argmin's words).
+    #[error("Nelder–Mead: {cause}")]
+    NelderMead {
+        /// argmin's error.
+        cause: Box<dyn std::error::Error + Send + Sync>,
+    },
+    /// A run panicked while holding the archive.
+    #[error(transparent)]
+    Poisoned(#[from] Poisoned),
+}
+
+/// What the search's cost function returns to argmin when a start's share of the budget is
+/// spent: the end of that start, not a failure.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("tune: budget spent")]
+struct BudgetSpent;
 
 /// A tune space file (`--space FILE`).
 ///
@@ -179,15 +247,20 @@ impl Tuning {
     /// No runs, a budget below the number of knobs + 2, an unknown knob or one of another
     /// platform, an empty, reversed or non-positive range, or a space in which no point
     /// satisfies the law's rules (Lemma 2 for the car) — all before anything runs.
-    pub fn new(runs: Vec<SetRun>, file: Option<&TuneSpaceFile>, budget: usize, seed: u64) -> Result<Self> {
-        let Some(first) = runs.first() else { bail!("tune needs at least one run in its set") };
+    pub fn new(
+        runs: Vec<SetRun>,
+        file: Option<&TuneSpaceFile>,
+        budget: usize,
+        seed: u64,
+    ) -> Result<Self, TuneError> {
+        let Some(first) = runs.first() else { return Err(TuneError::NoRuns) };
         let platform = first.base.controller.platform;
         let space = match file.filter(|f| !f.parameters.is_empty()) {
             None => default_space(platform),
             Some(f) => {
                 let mut v = Vec::new();
                 for (name, r) in &f.parameters {
-                    let k = Knob::parse_for(name, platform).map_err(|e| anyhow!("[parameters]: {e}"))?;
+                    let k = Knob::parse_for(name, platform).map_err(TuneError::Knob)?;
                     v.push((k, *r));
                 }
                 v.sort_by_key(|(k, _)| *k);
@@ -196,33 +269,27 @@ impl Tuning {
         };
         for (k, [lo, hi]) in &space {
             if !(lo.is_finite() && hi.is_finite() && *lo > 0.0) {
-                bail!("`{}` = [{lo}, {hi}]: both ends must be finite and > 0 (knobs are searched on a log scale)", k.name());
+                return Err(TuneError::NotPositive { knob: k.name(), lo: *lo, hi: *hi });
             }
             if lo >= hi {
-                bail!(
-                    "`{}` = [{lo}, {hi}] is an empty range: the low end must be below the high end",
-                    k.name()
-                );
+                return Err(TuneError::EmptyRange { knob: k.name(), lo: *lo, hi: *hi });
             }
         }
         let effort_weight =
             file.and_then(|f| f.objective).and_then(|o| o.effort_weight).unwrap_or(EFFORT_WEIGHT);
         if !(effort_weight.is_finite() && effort_weight >= 0.0) {
-            bail!("objective.effort_weight must be >= 0, got {effort_weight}");
+            return Err(TuneError::EffortWeight(effort_weight));
         }
         if budget < space.len() + 2 {
-            bail!("--budget {budget} is too small: at least {} (the knobs + 2)", space.len() + 2);
+            return Err(TuneError::Budget { budget, least: space.len() + 2 });
         }
         let t = Self { runs, space, budget, seed, effort_weight };
         // The validity region must not be empty: look for one valid point of the design.
         let shift = t.shift();
         let valid = (1..=4096).any(|i| t.invalid(&t.values(&halton(i, &shift))).is_none());
         if !valid {
-            bail!(
-                "no point of the space satisfies the law's rules (for the car, Lemma 2: 6 eta_2 eta_3 > \
-                 8 eta_3 + eta_1 eta_2); e.g. at its low corner: {}",
-                t.invalid(&t.values(&vec![0.0; t.space.len()])).unwrap_or_default()
-            );
+            let why = t.invalid(&t.values(&vec![0.0; t.space.len()])).unwrap_or_default();
+            return Err(TuneError::NoValidPoint(why));
         }
         Ok(t)
     }
@@ -286,11 +353,11 @@ impl Tuning {
     ///
     /// # Errors
     /// The optimiser failed for a reason other than the budget.
-    pub fn run(&self, observer: &dyn Observer) -> Result<Vec<Candidate>> {
+    pub fn run(&self, observer: &dyn Observer) -> Result<Vec<Candidate>, TuneError> {
         let archive = Mutex::new(Vec::<Candidate>::new());
-        let push = |c: Candidate| -> Result<Candidate> {
+        let push = |c: Candidate| -> Result<Candidate, Poisoned> {
             observer.advance(1);
-            archive.lock().map_err(|_| anyhow!("lock poisoned"))?.push(c.clone());
+            lock(&archive, "lock")?.push(c.clone());
             Ok(c)
         };
         // 1. The baseline and the design.
@@ -318,17 +385,17 @@ impl Tuning {
         // 2. Nelder–Mead from the best design points in turn (each start gets a share of the
         // rest of the budget: a simplex that has shrunk onto one point only measures noise).
         let starts: Vec<Candidate> = {
-            let a = archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+            let a = lock(&archive, "lock")?;
             let mut v: Vec<Candidate> = a.iter().filter(|c| c.cost.is_finite()).cloned().collect();
             v.sort_by(|x, y| x.cost.total_cmp(&y.cost).then(x.index.cmp(&y.index)));
             v.dedup_by(|x, y| x.values == y.values);
             v.truncate(START_COUNT);
             v
         };
-        let left = self.budget.saturating_sub(archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len());
+        let left = self.budget.saturating_sub(lock(&archive, "lock")?.len());
         let share = (left / starts.len().max(1)).max(d + 2);
         for start in starts {
-            let used = archive.lock().map_err(|_| anyhow!("lock poisoned"))?.len();
+            let used = lock(&archive, "lock")?.len();
             if used + d + 1 > self.budget {
                 break;
             }
@@ -340,26 +407,28 @@ impl Tuning {
                 simplex.push(x);
             }
             let limit = (used + share).min(self.budget);
+            let spent = AtomicBool::new(false);
             let problem = Problem {
                 tuning: self,
                 archive: &archive,
                 observer,
                 cache: Mutex::new(HashMap::new()),
                 limit,
+                spent: &spent,
             };
-            let solver = NelderMead::new(simplex).with_sd_tolerance(1e-4)?;
+            let solver =
+                NelderMead::new(simplex).with_sd_tolerance(1e-4).map_err(|e| TuneError::Solver(e.into()))?;
             match Executor::new(problem, solver).configure(|s| s.max_iters(10_000)).run() {
                 Ok(_) => {}
-                Err(e) if e.to_string().contains(BUDGET) => {}
-                Err(e) => return Err(anyhow!("Nelder–Mead: {e}")),
+                // The cost function said the budget is spent: this start ends.
+                Err(_) if spent.load(Ordering::Relaxed) => {}
+                Err(e) => return Err(TuneError::NelderMead { cause: e.into() }),
             }
         }
-        let candidates = archive.into_inner().map_err(|_| anyhow!("lock poisoned"))?;
+        let candidates = into_inner(archive)?;
         Ok(candidates)
     }
 }
-
-const BUDGET: &str = "tune: budget spent";
 
 /// How many of the best design points Nelder–Mead starts from.
 const START_COUNT: usize = 3;
@@ -371,7 +440,7 @@ const STEP: f64 = 0.15;
 fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
     let result = knobs::apply(&r.builder, &r.base, values)
         .build()
-        .map_err(anyhow::Error::from)
+        .map_err(TrialError::from)
         .and_then(|s| trial::run(&s, &Judge::default()));
     match result {
         Ok(t) => {
@@ -440,6 +509,8 @@ struct Problem<'a> {
     cache: Mutex<HashMap<Vec<u64>, f64>>,
     /// Stop this start when the archive holds this many candidates.
     limit: usize,
+    /// Set when this start stopped because its budget is spent ([`BudgetSpent`]).
+    spent: &'a AtomicBool,
 }
 
 impl CostFunction for Problem<'_> {
@@ -451,12 +522,13 @@ impl CostFunction for Problem<'_> {
         let outside: f64 = x.iter().map(|u| (u - u.clamp(0.0, 1.0)).abs()).sum();
         let inside: Vec<f64> = x.iter().map(|u| u.clamp(0.0, 1.0)).collect();
         let key: Vec<u64> = inside.iter().map(|u| u.to_bits()).collect();
-        if let Some(c) = self.cache.lock().map_err(|_| anyhow!("lock poisoned"))?.get(&key) {
+        if let Some(c) = lock(&self.cache, "lock")?.get(&key) {
             return Ok(c + outside);
         }
-        let mut archive = self.archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+        let mut archive = lock(self.archive, "lock")?;
         if archive.len() >= self.limit {
-            return Err(anyhow!(BUDGET));
+            self.spent.store(true, Ordering::Relaxed);
+            return Err(BudgetSpent.into());
         }
         let index = archive.len();
         drop(archive);
@@ -464,10 +536,10 @@ impl CostFunction for Problem<'_> {
         // An invalid point costs more than any valid one (costs are at most 1 + w·effort).
         let cost = if c.cost.is_finite() { c.cost } else { 10.0 };
         self.observer.advance(1);
-        archive = self.archive.lock().map_err(|_| anyhow!("lock poisoned"))?;
+        archive = lock(self.archive, "lock")?;
         archive.push(c);
         drop(archive);
-        self.cache.lock().map_err(|_| anyhow!("lock poisoned"))?.insert(key, cost);
+        lock(&self.cache, "lock")?.insert(key, cost);
         Ok(cost + outside)
     }
 }

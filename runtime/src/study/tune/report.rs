@@ -3,14 +3,54 @@
 //! `pareto.svg` (tracked fraction against effort).
 
 use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
 use plotters::prelude::*;
 use serde::Serialize;
 
 use super::{best_of, Candidate, Tuning};
+use crate::domain::plots::PlotError;
 use crate::study::knobs::{self, Knob};
+
+/// Why the outputs of `companion tune` could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// No candidate is valid, so there is no preset.
+    #[error("no candidate satisfies the law's rules")]
+    NoValidCandidate,
+    /// The preset cannot be put as TOML.
+    #[error("writing the preset")]
+    Preset(#[source] toml::ser::Error),
+    /// The report cannot be put as JSON.
+    #[error(transparent)]
+    Json(#[from] serde_json::Error),
+    /// The output folder cannot be made.
+    #[error("creating {}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A file of the report cannot be written.
+    #[error("writing {file}")]
+    Write {
+        /// `preset.toml`, `report.json` or `candidates.csv`.
+        file: &'static str,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `pareto.svg` cannot be drawn.
+    #[error(transparent)]
+    Plot(#[from] PlotError),
+}
+
+/// The error of writing `file`.
+fn writing(file: &'static str) -> impl FnOnce(std::io::Error) -> ReportError {
+    move |source| ReportError::Write { file, source }
+}
 
 /// Every candidate, the best and the Pareto front.
 #[derive(Clone, Debug, Serialize)]
@@ -77,8 +117,8 @@ impl TuneReport {
     ///
     /// # Errors
     /// No valid candidate, or serialisation failed.
-    pub fn preset(&self, t: &Tuning) -> Result<String> {
-        let best = self.best().context("no candidate satisfies the law's rules")?;
+    pub fn preset(&self, t: &Tuning) -> Result<String, ReportError> {
+        let best = self.best().ok_or(ReportError::NoValidCandidate)?;
         let r = &t.runs[0];
         let mut file = knobs::apply(&r.builder, &r.base, &best.values).current_config().clone();
         if file.velocity_limits.is_none() {
@@ -103,7 +143,7 @@ impl TuneReport {
         text.push_str(
             "# Use it with --config (the platform and the limits it was tuned for are the same flags).\n\n",
         );
-        text.push_str(&toml::to_string(&file).context("writing the preset")?);
+        text.push_str(&toml::to_string(&file).map_err(ReportError::Preset)?);
         Ok(text)
     }
 
@@ -111,10 +151,10 @@ impl TuneReport {
     ///
     /// # Errors
     /// A file cannot be written.
-    pub fn write(&self, out: &Path, t: &Tuning) -> Result<()> {
-        std::fs::write(out.join("preset.toml"), self.preset(t)?).context("writing preset.toml")?;
+    pub fn write(&self, out: &Path, t: &Tuning) -> Result<(), ReportError> {
+        std::fs::write(out.join("preset.toml"), self.preset(t)?).map_err(writing("preset.toml"))?;
         std::fs::write(out.join("report.json"), serde_json::to_string_pretty(self)? + "\n")
-            .context("writing report.json")?;
+            .map_err(writing("report.json"))?;
         let mut csv = String::from("index,stage");
         for (k, _) in &self.space {
             let _ = write!(csv, ",{}", k.name());
@@ -144,8 +184,8 @@ impl TuneReport {
                 self.pareto.contains(&c.index)
             );
         }
-        std::fs::write(out.join("candidates.csv"), csv).context("writing candidates.csv")?;
-        self.plot(&out.join("pareto.svg")).map_err(|e| anyhow::anyhow!("plotting: {e:?}"))
+        std::fs::write(out.join("candidates.csv"), csv).map_err(writing("candidates.csv"))?;
+        Ok(self.plot(&out.join("pareto.svg")).map_err(PlotError::plotting)?)
     }
 
     fn plot(&self, file: &Path) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
@@ -201,7 +241,7 @@ impl TuneReport {
 ///
 /// # Errors
 /// A file cannot be written.
-pub fn write(out: &Path, tuning: &Tuning, report: &TuneReport) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+pub fn write(out: &Path, tuning: &Tuning, report: &TuneReport) -> Result<(), ReportError> {
+    std::fs::create_dir_all(out).map_err(|source| ReportError::Folder { path: out.to_path_buf(), source })?;
     report.write(out, tuning)
 }
