@@ -21,7 +21,9 @@
 mod common;
 use common::NoRows;
 
+use std::convert::Infallible;
 use std::io::{Read, Write};
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::process::{Child, ChildStdin, ChildStdout, Command, Stdio};
 use std::sync::OnceLock;
@@ -222,11 +224,17 @@ struct Twin {
 }
 
 impl Exchange for Twin {
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
-        let reference = self.reference.exchange(n, meas)?;
+    type End = Infallible;
+
+    fn exchange(
+        &mut self,
+        _n: u64,
+        meas: &Measurement<f64, JOINTS>,
+    ) -> Result<ControlFlow<Infallible, StepReport>> {
+        let reference = self.reference.report(meas);
         let (c_status, c_command) = self.c.step(meas)?;
         self.steps.push(Pair { reference, c_status, c_command });
-        Ok(StepReport { command: c_command, ..reference })
+        Ok(ControlFlow::Continue(StepReport { command: c_command, ..reference }))
     }
 }
 

@@ -17,7 +17,9 @@
 mod common;
 use common::NoRows;
 
+use std::convert::Infallible;
 use std::fmt::Write as _;
+use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -60,10 +62,16 @@ struct Recorder {
 }
 
 impl Exchange for Recorder {
-    fn exchange(&mut self, n: u64, meas: &Measurement<f64, JOINTS>) -> Result<StepReport> {
-        let report = self.reference.exchange(n, meas)?;
+    type End = Infallible;
+
+    fn exchange(
+        &mut self,
+        _n: u64,
+        meas: &Measurement<f64, JOINTS>,
+    ) -> Result<ControlFlow<Infallible, StepReport>> {
+        let report = self.reference.report(meas);
         self.steps.push((*meas, report));
-        Ok(report)
+        Ok(ControlFlow::Continue(report))
     }
 }
 

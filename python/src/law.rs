@@ -246,7 +246,7 @@ where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
 {
-    boxed_spatial_controller::<N>(spec, arm)
+    Ok(boxed_spatial_controller::<N>(spec, arm)?)
 }
 
 impl LawSpec {

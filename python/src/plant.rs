@@ -57,7 +57,7 @@ impl Plant {
         let b = opts.builder(file, target, parse_choice(choice)?, parse_platform(platform)?, 120.0);
         let err = |e: anyhow::Error| runtime_error(py, &e);
         let s = b.build().map_err(|e| err(e.into()))?;
-        let plant = companion_runtime::run::sim::build_plant(&s).map_err(err)?;
+        let plant = companion_runtime::run::sim::build_plant(&s).map_err(|e| err(e.into()))?;
         let star = s.controller.params::<f64>().primary.target_in_effector;
         Ok(Self { plant, star })
     }

@@ -223,7 +223,7 @@ pub fn simulate<'py>(
     };
     let result = match spatial {
         None => {
-            companion_runtime::domain::plant_setup::build(&base).map_err(err)?;
+            companion_runtime::domain::plant_setup::build(&base).map_err(|e| err(e.into()))?;
             let acceptance = Acceptance { max_rejected, ..Acceptance::default() };
             let run =
                 py.detach(|| companion_runtime::run::sim::run_one_with(&base, &dir, &Silent, &acceptance));

@@ -1,7 +1,6 @@
 //! What the C tests share.
 
-use anyhow::Result;
-use companion_runtime::domain::record::{Row, RowSink};
+use companion_runtime::domain::record::{RecordError, Row, RowSink};
 
 /// Rows are not needed: the tests keep the controllers' answers themselves.
 pub struct NoRows;
@@ -10,7 +9,7 @@ impl RowSink for NoRows {
     fn log_every(&self) -> u64 {
         u64::MAX
     }
-    fn record(&mut self, _n: u64, _row: &Row, _last: bool) -> Result<()> {
+    fn record(&mut self, _n: u64, _row: &Row, _last: bool) -> Result<(), RecordError> {
         Ok(())
     }
 }

@@ -64,6 +64,14 @@ impl InProcess {
     }
 }
 
+impl InProcess {
+    /// The controller's report for `meas` (an in-process exchange cannot fail or end a run).
+    #[inline]
+    pub fn report(&mut self, meas: &Measurement<f64, JOINTS>) -> StepReport {
+        self.controller.step(meas, self.dt, self.delay)
+    }
+}
+
 impl Exchange for InProcess {
     type End = Infallible;
 
@@ -73,7 +81,7 @@ impl Exchange for InProcess {
         _n: u64,
         meas: &Measurement<f64, JOINTS>,
     ) -> Result<ControlFlow<Infallible, StepReport>> {
-        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, self.delay)))
+        Ok(ControlFlow::Continue(self.report(meas)))
     }
 }
 

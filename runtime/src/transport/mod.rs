@@ -72,7 +72,7 @@ impl Transport {
     }
 
     /// Whether this is zenoh's TLS-over-TCP link (`tls/`), which zenoh#2557 makes fail
-    /// under load ([`Scheme`](crate::transport::zenoh_link::Scheme)).
+    /// under load (`zenoh_link::Scheme`, with the `zenoh` feature).
     pub fn tls_over_tcp(&self) -> bool {
         match self {
             Self::Iceoryx2 => false,
@@ -220,11 +220,11 @@ pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
 
 /// Opens `role`'s side of demo `name` on `transport`; `events`: iceoryx2's event services
 /// too (Zenoh always wakes a waiting receiver); `peer_timeout`: the loops' `--peer-timeout`
-/// (over Zenoh's QUIC it sets the lease, [`crate::transport::zenoh_link::quic_lease`]).
+/// (over Zenoh's QUIC it sets the lease, `zenoh_link::quic_lease`).
 ///
 /// # Errors
 /// [`OpenError`], its cause as [`ipc::Endpoint::open`] or
-/// [`crate::transport::zenoh_link::ZenohEndpoint::open`].
+/// `zenoh_link::ZenohEndpoint::open`.
 pub fn open<Tx: Message, Rx: Message>(
     transport: &Transport,
     name: &str,

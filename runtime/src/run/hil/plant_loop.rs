@@ -485,11 +485,11 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
 /// Runs the real-time loop over steps `0..=steps`. `sink` gets every row (returns `false` if
 /// it could not keep it: counted as a dropped log row).
 ///
-/// Each period is five phases, in this order: [release](PlantSide::release) (wait for the
-/// release time, publish the measurement), [await the command](PlantSide::await_command)
-/// (until the deadline), [apply](PlantSide::apply) (the fresh command, or the hold policy's),
-/// log the row and [account](PlantSide::account), advance the robot, and
-/// [look out](PlantSide::look_out) for a lost controller or a signal.
+/// Each period is five phases, in this order (private methods of [`PlantSide`], each
+/// unit-tested on the fake clock): `release` (wait for the release time, publish the
+/// measurement), `await_command` (until the deadline), `apply` (the fresh command, or the
+/// hold policy's), log the row and `account`, advance the robot, and `look_out` for a lost
+/// controller or a signal.
 ///
 /// Step 0 is a handshake: published at once, its command awaited up to the peer timeout (a
 /// cold controller's first step, page faults and all, is not a deadline miss). Real time
