@@ -10,12 +10,13 @@
 //! accuracy shown by the same at 2e-5 s), the default law at 2, 1, 0.5 and 0.25 ms, the
 //! largest difference of any of `x_b`, `y_b`, `θ_b`, `q₁..q₃` over `t ∈ [0, 10]` s at the
 //! 1 ms instants (the 2 ms instants for 2 ms), the observed order of each halving, and the
-//! floor (the largest true ‖e_p‖ after 20 s of `companion sim`).
+//! floor (the largest true ‖e_p‖ after 20 s of `companion sim`); then the same distances for
+//! the literal sampling of the law (`--discretisation sampled`).
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory::{self, One, Two};
 use companion_runtime::domain::scenario::Scenario;
-use companion_tests::pointwise::{distance, every, reference, sampled, worst};
+use companion_tests::pointwise::{distance, every, reference, sampled, sampled_literal, worst};
 use companion_tests::{scenario, summaries};
 use rayon::prelude::*;
 
@@ -82,5 +83,27 @@ fn main() {
             })
             .collect();
         println!("| {name} | {self_check:.1e} | {} |", cells.join(" | "));
+    }
+    // Beside it, the same distance for the literal sampling of the law (`--discretisation
+    // sampled`, the law at the measured state): the continuous law's path at first order.
+    println!("\nthe literal sampling (`--discretisation sampled`):\n");
+    println!("| run | 2 ms | 1 ms | 0.5 ms | 0.25 ms | order of the last halving |");
+    println!("|---|---|---|---|---|---|");
+    for (i, (t, r, name)) in runs.iter().enumerate() {
+        let fine = &refs[2 * i];
+        let d: Vec<f64> = PERIODS
+            .par_iter()
+            .map(|dt| {
+                let at = dt.max(1e-3);
+                distance(&every(&sampled_literal(*t, *r, *dt, DURATION), *dt, at), &every(fine, 1e-3, at))
+            })
+            .collect();
+        let cells: Vec<String> = d
+            .iter()
+            .enumerate()
+            .map(|(k, v)| if k == 0 { format!("{v:.2e}") } else { format!("{v:.2e} ÷{:.1}", d[k - 1] / v) })
+            .collect();
+        let order = (d[2] / d[3]).log2();
+        println!("| {name} | {} | {order:.2} |", cells.join(" | "));
     }
 }

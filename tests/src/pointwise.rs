@@ -66,6 +66,14 @@ fn angle_diff(a: f64, b: f64) -> f64 {
 type Uni = Controller<f64, Unicycle<f64>, Rpr<f64>, 3>;
 
 /// The paper's unicycle controller for `run`, with `discretisation`.
+/// The paper's law for `run` (unicycle) with the default parameters but `discretisation`.
+fn controller_with(run: PaperRun, discretisation: Discretisation) -> Uni {
+    let spec = ControllerSpec::paper(PlatformKind::Unicycle, run, Scalar::F64);
+    let mut params = spec.params::<f64>();
+    params.discretisation = discretisation;
+    Controller::new(params, spec.unicycle(), spec.arm()).expect("the paper's parameters are valid")
+}
+
 fn controller(run: PaperRun, continuous: bool) -> Uni {
     let spec = ControllerSpec::paper(PlatformKind::Unicycle, run, Scalar::F64);
     let mut params = spec.params::<f64>();
@@ -151,7 +159,7 @@ pub fn reference(
     integrate(trajectory, run, step, duration, every, Loop::sample)
 }
 
-/// [`reference`]'s transverse-function parameter `α` (the unicycle's one component, rad) at
+/// [`reference()`]'s transverse-function parameter `α` (the unicycle's one component, rad) at
 /// the same instants.
 ///
 /// # Panics
@@ -230,6 +238,20 @@ pub fn sampled(trajectory: PaperTrajectory, run: PaperRun, period: f64, duration
     sampled_motion(trajectory, run, period, duration).0
 }
 
+/// [`sampled`] under the literal sampling of the paper's law ([`Discretisation::Sampled`]:
+/// evaluated at the measured state, first order in the period) instead of the default.
+///
+/// # Panics
+/// If the law rejects a measurement (it does not on the paper's runs).
+pub fn sampled_literal(
+    trajectory: PaperTrajectory,
+    run: PaperRun,
+    period: f64,
+    duration: f64,
+) -> Vec<Sample> {
+    motion_under(controller_with(run, Discretisation::Sampled), trajectory, period, duration).0
+}
+
 /// What the default law did at one step: the transverse function's `α` at `t_k` (rad), the
 /// held `α̇` (rad/s) and the joint command `u_q`.
 #[derive(Clone, Copy, Debug)]
@@ -252,7 +274,16 @@ pub fn sampled_motion(
     period: f64,
     duration: f64,
 ) -> (Vec<Sample>, Vec<Motion>) {
-    let mut c = controller(run, false);
+    motion_under(controller(run, false), trajectory, period, duration)
+}
+
+/// The plant under `c` at `period` for `duration` seconds, with what the law did.
+fn motion_under(
+    mut c: Uni,
+    trajectory: PaperTrajectory,
+    period: f64,
+    duration: f64,
+) -> (Vec<Sample>, Vec<Motion>) {
     let mut plant = Plant::new(
         PlantConfig::new(PlatformKind::Unicycle),
         Rpr::paper(),
