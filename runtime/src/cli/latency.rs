@@ -38,6 +38,10 @@ pub struct LatencyArgs {
     /// Skip part (4), the full HIL cycle.
     #[arg(long)]
     pub skip_hil: bool,
+    /// Only the Zenoh ping-pongs (each configuration, split hop by hop) and the Unix socket
+    /// they are compared with.
+    #[arg(long)]
+    pub zenoh_only: bool,
 }
 
 /// `--loads`.
@@ -70,8 +74,13 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         warmup: a.warmup,
         out: a.out.clone(),
         rt: a.rt,
-        hil_modes: if a.skip_hil { Vec::new() } else { a.hil_modes.iter().map(|m| (*m).into()).collect() },
+        hil_modes: if a.skip_hil || a.zenoh_only {
+            Vec::new()
+        } else {
+            a.hil_modes.iter().map(|m| (*m).into()).collect()
+        },
         loads: a.loads.iter().map(|l| (*l).into()).collect(),
+        zenoh_only: a.zenoh_only,
     };
     let bench = companion_runtime::run::latency::run(&opts, &Terminal::lines())?;
     print_table(&bench);
@@ -119,6 +128,12 @@ pub struct PeerArgs {
     /// Real-time setup, pinned to this CPU.
     #[arg(long, allow_hyphen_values = true)]
     pub rt_cpu: Option<usize>,
+    /// Zenoh's low-latency transport (zenoh).
+    #[arg(long)]
+    pub zenoh_low_latency: bool,
+    /// Spin on the ring instead of sleeping until woken (zenoh).
+    #[arg(long)]
+    pub zenoh_spin: bool,
 }
 
 /// The hidden `latency-peer` subcommand.
@@ -137,6 +152,8 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
         endpoint: a.endpoint.clone(),
         tls_dir: a.tls_dir.clone(),
         rt_cpu: a.rt_cpu,
+        zenoh_low_latency: a.zenoh_low_latency,
+        zenoh_spin: a.zenoh_spin,
     };
     peer(&opts, &Terminal::lines())
 }
@@ -199,6 +216,34 @@ fn print_table(b: &Benchmark) {
     println!("ratios of medians:");
     for (name, r) in &b.ratios {
         println!("  {name:<54} {r:>6.2}");
+    }
+    for h in &b.zenoh_hops {
+        println!("zenoh round trip hop by hop, {} (one CLOCK_MONOTONIC in both processes):", h.config);
+        println!("  {:<54} {:>9} {:>9} {:>9} {:>9}", "hop", "p50", "p99", "p99.9", "mean");
+        for r in &h.rows {
+            println!(
+                "  {:<54} {:>9} {:>9} {:>9} {:>9}",
+                r.name,
+                fmt_ns(r.ns.p50),
+                fmt_ns(r.ns.p99),
+                fmt_ns(r.ns.p99_9),
+                fmt_ns(r.mean_ns as u64)
+            );
+        }
+        println!(
+            "  check: hop medians sum to {:.1} % of the round trip's median (tolerance ±{:.0} %), means to {:.1} % \
+             (±{:.0} %); the round trip is {:.1} % of the ping-pong's own sample (±{:.0} %); {} stamps out of order; \
+             {} hops delivered before their put returned{}",
+            100.0 * h.median_share(),
+            100.0 * companion_runtime::run::latency::hops::MEDIAN_TOLERANCE,
+            100.0 * h.mean_share(),
+            100.0 * companion_runtime::run::latency::hops::MEAN_TOLERANCE,
+            100.0 * h.sample_share(),
+            100.0 * companion_runtime::run::latency::hops::SAMPLE_TOLERANCE,
+            h.out_of_order,
+            h.delivered_before_put_returned,
+            if h.agrees() { "" } else { "  DISAGREE" }
+        );
     }
     println!(
         "second clock (back-to-back ping-pongs: the samples' sum against the batch by CLOCK_MONOTONIC_RAW):"

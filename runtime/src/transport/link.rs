@@ -7,6 +7,32 @@ use std::time::Duration;
 
 use crate::transport::wire::{CommandMsg, MeasurementMsg};
 
+/// What one side's transport counted of the messages it sent and got (Zenoh; iceoryx2 has
+/// no silent loss to count: its publish fails or the sample is delivered).
+///
+/// Zenoh drops a publication silently when its link's queue stays full (congestion control
+/// *drop*, `zenoh_link::Tuning`): `put` still returns `Ok`. Such a loss
+/// shows only as the sender's `published` exceeding the receiver's `received`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct LinkCounts {
+    /// Messages handed to the transport, accepted by it.
+    pub published: u64,
+    /// Messages the transport delivered to this process (kept or dropped below).
+    pub received: u64,
+    /// Of those, dropped because the loop had not taken the ring before them.
+    pub dropped_full_ring: u64,
+    /// Of those, dropped for their size.
+    pub malformed: u64,
+}
+
+impl LinkCounts {
+    /// Messages `self` published that `peer` never received (lost in transit, or still on
+    /// their way when `peer` counted).
+    pub fn not_received_by(&self, peer: &Self) -> u64 {
+        self.published.saturating_sub(peer.received)
+    }
+}
+
 /// What went wrong on a [`Link`]: which of its four operations failed, the transport's step
 /// (`loan`, `send`, `notify`, `zenoh put`, `receive`, `ppoll`, `try_wait`, `listing iceoryx2 nodes`)
 /// and the transport's own words.

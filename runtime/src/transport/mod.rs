@@ -312,6 +312,16 @@ impl<Tx: Message, Rx: Message> Endpoint<Tx, Rx> {
         }
     }
 
+    /// What the transport counted of the messages sent and received (Zenoh; `None` on
+    /// iceoryx2, [`link::LinkCounts`]).
+    pub fn link_counts(&self) -> Option<link::LinkCounts> {
+        match self {
+            Self::Iceoryx2(_) => None,
+            #[cfg(feature = "zenoh")]
+            Self::Zenoh(e) => Some(e.link_counts()),
+        }
+    }
+
     /// Messages the transport dropped before the loop saw them: Zenoh payloads of the wrong
     /// size (iceoryx2 checks the type when the service is opened: 0).
     pub fn transport_malformed(&self) -> u64 {

@@ -71,7 +71,7 @@ use zerocopy::{FromBytes, Immutable, IntoBytes};
 use crate::sys::lock::{NameInUse, Role};
 use crate::transport::error::StartError;
 use crate::transport::ipc::OtherVersion;
-use crate::transport::link::{Link, LinkError, PeerState};
+use crate::transport::link::{Link, LinkCounts, LinkError, PeerState};
 use crate::transport::wire::{CommandMsg, MeasurementMsg, PROTOCOL_VERSION};
 
 /// Received messages waiting for the loop (allocated once).
@@ -292,6 +292,10 @@ struct Shared {
     malformed: AtomicU64,
     /// Messages dropped on a full ring.
     overflow: AtomicU64,
+    /// Messages delivered by Zenoh to the subscriber's callback (of any size, kept or not).
+    received: AtomicU64,
+    /// Messages handed to Zenoh's `put` that it accepted (it may still drop them: [`Tuning`]).
+    published: AtomicU64,
     /// A process of our own role on the same demo, version and name (pid; 0: none seen).
     rival: AtomicI32,
     /// A process of another protocol version on the same demo.
@@ -341,7 +345,7 @@ pub struct ZenohEndpoint<Tx, Rx> {
     link: ZenohLink,
     session: zenoh::Session,
     publisher: zenoh::pubsub::Publisher<'static>,
-    rx: rtrb::Consumer<Rx>,
+    rx: rtrb::Consumer<(Rx, u64)>,
     shared: Arc<Shared>,
     _subscriber: zenoh::pubsub::Subscriber<()>,
     _liveliness: zenoh::pubsub::Subscriber<()>,
@@ -416,6 +420,21 @@ pub fn quic_lease(peer_timeout: Duration) -> Duration {
 /// The shortest QUIC lease: keep-alives every 125 ms at most.
 pub const MIN_QUIC_LEASE: Duration = Duration::from_millis(500);
 
+/// Zenoh settings measured by `companion latency` (the defaults are what the HIL uses).
+///
+/// Publications are congestion-control *drop*: when the link's real-time queue (two batches,
+/// zenoh's default) has no free batch for `wait_before_drop` (1 ms), zenoh 1.10 drops the
+/// message and `put` still returns `Ok` (`zenoh-transport`'s `TransmissionPipelineProducer::
+/// push_network_message`; its count is only behind zenoh's `stats` feature). Such a drop is
+/// seen end to end instead: the sender's [`ZenohEndpoint::published`] against the receiver's
+/// [`ZenohEndpoint::received`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Tuning {
+    /// Zenoh's low-latency transport (`transport/unicast/lowlatency`, QoS off): no
+    /// transmission queue and its task, the sender writes the link itself.
+    pub low_latency: bool,
+}
+
 /// The Zenoh configuration of one side: a peer that meets only the given endpoint; with
 /// TLS, mutual authentication by the CA and access control by the peer certificate's name;
 /// over QUIC, the lease of [`quic_lease`].
@@ -424,6 +443,7 @@ fn config(
     link: &ZenohLink,
     security: &Security,
     peer_timeout: Duration,
+    tuning: Tuning,
 ) -> Result<zenoh::Config, StartError> {
     let mut c = zenoh::Config::default();
     let mut set = |k: &str, v: &str| c.insert_json5(k, v).map_err(zerr(|| format!("zenoh config {k} = {v}")));
@@ -461,9 +481,12 @@ fn config(
         let ms = quic_lease(peer_timeout).as_millis().to_string();
         set("transport/link/tx/lease", &ms)?;
     }
-    // Zenoh's low-latency transport (`transport/unicast/lowlatency` with QoS off) was tried:
-    // loopback p50 34 µs against 58 µs, but p99.9 4.1 ms against 0.17 ms in the same hour on the
-    // loaded 2-CPU machine (README, "Two machines"); not taken.
+    // Zenoh's low-latency transport is measured by `companion latency` beside the default
+    // (README, "Two machines (Zenoh)", where the time goes, hop by hop); not the default.
+    if tuning.low_latency {
+        set("transport/unicast/lowlatency", "true")?;
+        set("transport/unicast/qos/enabled", "false")?;
+    }
     match link {
         ZenohLink::Listen(e) => {
             set("listen/endpoints", &format!("[\"{e}\"]"))?;
@@ -509,6 +532,21 @@ where
         security: &Security,
         peer_timeout: Duration,
     ) -> Result<Self, StartError> {
+        Self::open_tuned(name, role, link, security, peer_timeout, Tuning::default())
+    }
+
+    /// [`Self::open`] with Zenoh settings other than the defaults (`companion latency`).
+    ///
+    /// # Errors
+    /// As [`Self::open`].
+    pub fn open_tuned(
+        name: &str,
+        role: Role,
+        link: ZenohLink,
+        security: &Security,
+        peer_timeout: Duration,
+        tuning: Tuning,
+    ) -> Result<Self, StartError> {
         crate::sys::lock::validate_name(name)?;
         let (tx, rx_what) = match role {
             Role::Plant => ("measurement", "command"),
@@ -516,28 +554,32 @@ where
         };
         security.check(link.endpoint())?;
         crate::transport::zenoh_log::install();
-        let session =
-            zenoh::open(config(name, &link, security, peer_timeout)?).wait().map_err(|e| match &link {
+        let session = zenoh::open(config(name, &link, security, peer_timeout, tuning)?).wait().map_err(
+            |e| match &link {
                 ZenohLink::Listen(ep) => {
                     StartError::Listen { endpoint: ep.to_string(), cause: e.to_string() }
                 }
                 ZenohLink::Connect(ep) => {
                     StartError::Connect { endpoint: ep.to_string(), cause: e.to_string() }
                 }
-            })?;
+            },
+        )?;
         let shared = Arc::new(Shared::default());
-        let (producer, consumer) = rtrb::RingBuffer::<Rx>::new(RING);
+        let (producer, consumer) = rtrb::RingBuffer::<(Rx, u64)>::new(RING);
         // Only Zenoh's thread that delivers this subscriber's samples takes the lock.
         let producer = Mutex::new(producer);
         let sh = Arc::clone(&shared);
         let subscriber = session
             .declare_subscriber(key(name, rx_what))
             .callback(move |sample: zenoh::sample::Sample| {
+                // The first thing on Zenoh's thread: when the message reached this process.
+                let arrived = crate::sys::rt::monotonic_ns();
+                sh.received.fetch_add(1, Ordering::Relaxed);
                 let bytes = sample.payload().to_bytes();
                 match Rx::read_from_bytes(&bytes) {
                     Ok(msg) => {
                         let mut p = producer.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-                        if p.push(msg).is_err() {
+                        if p.push((msg, arrived)).is_err() {
                             sh.overflow.fetch_add(1, Ordering::Relaxed);
                         }
                         sh.wake();
@@ -656,12 +698,21 @@ where
         self.publisher
             .put(msg.as_bytes())
             .wait()
-            .map_err(|e| LinkError::Publish { step: "zenoh put", cause: e.to_string() })
+            .map_err(|e| LinkError::Publish { step: "zenoh put", cause: e.to_string() })?;
+        self.shared.published.fetch_add(1, Ordering::Relaxed);
+        Ok(())
     }
 
     /// Takes the oldest waiting message, if any.
     #[inline]
     pub fn try_receive(&mut self) -> Option<Rx> {
+        self.rx.pop().ok().map(|(m, _)| m)
+    }
+
+    /// Takes the oldest waiting message with the `CLOCK_MONOTONIC` time (ns) at which Zenoh's
+    /// thread entered the subscriber's callback with it.
+    #[inline]
+    pub fn try_receive_stamped(&mut self) -> Option<(Rx, u64)> {
         self.rx.pop().ok()
     }
 
@@ -696,6 +747,28 @@ where
     /// Messages dropped because the loop had not taken the [`RING`] before them.
     pub fn overflow(&self) -> u64 {
         self.shared.overflow.load(Ordering::Relaxed)
+    }
+
+    /// Messages Zenoh delivered to this side so far (kept, dropped on a full ring, or
+    /// malformed): against the peer's [`Self::published`], what the link lost.
+    pub fn received(&self) -> u64 {
+        self.shared.received.load(Ordering::Relaxed)
+    }
+
+    /// Every count of this side's messages ([`LinkCounts`]).
+    pub fn link_counts(&self) -> LinkCounts {
+        LinkCounts {
+            published: self.published(),
+            received: self.received(),
+            dropped_full_ring: self.overflow(),
+            malformed: self.malformed(),
+        }
+    }
+
+    /// Messages this side handed to Zenoh so far (`put` returned `Ok`; zenoh may still have
+    /// dropped them on congestion, see [`Tuning`]).
+    pub fn published(&self) -> u64 {
+        self.shared.published.load(Ordering::Relaxed)
     }
 
     /// The refusals since the last call, oldest first: peers refused for their certificate's
@@ -882,6 +955,61 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Waits until `f` holds (at most 20 s: a count, not a time, is what is tested).
+    fn until(what: &str, mut f: impl FnMut() -> bool) {
+        let end = Instant::now() + Duration::from_secs(20);
+        while !f() {
+            assert!(Instant::now() < end, "{what}: not within 20 s");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Every message is counted where it went: published by the sender, received by the
+    /// receiver, and of those, the ones that found the ring full dropped and counted; the ring
+    /// keeps the oldest [`RING`] with the time each arrived.
+    #[test]
+    fn every_message_is_counted_published_received_or_dropped_on_a_full_ring() {
+        let ep = crate::transport::free_local_endpoint(true).unwrap();
+        let ep = TcpEndpoint::parse(&ep).unwrap();
+        let name = format!("counts-{}", std::process::id());
+        let t = Duration::from_secs(2);
+        let mut plant =
+            ZenohPlant::open(&name, Role::Plant, ZenohLink::Listen(ep.clone()), &Security::Insecure, t)
+                .unwrap();
+        let control =
+            ZenohControl::open(&name, Role::Control, ZenohLink::Connect(ep), &Security::Insecure, t).unwrap();
+        plant.wait_for_peer(Duration::from_secs(20), || None).unwrap();
+        control.wait_for_peer(Duration::from_secs(20), || None).unwrap();
+        let extra = 5u64;
+        let before = crate::sys::rt::monotonic_ns();
+        for seq in 0..RING as u64 + extra {
+            // One at a time (each received before the next is sent): zenoh's own queue never
+            // fills, so only the plant's ring, never emptied here, drops.
+            let c = CommandMsg { seq, ..zerocopy::FromZeros::new_zeroed() };
+            control.send(&c).unwrap();
+            until("the plant's transport receives it", || plant.received() == seq + 1);
+        }
+        let counts = control.link_counts();
+        assert_eq!((counts.published, counts.received), (RING as u64 + extra, 0));
+        let counts = plant.link_counts();
+        assert_eq!(
+            counts,
+            LinkCounts {
+                published: 0,
+                received: RING as u64 + extra,
+                dropped_full_ring: extra,
+                malformed: 0
+            }
+        );
+        assert_eq!(control.link_counts().not_received_by(&counts), 0);
+        let mut seqs = Vec::new();
+        while let Some((c, arrived)) = plant.try_receive_stamped() {
+            assert!(arrived >= before && arrived <= crate::sys::rt::monotonic_ns());
+            seqs.push(c.seq);
+        }
+        assert_eq!(seqs, (0..RING as u64).collect::<Vec<_>>());
+    }
 
     #[test]
     fn tokens_are_read_by_demo_version_role_and_pid() {

@@ -120,7 +120,23 @@ fn a_real_time_run_over_zenoh_succeeds_and_malformed_commands_are_dropped() {
     assert!(st.success(), "{out}\n{err}");
     let lat = json(&d.join("latency.json"));
     assert_eq!(lat["cycles"], 2001);
-    assert_eq!(lat["invalid_total"], 4, "{lat:#}");
+    // Every injected command is counted by the plant, or the link's loss is: zenoh drops a
+    // publication on congestion without an error at the sender (its queue of two batches
+    // full for 1 ms), which shows only as the controller's sent count above the plant's
+    // received one (link.json).
+    let link = json(&d.join("link.json"));
+    let (sent, got) =
+        (link["controller"]["published"].as_u64().unwrap(), link["plant"]["received"].as_u64().unwrap());
+    let lost = link["commands_not_received"].as_u64().unwrap();
+    assert_eq!(lost, sent.saturating_sub(got), "{link:#}");
+    assert_eq!(lat["link_counts"], link["plant"], "latency.json has the plant's counts");
+    assert_eq!(link["plant"]["malformed"], 0);
+    let invalid = lat["invalid_total"].as_u64().unwrap();
+    assert!(invalid <= 4 && invalid + lost >= 4, "{invalid} counted invalid, {lost} lost: {lat:#}\n{link:#}");
+    if lost == 0 {
+        assert_eq!(invalid, 4, "nothing lost, so every injected command was counted: {lat:#}");
+    }
+    assert!(sent > 4, "{link:#}");
     let statuses = csv_statuses(&d.join("timeseries.csv"));
     assert!(statuses.len() > 150, "{} rows", statuses.len());
 }

@@ -35,6 +35,7 @@ use super::fault::{Corruption, Injected};
 use super::stats::InvalidCounts;
 use crate::sys::lock::Role;
 use crate::sys::process::{send_signal, Signal};
+use crate::transport::link::LinkCounts;
 
 /// Faults start this long after the epoch (ns).
 pub const FIRST_FAULT_NS: u64 = 2_000_000_000;
@@ -217,6 +218,9 @@ pub struct Observed {
     pub run_window_ns: (u64, u64),
     /// The controller's stops, as the plant's agent did them.
     pub chaos_stops: Vec<DoneStop>,
+    /// What the plant's transport counted (Zenoh; absent on iceoryx2).
+    #[serde(default)]
+    pub link_counts: Option<LinkCounts>,
 }
 
 /// `chaos.json`: the seed, what was injected, what was observed, and every mismatch.
@@ -232,12 +236,16 @@ pub struct Report {
     pub observed: Observed,
     /// Complete rows in `timeseries.csv`, and how many the run must have.
     pub rows: (u64, u64),
+    /// Commands the controller's transport accepted that the plant's never received: lost in
+    /// transit (Zenoh's congestion drop), counted end to end (`None` on iceoryx2).
+    pub commands_not_received: Option<u64>,
     /// Each mismatch in words (empty: the counts match).
     pub mismatches: Vec<String>,
 }
 
 /// Compares what was injected with what was observed; the report with its mismatches.
-/// `stops`: both agents' stops; `rows`: complete rows on disk and rows expected.
+/// `stops`: both agents' stops; `rows`: complete rows on disk and rows expected; `sent`: the
+/// controller's transport's counts (Zenoh), against the plant's in `observed`.
 pub fn check(
     seed: u64,
     timing: &Timing,
@@ -245,8 +253,15 @@ pub fn check(
     stops: &[DoneStop],
     observed: Observed,
     rows: (u64, u64),
+    sent: Option<LinkCounts>,
 ) -> Report {
     let mut m = Vec::new();
+    let not_received = sent.zip(observed.link_counts).map(|(c, p)| c.not_received_by(&p));
+    // An injected command the plant did not count may be one the link lost: say so.
+    let lost = match not_received {
+        Some(n) if n > 0 => format!(" ({n} commands sent were never received by the plant's transport)"),
+        _ => String::new(),
+    };
     let period = timing.period_ns.max(1);
     let inv = &observed.invalid_messages;
     for (what, got, sent) in [
@@ -256,7 +271,7 @@ pub fn check(
         ("commands with a NaN velocity", inv.non_finite, injected.non_finite),
     ] {
         if got != sent {
-            m.push(format!("{what}: {sent} injected, {got} counted by the plant"));
+            m.push(format!("{what}: {sent} injected, {got} counted by the plant{lost}"));
         }
     }
     if inv.joint_count + inv.status > 0 {
@@ -304,7 +319,18 @@ pub fn check(
     if observed.log_rows_dropped > 0 || rows.0 != rows.1 {
         m.push(format!("{} of {} rows on disk ({} dropped)", rows.0, rows.1, observed.log_rows_dropped));
     }
-    Report { seed, injected, stops: during, observed, rows, mismatches: m }
+    if let Some(n) = not_received.filter(|n| *n > 0) {
+        m.push(format!("{n} commands sent were never received by the plant's transport (lost in transit)"));
+    }
+    Report {
+        seed,
+        injected,
+        stops: during,
+        observed,
+        rows,
+        commands_not_received: not_received,
+        mismatches: m,
+    }
 }
 
 #[cfg(test)]
@@ -378,10 +404,28 @@ mod tests {
             log_rows_dropped: 0,
             run_window_ns: (1_000_000_000, 9_000_000_000),
             chaos_stops: Vec::new(),
+            link_counts: Some(LinkCounts { published: 9_000, received: 9_008, ..LinkCounts::default() }),
         };
-        let r = check(1, &t, injected, &stops, good.clone(), (801, 801));
+        let sent = Some(LinkCounts { published: 9_008, received: 9_000, ..LinkCounts::default() });
+        let r = check(1, &t, injected, &stops, good.clone(), (801, 801), sent);
         assert!(r.mismatches.is_empty(), "{:?}", r.mismatches);
-        assert_eq!(r.stops.len(), 2);
+        assert_eq!((r.stops.len(), r.commands_not_received), (2, Some(0)));
+        // A command lost in transit (zenoh's congestion drop): counted and said.
+        let lost = Observed {
+            invalid_messages: InvalidCounts { version: 1, ..good.invalid_messages },
+            link_counts: Some(LinkCounts { received: 9_007, ..good.link_counts.unwrap() }),
+            ..good.clone()
+        };
+        let r = check(1, &t, injected, &stops, lost, (801, 801), sent);
+        assert_eq!(r.commands_not_received, Some(1));
+        assert_eq!(r.mismatches.len(), 2, "{:#?}", r.mismatches);
+        assert!(r.mismatches[0].ends_with("(1 commands sent were never received by the plant's transport)"));
+        assert!(r.mismatches[1].contains("lost in transit"), "{:?}", r.mismatches);
+        // Over iceoryx2 nothing is counted.
+        assert_eq!(
+            check(1, &t, injected, &stops, good.clone(), (801, 801), None).commands_not_received,
+            None
+        );
         let bad = Observed {
             invalid_messages: InvalidCounts { version: 1, ..good.invalid_messages },
             late_commands: 3,
@@ -391,7 +435,7 @@ mod tests {
             end: "interrupted at cycle 5".into(),
             ..good
         };
-        let r = check(1, &t, injected, &stops, bad, (800, 801));
+        let r = check(1, &t, injected, &stops, bad, (800, 801), sent);
         assert_eq!(r.mismatches.len(), 7, "{:#?}", r.mismatches);
     }
 }

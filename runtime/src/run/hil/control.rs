@@ -25,6 +25,7 @@ use crate::sys::lock::NameLock;
 use crate::sys::lock::Role;
 use crate::sys::process::{exit_text, send_signal, ChildGuard, Signal};
 use crate::sys::signals::termination_requested;
+use crate::transport::link::LinkCounts;
 use crate::transport::{self, ControlEndpoint};
 
 /// How long the controller waits for the plant to read its last message.
@@ -63,6 +64,8 @@ pub struct Session {
     pub stats: ControlStats,
     /// The faults it injected.
     pub injected: Injected,
+    /// What its transport counted (Zenoh), read after the last message.
+    pub link: Option<LinkCounts>,
 }
 
 /// One controller session: opens the transport, waits for the plant (`abort` is asked while
@@ -124,11 +127,12 @@ pub fn session(
     if dropped > 0 {
         observer.warn(&format!("controller: {dropped} messages of the wrong size dropped by the transport"));
     }
+    let link = ep.link_counts();
     let end = r?;
     if matches!(end, ControlEnd::PlantDied { .. }) {
         ep.cleanup_dead_nodes();
     }
-    Ok(Session { end, stats, injected })
+    Ok(Session { end, stats, injected, link })
 }
 
 impl ControlStats {
@@ -272,7 +276,7 @@ pub fn run_as_parent(
     if exited.is_some() {
         child.0 = None;
     }
-    let Session { end, stats, injected } = match result {
+    let Session { end, stats, injected, link } = match result {
         Ok(x) => x,
         Err(e) => {
             // The plant may already have explained (e.g. a name in use); its status says more.
@@ -292,8 +296,11 @@ pub fn run_as_parent(
             // The plant writes its files and plots, then exits with the run's status.
             let plant = child.finish(Duration::from_secs(600))?;
             observer.note(&stats.line());
+            if let Some(c) = link {
+                link_report(cfg, c, observer)?;
+            }
             let chaos = match cfg.chaos {
-                Some(c) => Some(Box::new(chaos_report(cfg, s.base(), c.seed, injected, &stops)?)),
+                Some(c) => Some(Box::new(chaos_report(cfg, s.base(), c.seed, injected, &stops, link)?)),
                 None => None,
             };
             let failure = stats.failure();
@@ -380,6 +387,61 @@ pub fn expected_rows(s: &Scenario) -> u64 {
     steps / s.log_every + 1 + u64::from(steps % s.log_every != 0)
 }
 
+/// `link.json` of a run over Zenoh: both sides' transport counts and what each never got of
+/// the other's messages.
+#[derive(Debug, Serialize)]
+pub struct LinkReport {
+    /// The controller's transport.
+    pub controller: LinkCounts,
+    /// The plant's (from `latency.json`; `None` if it wrote none).
+    pub plant: Option<LinkCounts>,
+    /// Commands the controller's transport accepted that the plant's never received.
+    pub commands_not_received: Option<u64>,
+    /// Measurements the plant's transport accepted that the controller's never received.
+    pub measurements_not_received: Option<u64>,
+}
+
+/// Writes `link.json` after the plant ended (its `latency.json` has its counts) and says what
+/// was lost; over Zenoh a congestion drop is silent at the sender, so this is where it shows.
+///
+/// # Errors
+/// `link.json` cannot be written.
+fn link_report(cfg: &HilConfig, controller: LinkCounts, observer: &dyn Observer) -> Result<LinkReport> {
+    let plant: Option<LinkCounts> = std::fs::read_to_string(cfg.out.join("latency.json"))
+        .ok()
+        .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
+        .and_then(|v| serde_json::from_value(v.get("link_counts")?.clone()).ok());
+    let report = LinkReport {
+        controller,
+        plant,
+        commands_not_received: plant.map(|p| controller.not_received_by(&p)),
+        measurements_not_received: plant.map(|p| p.not_received_by(&controller)),
+    };
+    if let (Some(p), Some(c), Some(m)) =
+        (plant, report.commands_not_received, report.measurements_not_received)
+    {
+        observer.note(&format!(
+            "link: the controller sent {} commands, the plant's transport received {} ({c} never arrived, {} \
+             dropped on a full ring); the plant sent {} measurements, the controller's transport received {} \
+             ({m} never arrived, {} dropped on a full ring)",
+            controller.published,
+            p.received,
+            p.dropped_full_ring,
+            p.published,
+            controller.received,
+            controller.dropped_full_ring
+        ));
+        if c + m + p.dropped_full_ring + controller.dropped_full_ring > 0 {
+            observer
+                .warn("the link lost messages (see link.json): zenoh drops on congestion without an error");
+        }
+    }
+    let path = cfg.out.join("link.json");
+    std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
+        .with_context(|| format!("writing {}", path.display()))?;
+    Ok(report)
+}
+
 /// `--chaos`: reads what the plant counted, compares it with what was injected, writes
 /// `chaos.json`.
 fn chaos_report(
@@ -388,6 +450,7 @@ fn chaos_report(
     seed: u64,
     injected: Injected,
     stops: &[chaos::DoneStop],
+    sent: Option<LinkCounts>,
 ) -> Result<chaos::Report> {
     let path = cfg.out.join("latency.json");
     let observed: Observed = std::fs::read_to_string(&path)
@@ -400,7 +463,7 @@ fn chaos_report(
     let rows = complete_rows(&cfg.out).unwrap_or(0);
     let mut all = stops.to_vec();
     all.extend(observed.chaos_stops.iter().copied());
-    let report = chaos::check(seed, &cfg.timing, injected, &all, observed, (rows, expected_rows(s)));
+    let report = chaos::check(seed, &cfg.timing, injected, &all, observed, (rows, expected_rows(s)), sent);
     let path = cfg.out.join("chaos.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
         .with_context(|| format!("writing {}", path.display()))?;

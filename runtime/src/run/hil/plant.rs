@@ -284,11 +284,13 @@ fn write_latency(
     wall_s: f64,
     failures: &[Failure],
     chaos_stops: Vec<super::chaos::DoneStop>,
+    link_counts: Option<crate::transport::link::LinkCounts>,
     observer: &dyn Observer,
 ) -> Result<LatencyReport> {
     let mut latency = LatencyReport::new(s, cfg, stats, rt, end, wall_s);
     latency.failures = failures.to_vec();
     latency.chaos_stops = chaos_stops;
+    latency.link_counts = link_counts;
     report::write_json(dir, &latency)?;
     if !cfg.no_plots {
         if let Err(e) = report::write_svg(dir, stats, &latency) {
@@ -403,6 +405,7 @@ fn run_planar(
         wall_s,
         &summary.failures,
         chaos_stops,
+        ep.link_counts(),
         observer,
     )?;
     let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
@@ -531,6 +534,7 @@ where
         wall_s,
         &outcome.summary.failures,
         Vec::new(),
+        ep.link_counts(),
         observer,
     )?;
     if !cfg.no_plots {

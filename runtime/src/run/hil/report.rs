@@ -123,6 +123,10 @@ pub struct LatencyReport {
     pub failures: Vec<Failure>,
     /// `--chaos`: the controller's stops that this plant made.
     pub chaos_stops: Vec<DoneStop>,
+    /// What the plant's transport counted of the measurements it sent and the commands it got
+    /// (Zenoh; `null` on iceoryx2): against the controller's counts, the messages lost in
+    /// transit (`link.json` of `companion hil`).
+    pub link_counts: Option<crate::transport::link::LinkCounts>,
     /// Wall-clock time (s).
     pub wall_time_s: f64,
     /// The machine.
@@ -195,6 +199,7 @@ impl LatencyReport {
             end: end.describe(),
             failures: Vec::new(),
             chaos_stops: Vec::new(),
+            link_counts: None,
             wall_time_s,
             machine: Machine::now(),
         }

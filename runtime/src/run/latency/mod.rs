@@ -24,6 +24,7 @@
 //! give p50 … p99.99 and the maximum, and the ratios (4)/(2) and (3)/(2) of the medians.
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
+pub mod hops;
 pub mod pingpong;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
@@ -61,6 +62,9 @@ pub struct LatencyOptions {
     pub hil_modes: Vec<WaitMode>,
     /// The loads to measure them under.
     pub loads: Vec<Load>,
+    /// Only the Zenoh ping-pongs and the Unix socket they are compared with (parts 1, 2 and
+    /// 4 skipped).
+    pub zenoh_only: bool,
 }
 
 /// The load on the machine while a HIL run is measured.
@@ -265,6 +269,8 @@ pub struct Benchmark {
     pub ratios: Vec<(String, f64)>,
     /// The back-to-back ping-pongs against a second clock ([`SecondClock`]).
     pub second_clock: Vec<(String, SecondClock)>,
+    /// The Zenoh round trips split at each hop, one per configuration ([`hops`]).
+    pub zenoh_hops: Vec<hops::HopReport>,
 }
 
 fn ratio(a: u64, b: u64) -> f64 {
@@ -299,8 +305,13 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         rows.push(Row { part, name: name.clone(), ns: h.percentiles() });
         hists.push((name, h));
     };
-    observer.note(&format!("(1) controller step, {} steps per platform and scalar type", a.cycles));
-    for platform in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
+    let parts_1_2 = !a.zenoh_only;
+    if parts_1_2 {
+        observer.note(&format!("(1) controller step, {} steps per platform and scalar type", a.cycles));
+    }
+    for platform in
+        [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni].into_iter().filter(|_| parts_1_2)
+    {
         for scalar in [Scalar::F64, Scalar::F32] {
             let h = {
                 let _rt = a.rt.then(|| RtScope::enter(own_cpu, observer));
@@ -327,40 +338,83 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         }
         second_clock.push((name.to_string(), c));
     };
-    let (iox, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
-    checked("iceoryx2 ping-pong, busy-poll", c);
-    let iox_p50 = iox.percentiles().p50;
-    push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
-    // Paced, the batch is mostly waiting: the second clock says nothing of the samples there.
-    let (paced, _) =
-        pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
-    let paced_p50 = paced.percentiles().p50;
-    push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
-    let (iox_ev, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
-    checked("iceoryx2 ping-pong, events", c);
-    let iox_ev_p50 = iox_ev.percentiles().p50;
-    push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
+    let (mut iox_p50, mut paced_p50, mut iox_ev_p50) = (0, 0, 0);
+    if parts_1_2 {
+        let (iox, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, false, a.rt, None, observer)?;
+        checked("iceoryx2 ping-pong, busy-poll", c);
+        iox_p50 = iox.percentiles().p50;
+        push("2", "iceoryx2 ping-pong, busy-poll".into(), iox, &mut rows);
+        // Paced, the batch is mostly waiting: the second clock says nothing of the samples there.
+        let (paced, _) =
+            pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
+        paced_p50 = paced.percentiles().p50;
+        push("2", "iceoryx2 ping-pong, busy-poll, one per ms".into(), paced, &mut rows);
+        let (iox_ev, c) = pingpong::iceoryx(&exe, a.cycles, a.warmup, true, a.rt, None, observer)?;
+        checked("iceoryx2 ping-pong, events", c);
+        iox_ev_p50 = iox_ev.percentiles().p50;
+        push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
+    }
     observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
     let (uds, c) = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
     checked("unix datagram socket ping-pong", c);
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    #[cfg_attr(not(feature = "zenoh"), allow(unused_mut))]
+    let mut zenoh_hops: Vec<hops::HopReport> = Vec::new();
     #[cfg(feature = "zenoh")]
     let (zenoh_p50, zenoh_tls_p50) = {
-        observer.note(&format!("(3) Zenoh ping-pong over loopback TCP, {} round trips", a.cycles));
-        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, None, observer)?;
-        checked("zenoh ping-pong, tcp loopback", c);
-        let p50 = z.percentiles().p50;
-        push("3", "zenoh ping-pong, tcp loopback, blocking".into(), z, &mut rows);
+        let mut note_hops = |r: hops::HopReport| {
+            observer.note(&format!(
+                "  hops: {}; their medians add up to {:.1} % of the round trip's, their means to {:.1} %, \
+                 the round trip to {:.1} % of the sample's{}",
+                r.rows
+                    .iter()
+                    .map(|h| format!("{} {}", h.name, fmt_ns(h.ns.p50)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                100.0 * r.median_share(),
+                100.0 * r.mean_share(),
+                100.0 * r.sample_share(),
+                if r.agrees() { "" } else { "  DISAGREE" }
+            ));
+            zenoh_hops.push(r);
+        };
+        let mut p50 = 0;
+        for (k, variant) in zenoh::Variant::ALL.into_iter().enumerate() {
+            observer.note(&format!(
+                "(3) Zenoh ping-pong over loopback TCP, {}, {} round trips",
+                variant.label(),
+                a.cycles
+            ));
+            let (z, c, h) =
+                zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, None, variant, observer)?;
+            let name = format!("zenoh ping-pong, tcp loopback, {}", variant.label());
+            checked(&name, c);
+            if k == 0 {
+                p50 = z.percentiles().p50;
+            }
+            push("3", name, z, &mut rows);
+            note_hops(h);
+        }
         observer.note(&format!(
             "(3) Zenoh ping-pong over loopback QUIC with mutual TLS (the default link), {} round trips",
             a.cycles
         ));
         let tls = zenoh::Tls::make()?;
-        let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, None, Some(&tls), observer)?;
+        let (z, c, h) = zenoh::round_trips(
+            &exe,
+            a.cycles,
+            a.warmup,
+            a.rt,
+            None,
+            Some(&tls),
+            zenoh::Variant::default(),
+            observer,
+        )?;
         checked("zenoh ping-pong, quic+mtls loopback", c);
         let tls_p50 = z.percentiles().p50;
-        push("3", "zenoh ping-pong, quic+mtls loopback, blocking".into(), z, &mut rows);
+        push("3", "zenoh ping-pong, quic+mtls loopback, default".into(), z, &mut rows);
+        note_hops(h);
         observer.note("(3) Zenoh session set-up on loopback (connect until the peer is seen), 20 times each");
         push("3", "zenoh session set-up, tcp loopback".into(), zenoh::session_setup(20, None)?, &mut rows);
         push(
@@ -375,9 +429,19 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                     "(3) Zenoh ping-pong across a veth pair into network namespace {}, {} round trips",
                     v.netns, a.cycles
                 ));
-                let (z, c) = zenoh::round_trips(&exe, a.cycles, a.warmup, a.rt, Some(&v), None, observer)?;
+                let (z, c, h) = zenoh::round_trips(
+                    &exe,
+                    a.cycles,
+                    a.warmup,
+                    a.rt,
+                    Some(&v),
+                    None,
+                    zenoh::Variant::default(),
+                    observer,
+                )?;
                 checked("zenoh ping-pong, tcp across network namespaces", c);
-                push("3", "zenoh ping-pong, tcp across network namespaces, blocking".into(), z, &mut rows);
+                push("3", "zenoh ping-pong, tcp across network namespaces, default".into(), z, &mut rows);
+                note_hops(h);
             }
             Err(e) => observer.warn(&format!(
                 "(3) Zenoh across network namespaces skipped: {e:#} (needs root and `ip netns`)"
@@ -417,10 +481,11 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
             hil.push((*mode, *load, f));
         }
     }
-    let mut ratios = vec![
-        ("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)),
-        ("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)),
-    ];
+    let mut ratios = Vec::new();
+    if parts_1_2 {
+        ratios.push(("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)));
+        ratios.push(("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)));
+    }
     #[cfg(feature = "zenoh")]
     ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
     #[cfg(feature = "zenoh")]
@@ -459,6 +524,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         load_threads,
         ratios,
         second_clock,
+        zenoh_hops,
     };
     let path = a.out.join("latency-benchmark.json");
     std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")
@@ -499,7 +565,11 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
         #[cfg(feature = "zenoh")]
         Transport::Zenoh => {
             let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
-            zenoh::peer(&a.name, ep, a.tls_dir.as_deref())
+            let variant = zenoh::Variant {
+                tuning: crate::transport::zenoh_link::Tuning { low_latency: a.zenoh_low_latency },
+                handoff: if a.zenoh_spin { zenoh::Handoff::Spin } else { zenoh::Handoff::Park },
+            };
+            zenoh::peer(&a.name, ep, a.tls_dir.as_deref(), variant)
         }
         #[cfg(not(feature = "zenoh"))]
         Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),

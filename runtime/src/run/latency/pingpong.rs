@@ -72,6 +72,10 @@ pub struct PeerOptions {
     pub tls_dir: Option<PathBuf>,
     /// Real-time setup, pinned to this CPU.
     pub rt_cpu: Option<usize>,
+    /// Zenoh's low-latency transport (zenoh).
+    pub zenoh_low_latency: bool,
+    /// Spin on the ring instead of sleeping until woken (zenoh).
+    pub zenoh_spin: bool,
 }
 
 pub(super) fn echo(m: &MeasurementMsg, received_ns: u64) -> CommandMsg {

@@ -12,6 +12,7 @@ use std::time::Duration;
 
 use anyhow::{bail, Result};
 
+use super::hops::{HopRecorder, HopReport, Stamps};
 use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Samples, SecondClock, Transport};
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::observe::Observer;
@@ -19,7 +20,84 @@ use crate::sys::lock::Role;
 use crate::sys::rt;
 use crate::transport::link::PeerState;
 use crate::transport::wire::flags;
-use crate::transport::zenoh_link::{Security, TcpEndpoint, TlsFiles, ZenohControl, ZenohLink, ZenohPlant};
+use crate::transport::zenoh_link::{
+    Security, TcpEndpoint, TlsFiles, Tuning, ZenohControl, ZenohLink, ZenohPlant,
+};
+
+/// How each side's loop thread waits for the next message.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Handoff {
+    /// Sleeps (`thread::park`) until Zenoh's callback wakes it: the HIL's way over Zenoh.
+    #[default]
+    Park,
+    /// Spins on the ring (never sleeps): no wake-up, a CPU taken.
+    Spin,
+}
+
+/// One configuration of the Zenoh ping-pong.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Variant {
+    /// Zenoh's settings.
+    pub tuning: Tuning,
+    /// How the loops wait.
+    pub handoff: Handoff,
+}
+
+impl Variant {
+    /// The configurations `companion latency` measures over loopback TCP, the default first.
+    pub const ALL: [Self; 4] = [
+        Self { tuning: Tuning { low_latency: false }, handoff: Handoff::Park },
+        Self { tuning: Tuning { low_latency: true }, handoff: Handoff::Park },
+        Self { tuning: Tuning { low_latency: false }, handoff: Handoff::Spin },
+        Self { tuning: Tuning { low_latency: true }, handoff: Handoff::Spin },
+    ];
+
+    /// `default` or the settings changed, e.g. `low-latency, spin`.
+    pub fn label(self) -> String {
+        let mut parts = Vec::new();
+        if self.tuning.low_latency {
+            parts.push("low-latency");
+        }
+        if self.handoff == Handoff::Spin {
+            parts.push("spin");
+        }
+        if parts.is_empty() {
+            "default".into()
+        } else {
+            parts.join(", ")
+        }
+    }
+
+    /// The peer's flags for it.
+    fn args(self) -> Vec<String> {
+        let mut a = Vec::new();
+        if self.tuning.low_latency {
+            a.push("--zenoh-low-latency".to_string());
+        }
+        if self.handoff == Handoff::Spin {
+            a.push("--zenoh-spin".to_string());
+        }
+        a
+    }
+}
+
+// The echo's stamps for the benchmark's hop account ([`super::hops`]) travel in fields of the
+// command that the ping-pong does not otherwise use: `received_ns` = the peer's callback,
+// `compute_ns` = its loop awake, `scenario_hash` = its `put` call, `arm_hash` = the previous
+// echo's `put` duration (all `CLOCK_MONOTONIC` ns).
+
+/// Waits for the next message as `handoff` says: parked up to 100 ms, or one spin.
+#[inline]
+fn wait<Tx, Rx>(ep: &crate::transport::zenoh_link::ZenohEndpoint<Tx, Rx>, handoff: Handoff)
+where
+    Tx: zerocopy::IntoBytes + zerocopy::Immutable,
+    Rx: zerocopy::FromBytes + Send + 'static,
+{
+    match handoff {
+        Handoff::Park => ep.wait_event(Duration::from_millis(100)),
+        Handoff::Spin => core::hint::spin_loop(),
+    }
+}
 
 /// The benchmark's sessions' peer timeout (the HIL's default): over QUIC it sets the lease
 /// ([`crate::transport::zenoh_link::quic_lease`]).
@@ -77,16 +155,30 @@ fn security(dir: Option<&Path>, role: Role) -> Security {
 ///
 /// # Errors
 /// A bad endpoint, a Zenoh failure, or the benchmark gone.
-pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>) -> Result<()> {
+pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>, variant: Variant) -> Result<()> {
     let link = ZenohLink::Connect(TcpEndpoint::parse(endpoint)?);
-    let mut ep =
-        ZenohControl::open(name, Role::Control, link, &security(tls, Role::Control), BENCH_PEER_TIMEOUT)?;
+    let mut ep = ZenohControl::open_tuned(
+        name,
+        Role::Control,
+        link,
+        &security(tls, Role::Control),
+        BENCH_PEER_TIMEOUT,
+        variant.tuning,
+    )?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
+    let mut previous_put = 0;
+    let mut spins = 0u32;
     loop {
-        if let Some(m) = ep.try_receive() {
+        if let Some((m, arrived)) = ep.try_receive_stamped() {
             let t = rt::monotonic_ns();
-            ep.send(&echo(&m, t))?;
+            let mut c = echo(&m, arrived);
+            c.compute_ns = t;
+            c.arm_hash = previous_put;
+            let call = rt::monotonic_ns();
+            c.scenario_hash = call;
+            ep.send(&c)?;
+            previous_put = rt::monotonic_ns() - call;
             silent_since = t;
             if m.has(flags::END_OF_RUN) {
                 ep.linger(Duration::from_secs(1));
@@ -94,7 +186,11 @@ pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>) -> Result<()> {
             }
             continue;
         }
-        ep.wait_event(Duration::from_millis(100));
+        wait(&ep, variant.handoff);
+        spins = spins.wrapping_add(1);
+        if variant.handoff == Handoff::Spin && spins % 4096 != 0 {
+            continue;
+        }
         let now = rt::monotonic_ns();
         if now - silent_since > 2_000_000_000 {
             if matches!(ep.peer_state(), PeerState::Dead(_) | PeerState::Expired(_) | PeerState::Absent) {
@@ -157,12 +253,13 @@ impl Drop for Veth {
     }
 }
 
-/// Round trips over Zenoh on TCP (over mutual TLS with `tls`), `warmup` unrecorded first;
-/// both sides sleep until the message arrives. On loopback, or with `veth` the peer in its
-/// namespace, connecting across the pair (plain TCP).
+/// Round trips over Zenoh on TCP (over mutual TLS with `tls`), `warmup` unrecorded first,
+/// in configuration `variant`, each split at its hops ([`super::hops`]). On loopback, or with
+/// `veth` the peer in its namespace, connecting across the pair (plain TCP).
 ///
 /// # Errors
 /// The peer could not be started or stopped answering.
+#[allow(clippy::too_many_arguments)]
 pub fn round_trips(
     exe: &Path,
     iterations: u64,
@@ -170,8 +267,9 @@ pub fn round_trips(
     use_rt: bool,
     veth: Option<&Veth>,
     tls: Option<&Tls>,
+    variant: Variant,
     observer: &dyn Observer,
-) -> Result<(LatencyHistogram, SecondClock)> {
+) -> Result<(LatencyHistogram, SecondClock, HopReport)> {
     let tls_dir = tls.map(Tls::dir);
     let endpoint = match veth {
         None => crate::transport::free_local_endpoint(tls.is_none())?,
@@ -182,14 +280,31 @@ pub fn round_trips(
         }
     };
     let name = format!(
-        "latency-{}-zenoh{}{}",
+        "latency-{}-zenoh{}{}{}{}",
         std::process::id(),
         if veth.is_some() { "-netns" } else { "" },
-        if tls.is_some() { "-tls" } else { "" }
+        if tls.is_some() { "-tls" } else { "" },
+        if variant.tuning.low_latency { "-ll" } else { "" },
+        if variant.handoff == Handoff::Spin { "-spin" } else { "" },
+    );
+    let config = format!(
+        "{}, {}",
+        match (tls.is_some(), veth.is_some()) {
+            (true, _) => "quic+mtls loopback",
+            (false, true) => "tcp across network namespaces",
+            (false, false) => "tcp loopback",
+        },
+        variant.label()
     );
     let link = ZenohLink::Listen(TcpEndpoint::parse(&endpoint)?);
-    let mut ep =
-        ZenohPlant::open(&name, Role::Plant, link, &security(tls_dir, Role::Plant), BENCH_PEER_TIMEOUT)?;
+    let mut ep = ZenohPlant::open_tuned(
+        &name,
+        Role::Plant,
+        link,
+        &security(tls_dir, Role::Plant),
+        BENCH_PEER_TIMEOUT,
+        variant.tuning,
+    )?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
         "--transport".to_string(),
@@ -205,33 +320,54 @@ pub fn round_trips(
     if let Some(d) = tls_dir {
         args.extend(["--tls-dir".to_string(), d.display().to_string()]);
     }
+    args.extend(variant.args());
     let mut child = spawn_peer_in(veth.map(|v| v.netns.as_str()), exe, &args)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
     let mut samples = Samples::new(warmup);
+    let mut hops = HopRecorder::default();
     let total = warmup + iterations;
     for i in 0..total {
         samples.begin(i);
         let msg = ping(i, i + 1 == total);
         let t0 = msg.plant_time_ns;
+        let put_call = rt::monotonic_ns();
         ep.send(&msg)?;
-        loop {
-            if let Some(c) = ep.try_receive() {
+        let put_return = rt::monotonic_ns();
+        let mut spins = 0u32;
+        let (c, callback, awake) = loop {
+            if let Some((c, arrived)) = ep.try_receive_stamped() {
                 if c.seq == i {
-                    break;
+                    break (c, arrived, rt::monotonic_ns());
                 }
                 continue;
             }
-            ep.wait_event(Duration::from_millis(100));
-            if rt::monotonic_ns() - t0 > 5_000_000_000 {
+            wait(&ep, variant.handoff);
+            spins = spins.wrapping_add(1);
+            if (variant.handoff == Handoff::Park || spins % 4096 == 0)
+                && rt::monotonic_ns() - t0 > 5_000_000_000
+            {
                 bail!("the Zenoh ping-pong peer stopped answering at iteration {i}");
             }
-        }
+        };
         samples.record(i, rt::monotonic_ns() - t0);
+        let stamps = Stamps {
+            put_call,
+            put_return,
+            peer_callback: c.received_ns,
+            peer_awake: c.compute_ns,
+            peer_put_call: c.scenario_hash,
+            previous_peer_put_ns: c.arm_hash,
+            callback,
+            awake,
+        };
+        hops.record(&stamps, i >= warmup);
     }
     drop(_rt);
     child.finish(Duration::from_secs(5))?;
-    Ok(samples.finish())
+    let (hist, clock) = samples.finish();
+    let report = hops.finish(config, &hist);
+    Ok((hist, clock, report))
 }
 
 /// The time from opening a connecting session to seeing the listening peer and being heard
