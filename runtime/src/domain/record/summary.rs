@@ -3,9 +3,9 @@
 use serde::Serialize;
 
 use super::digest::TrajectoryDigest;
+use super::row::CommandSource;
 use super::row::Row;
 use super::verdict::{Failure, Rejections};
-use super::CommandSource;
 use crate::domain::controller::JOINTS;
 
 /// How long after a held or stopped period a step is not counted in the maximum "clear of
