@@ -175,7 +175,8 @@ fn killed_plant_over_zenoh_is_reported_like_over_iceoryx2() {
     assert_eq!(st.code(), Some(3), "{seen:#?}");
     assert!(seen.iter().any(|l| l.contains("killed by signal 9")), "{seen:#?}");
     let statuses = csv_statuses(&d.join("timeseries.csv"));
-    assert!(statuses.len() > 500, "{} rows", statuses.len());
+    // At least the 500 rows seen before the kill (a starved plant may have written none since).
+    assert!(statuses.len() >= 500, "{} rows", statuses.len());
     let fault = json(&d.join("fault.json"));
     assert_eq!(fault["plant_exit"], "killed by signal 9");
     assert_eq!(fault["rows_on_disk"].as_u64(), Some(statuses.len() as u64));
