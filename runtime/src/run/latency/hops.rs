@@ -3,7 +3,7 @@
 //! Both processes of the ping-pong run on one machine, so one `CLOCK_MONOTONIC` times every
 //! step of a round trip in either process. Each round trip is stamped at the benchmark's
 //! `put` call and its return, the peer's subscriber callback (the first thing Zenoh's thread
-//! does with the message: [`crate::transport::zenoh_link::ZenohEndpoint::try_receive_stamped`]),
+//! does with the message: `zenoh_link::ZenohEndpoint::try_receive_stamped`),
 //! the peer's loop waking with it, the peer's `put` call and return, the benchmark's callback
 //! and the benchmark's loop waking. [`HOPS`] are the differences; they add up to the round
 //! trip, which is timed independently as well (the ping-pong's own sample, from the
