@@ -62,9 +62,7 @@ impl InProcess {
         let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
         Ok(Self { controller, dt: s.dt, delay: if s.delay_compensation { s.delay } else { 0.0 } })
     }
-}
 
-impl InProcess {
     /// The controller's report for `meas` (an in-process exchange cannot fail or end a run).
     #[inline]
     pub fn report(&mut self, meas: &Measurement<f64, JOINTS>) -> StepReport {
