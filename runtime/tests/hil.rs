@@ -527,6 +527,20 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     let starved = lat["plant_runqueue_wait_ns"].as_u64().is_none_or(|w| w >= 50_000_000);
     assert!(run + skipped >= 150, "{lat:#}");
     assert!(run >= 100 || starved, "the plant ran {run} of the silence's ~200 periods: {lat:#}");
+    // Whose misses: every miss has one cause; the silence's are the stopped controller's
+    // (the answer after it came from a measurement taken after their deadlines) or, on a
+    // starved plant, the plant's own late releases — none on the way back or unanswered.
+    let causes = &lat["miss_causes"];
+    let cause = |k: &str| causes[k].as_u64().unwrap();
+    let sum: u64 =
+        ["plant_late", "controller_wake", "controller_compute", "return_path", "clocks_apart", "unanswered"]
+            .iter()
+            .map(|k| cause(k))
+            .sum();
+    assert_eq!(sum, lat["deadline_misses"].as_u64().unwrap(), "{lat:#}");
+    let controller = cause("controller_wake") + cause("controller_compute");
+    assert!(controller + cause("plant_late") >= run, "{lat:#}");
+    assert!(controller >= 100 || starved, "{lat:#}");
     assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");

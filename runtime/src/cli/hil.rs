@@ -928,6 +928,24 @@ fn print_latency(r: &LatencyReport) {
             r.stop_events,
             r.invalid_total
         );
+        let m = r.miss_causes;
+        if m.total() > 0 {
+            println!(
+                "whose misses: {} the controller's (woke late {}, stepped long {}), {} the plant's (published \
+                 late), {} on the way back (sent in time), {} unanswered{}",
+                m.controller(),
+                m.controller_wake,
+                m.controller_compute,
+                m.plant_late,
+                m.return_path,
+                m.unanswered,
+                if m.clocks_apart > 0 {
+                    format!(", {} not split (the controller's clock is not the plant's)", m.clocks_apart)
+                } else {
+                    String::new()
+                }
+            );
+        }
         if r.plant_stalls > 0 {
             let starved = r
                 .plant_runqueue_wait_ns

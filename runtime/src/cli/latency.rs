@@ -213,6 +213,48 @@ fn print_table(b: &Benchmark) {
             if b.rt && !f.rt.fifo { " (SCHED_FIFO refused)" } else { "" }
         );
     }
+    if !b.miss_account.is_empty() {
+        println!("HIL misses against the bare transport paced at 1 kHz under the same load, in this run:");
+        for t in &b.paced_transport {
+            println!(
+                "  bare iceoryx2, {:<5} round trip p50 {:>9}, max {:>9}: {} of {} over the {} deadline",
+                t.load.as_str(),
+                fmt_ns(t.round_trip_ns.p50),
+                fmt_ns(t.round_trip_ns.max),
+                t.over_deadline,
+                t.round_trip_ns.count,
+                fmt_ns(t.deadline_ns)
+            );
+        }
+        println!(
+            "  {:<9} {:<5} {:>7} {:>9} {:>7} {:>10} {:>6} {:>9} {:>11} {:>8}",
+            "wait",
+            "load",
+            "misses",
+            "bare's",
+            "beyond",
+            "controller",
+            "plant",
+            "way back",
+            "unanswered",
+            "p50 ×"
+        );
+        for m in &b.miss_account {
+            println!(
+                "  {:<9} {:<5} {:>7} {:>9} {:>7} {:>10} {:>6} {:>9} {:>11} {:>8.2}",
+                m.wait.as_str(),
+                m.load.as_str(),
+                m.loop_misses,
+                m.transport_misses,
+                m.beyond_transport,
+                m.causes.controller(),
+                m.causes.plant_late,
+                m.causes.return_path,
+                m.causes.unanswered + m.causes.clocks_apart,
+                m.p50_ratio
+            );
+        }
+    }
     println!("ratios of medians:");
     for (name, r) in &b.ratios {
         println!("  {name:<54} {r:>6.2}");

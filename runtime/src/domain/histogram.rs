@@ -41,6 +41,12 @@ impl LatencyHistogram {
         self.h.len()
     }
 
+    /// How many values exceed `ns` (to the histogram's 3 significant digits: a value in the
+    /// bucket that holds `ns` counts as not above it).
+    pub fn count_above(&self, ns: u64) -> u64 {
+        self.h.len() - self.h.count_between(0, ns.min(MAX_NS))
+    }
+
     /// The value at quantile `q` ∈ [0, 1] (0 when empty). Scans the buckets: tens of µs, do not
     /// call it every cycle.
     pub fn quantile(&self, q: f64) -> u64 {

@@ -82,7 +82,7 @@
 //! Domain first, then the loops, then the processes:
 //! [`config`] (typed options and the run's scenario), [`end`] (how a run ended), [`stats`]
 //! (what is counted), [`hold`] (hold, then stop), [`messages`] (the one header builder,
-//! command ↔ report), [`watch`] (the one peer-liveness check), [`wait`] (the three wait
+//! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the three wait
 //! modes), [`robot`] (what the plant's loop drives), [`law`] (what the controller serves);
 //! [`plant_loop`] (real time and lockstep), [`serve`] (the controller's loop), [`fault`]
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
@@ -97,6 +97,7 @@ pub mod handshake;
 pub mod hold;
 pub mod law;
 pub mod messages;
+pub mod misses;
 pub mod plant;
 pub mod plant_loop;
 pub mod report;

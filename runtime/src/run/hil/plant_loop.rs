@@ -33,6 +33,7 @@ use super::config::WaitMode;
 use super::end::PlantEnd;
 use super::hold::HoldPolicy;
 use super::messages::{report_of, Stamp};
+use super::misses::{MissLedger, Period};
 use super::robot::Robot;
 use super::stats::{LiveFigures, PlantStats};
 use super::wait::Idler;
@@ -123,13 +124,22 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     fn drain<const N: usize>(
         &mut self,
         want: Wanted,
-        late_timed: bool,
+        mut misses: Option<&mut MissLedger>,
     ) -> Result<Result<Option<Fresh>, Refusal>> {
         let n = want.n;
         let mut fresh: Option<Fresh> = None;
         while let Some(c) = self.link.try_receive()? {
             let now = self.clock.now_ns();
-            match check_command::<N>(&c, self.stamp.session, n) {
+            let checked = check_command::<N>(&c, self.stamp.session, n);
+            if let Some(ledger) = misses.as_deref_mut() {
+                // A valid answer, current or late: the misses it answers get their cause.
+                if matches!(checked, Ok(()))
+                    || matches!(checked, Err(WireError::Stale(seq)) if check_command::<N>(&c, self.stamp.session, seq).is_ok())
+                {
+                    ledger.answered(&c, &mut self.stats.miss_causes);
+                }
+            }
+            match checked {
                 Ok(()) => {
                     self.stats.timing(now, &c);
                     self.stats.controller_skipped += u64::from(c.skipped);
@@ -164,7 +174,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
                 }
                 Err(WireError::Stale(_)) => {
                     self.stats.late_commands += 1;
-                    if late_timed {
+                    if misses.is_some() {
                         self.stats.timing(now, &c);
                     }
                 }
@@ -233,6 +243,8 @@ struct Cycle<const N: usize> {
     policy: HoldPolicy<N>,
     /// The controller's liveness.
     watch: PeerWatch,
+    /// The missed periods waiting for their answer, to name the cause.
+    misses: MissLedger,
 }
 
 impl<const N: usize> Cycle<N> {
@@ -248,6 +260,7 @@ impl<const N: usize> Cycle<N> {
             idler: Idler::new(timing.wait, timing.spin_margin_ns),
             policy: HoldPolicy::new(timing.hold_periods),
             watch: PeerWatch::new(timing.silence_ns, now),
+            misses: MissLedger::default(),
         }
     }
 
@@ -266,6 +279,8 @@ fn slot(seq: u64) -> usize {
 /// A period's measurement, published: when, and until when its answer is awaited (ns).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct Released {
+    /// The scheduled release.
+    release: u64,
     /// The publication time.
     t_pub: u64,
     /// The deadline for its answer.
@@ -336,7 +351,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         if t_pub > deadline {
             self.stats.plant_overruns += 1;
         }
-        Ok(Released { t_pub, deadline })
+        Ok(Released { release, t_pub, deadline })
     }
 
     /// **Await the command**: drains and waits until the answer to `n` (or a refusal) came or
@@ -349,7 +364,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         if !peer_lost {
             let want = Wanted { n, max_age: u64::from(self.timing.max_command_age), applied: cy.applied };
             loop {
-                match self.drain::<N>(want, true)? {
+                match self.drain::<N>(want, Some(&mut cy.misses))? {
                     // The answer to `n`, or an older one newer than any found before.
                     Ok(Some(f)) if heard.fresh.is_none_or(|(c, _): Fresh| c.seq <= f.0.seq) => {
                         if heard.fresh.is_some_and(|(c, _)| c.seq < f.0.seq) {
@@ -382,10 +397,11 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         &mut self,
         cy: &mut Cycle<N>,
         n: u64,
-        t_pub: u64,
+        released: Released,
         heard: Heard,
         t: f64,
     ) -> Applied<N> {
+        let Released { release, t_pub, deadline } = released;
         let timing = self.timing;
         let (period, dt) = (timing.period_ns, self.stamp.dt);
         let stats = &mut *self.stats;
@@ -426,6 +442,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
             }
             Heard { fresh: None, refused: None } => {
                 stats.deadline_misses += 1;
+                cy.misses.missed(Period { seq: n, release, t_pub, deadline }, &mut stats.miss_causes);
                 let was_stopped = cy.policy.stopped();
                 let r = cy.policy.missed();
                 // A stop event is the hold running out on a moving robot (not the start of a
@@ -514,7 +531,7 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
         let released = side.release(&mut cy, n, &meas)?;
         let heard = side.await_command(&mut cy, n, released.deadline)?;
         answered_last = heard.fresh.is_some();
-        let applied = side.apply(&mut cy, n, released.t_pub, heard, plant.time());
+        let applied = side.apply(&mut cy, n, released, heard, plant.time());
         let row = plant.row(&applied.report, applied.source);
         let last = n == cy.last_step;
         let kept = sink(n, &row, last);
@@ -531,6 +548,7 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
         side.goodbye(cy.last_step, &mut cy.watch)?;
     }
     let stats = &mut *side.stats;
+    cy.misses.finish(&mut stats.miss_causes);
     stats.run_window_ns.1 = side.clock.now_ns();
     stats.wait = cy.idler.counts();
     stats.runqueue_wait_ns =
@@ -587,7 +605,7 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
         let mut idler = Idler::new(wait, side.timing.spin_margin_ns);
         let mut watch = PeerWatch::new(side.timing.silence_ns, t_pub);
         loop {
-            match side.drain::<N>(Wanted::current(n), false)? {
+            match side.drain::<N>(Wanted::current(n), None)? {
                 Ok(Some((c, _))) => {
                     side.stats.fresh += 1;
                     if wait == WaitMode::Event && !c.has(flags::NOTIFIES) {

@@ -70,6 +70,10 @@ pub struct LatencyReport {
     pub fresh_commands: u64,
     /// Periods whose command missed its deadline.
     pub deadline_misses: u64,
+    /// The deadline misses by cause, from both processes' stamps ([`super::misses`]): the
+    /// plant published late, the controller woke late or stepped long, the answer was sent
+    /// in time but came back late, or none came.
+    pub miss_causes: super::misses::MissCauses,
     /// Commands that arrived after their deadline (dropped).
     pub late_commands: u64,
     /// Answers to an earlier measurement applied as the newest answer (`--max-command-age`).
@@ -173,6 +177,7 @@ impl LatencyReport {
             cycles: st.cycles,
             fresh_commands: st.fresh,
             deadline_misses: st.deadline_misses,
+            miss_causes: st.miss_causes,
             late_commands: st.late_commands,
             aged_commands: st.aged_commands,
             held_periods: st.held_periods,

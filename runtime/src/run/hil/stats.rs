@@ -4,6 +4,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use serde::{Deserialize, Serialize};
 
+use super::misses::MissCauses;
 use super::wait::WaitCounts;
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::record::Rejections;
@@ -66,6 +67,8 @@ pub struct PlantStats {
     pub fresh: u64,
     /// Periods whose command did not arrive by the deadline.
     pub deadline_misses: u64,
+    /// The deadline misses by cause (real time; they sum to `deadline_misses` at the end).
+    pub miss_causes: MissCauses,
     /// Commands that arrived after their deadline (dropped).
     pub late_commands: u64,
     /// Answers to an earlier period's measurement applied as the newest answer

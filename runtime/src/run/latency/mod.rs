@@ -17,7 +17,12 @@
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
 //!    itself ([`BusyLoad`]: one busy-looping thread per online CPU, at normal priority, in
-//!    this process), so that one run shows how each mode copes with a shared machine.
+//!    this process), so that one run shows how each mode copes with a shared machine. Under
+//!    each load, before the HIL runs, the bare iceoryx2 ping-pong paced at 1 kHz runs as many
+//!    round trips as they have cycles: its round trips over the deadline are the transport's
+//!    own misses, and each run's misses, by cause (`latency.json` `miss_causes`: the
+//!    controller's, the plant's, the way back, unanswered), are set against them
+//!    ([`MissAccount`]: the loop's misses beyond the transport's, their ratio, the medians').
 //!
 //! Every figure comes from a histogram of individual samples (criterion cannot give a
 //! per-iteration maximum). The table, `latency-benchmark.json` and `latency-benchmark.svg`
@@ -42,6 +47,7 @@ use crate::domain::controller::{platform_name, AnyController, Scalar};
 use crate::domain::histogram::{fmt_ns, LatencyHistogram, Percentiles};
 use crate::domain::observe::Observer;
 use crate::domain::scenario::{Scenario, ScenarioError};
+use crate::run::hil::misses::MissCauses;
 use crate::run::hil::WaitMode;
 use crate::sys::clock::{Clock, MonotonicClock};
 use crate::sys::machine::Machine;
@@ -162,6 +168,9 @@ pub fn controller_step(
     Ok(h)
 }
 
+/// The deadline of the HIL runs of part (4): `companion hil`'s default `--deadline-us`.
+pub const HIL_DEADLINE_NS: u64 = 500_000;
+
 /// One HIL run's figures as the benchmark reads them from its `latency.json` (every key
 /// must be there: a missing one is an error, not a zero).
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -176,10 +185,68 @@ pub struct HilFigures {
     pub cycles: u64,
     /// Deadline misses.
     pub deadline_misses: u64,
+    /// Their causes.
+    pub miss_causes: MissCauses,
+    /// The deadline (ns).
+    pub deadline_ns: u64,
     /// Times the robot was stopped.
     pub stop_events: u64,
     /// The real-time setup in force.
     pub rt: RtFigures,
+}
+
+/// The bare transport under one load, paced at the HIL's period, as many round trips as the
+/// HIL runs have cycles: what the loop's misses are measured against.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PacedTransport {
+    /// The load.
+    pub load: Load,
+    /// Its round trips (ns).
+    pub round_trip_ns: Percentiles,
+    /// Round trips longer than the HIL's deadline: the transport's own misses.
+    pub over_deadline: u64,
+    /// That deadline (ns).
+    pub deadline_ns: u64,
+}
+
+/// One HIL run against the paced bare transport under the same load, in the same run
+/// (`latency-benchmark.json` `miss_account`).
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct MissAccount {
+    /// The wait mode.
+    pub wait: WaitMode,
+    /// The load.
+    pub load: Load,
+    /// The loop's deadline misses.
+    pub loop_misses: u64,
+    /// The bare transport's round trips over the deadline.
+    pub transport_misses: u64,
+    /// The loop's misses minus the transport's (negative: fewer than the bare transport's).
+    pub beyond_transport: i64,
+    /// Their ratio (aim: at most 1 idle, at most 2 under load; `null` when the transport
+    /// missed none and the loop did).
+    pub ratio: Option<f64>,
+    /// The loop's misses by cause.
+    pub causes: MissCauses,
+    /// The loop's round-trip median over the paced transport's (aim: at most 2).
+    pub p50_ratio: f64,
+}
+
+impl MissAccount {
+    /// The account of `f` against `t`.
+    pub fn new(wait: WaitMode, load: Load, f: &HilFigures, t: &PacedTransport) -> Self {
+        let (l, b) = (f.deadline_misses, t.over_deadline);
+        Self {
+            wait,
+            load,
+            loop_misses: l,
+            transport_misses: b,
+            beyond_transport: i64::try_from(l).unwrap_or(i64::MAX) - i64::try_from(b).unwrap_or(i64::MAX),
+            ratio: if b == 0 { (l == 0).then_some(1.0) } else { Some(l as f64 / b as f64) },
+            causes: f.miss_causes,
+            p50_ratio: ratio(f.round_trip_ns.p50, t.round_trip_ns.p50),
+        }
+    }
 }
 
 /// The part of `latency.json`'s `rt` the benchmark reads.
@@ -198,6 +265,7 @@ pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool
     std::fs::create_dir_all(dir)?;
     let duration = format!("{}", cycles as f64 * 1e-3);
     let name = format!("latency-{}-{}", std::process::id(), mode.as_str());
+    let deadline_us = (HIL_DEADLINE_NS / 1_000).to_string();
     let log = std::fs::File::create(dir.join("log.txt"))?;
     let mut cmd = Process::new(exe);
     cmd.args([
@@ -208,6 +276,8 @@ pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool
         mode.as_str(),
         "--name",
         &name,
+        "--deadline-us",
+        &deadline_us,
         "--no-plots",
         "--quiet",
     ])
@@ -271,6 +341,10 @@ pub struct Benchmark {
     pub second_clock: Vec<(String, SecondClock)>,
     /// The Zenoh round trips split at each hop, one per configuration ([`hops`]).
     pub zenoh_hops: Vec<hops::HopReport>,
+    /// The bare iceoryx2 transport paced at the HIL's period under each load (part 4).
+    pub paced_transport: Vec<PacedTransport>,
+    /// Each HIL run's misses against it.
+    pub miss_account: Vec<MissAccount>,
 }
 
 fn ratio(a: u64, b: u64) -> f64 {
@@ -451,11 +525,38 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
     };
     let step_p50 = rows.first().map_or(0, |r| r.ns.p50);
     let mut hil = Vec::new();
+    let (mut paced_transport, mut miss_account) = (Vec::new(), Vec::new());
     let load_threads = crate::sys::rt::online_cpus();
     for load in &a.loads {
         let _busy = match load {
             Load::Idle => None,
             Load::Busy => Some(BusyLoad::start(load_threads)?),
+        };
+        let paced = if a.hil_modes.is_empty() {
+            None
+        } else {
+            observer.note(&format!(
+                "(4) the bare transport under the same load: iceoryx2 ping-pong, busy-poll, one per ms, {}, {} round trips",
+                load.as_str(),
+                a.cycles
+            ));
+            let (h, _) =
+                pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
+            let t = PacedTransport {
+                load: *load,
+                round_trip_ns: h.percentiles(),
+                over_deadline: h.count_above(HIL_DEADLINE_NS),
+                deadline_ns: HIL_DEADLINE_NS,
+            };
+            observer.note(&format!(
+                "  round trip p50 {}  max {}; {} over the {} deadline",
+                fmt_ns(t.round_trip_ns.p50),
+                fmt_ns(t.round_trip_ns.max),
+                t.over_deadline,
+                fmt_ns(HIL_DEADLINE_NS)
+            ));
+            paced_transport.push(t);
+            Some(t)
         };
         for mode in &a.hil_modes {
             observer.note(&format!(
@@ -473,6 +574,28 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                 f.deadline_misses,
                 f.stop_events
             ));
+            if let Some(t) = &paced {
+                if f.deadline_ns != t.deadline_ns {
+                    bail!(
+                        "the HIL run's deadline is {} ns, the transport's count is against {} ns",
+                        f.deadline_ns,
+                        t.deadline_ns
+                    );
+                }
+                let m = MissAccount::new(*mode, *load, &f, t);
+                observer.note(&format!(
+                    "  against the bare transport: {} misses beyond its {} (controller {}, plant {}, way back {}, \
+                     unanswered {}); round trip {:.2}× its median",
+                    m.beyond_transport,
+                    m.transport_misses,
+                    m.causes.controller(),
+                    m.causes.plant_late,
+                    m.causes.return_path,
+                    m.causes.unanswered,
+                    m.p50_ratio
+                ));
+                miss_account.push(m);
+            }
             rows.push(Row {
                 part: "4",
                 name: format!("HIL cycle round trip, {}, {}", mode.as_str(), load.as_str()),
@@ -525,6 +648,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         ratios,
         second_clock,
         zenoh_hops,
+        paced_transport,
+        miss_account,
     };
     let path = a.out.join("latency-benchmark.json");
     std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")
@@ -622,6 +747,36 @@ mod tests {
         let f: HilFigures = serde_json::from_value(report_json()).unwrap();
         assert_eq!((f.cycles, f.deadline_misses, f.round_trip_ns.count), (7, 2, 1));
         assert!(!f.rt.fifo);
+    }
+
+    #[test]
+    fn the_loop_is_accounted_against_the_bare_transport_under_its_load() {
+        let mut f: HilFigures = serde_json::from_value(report_json()).unwrap();
+        assert_eq!(f.deadline_ns, HIL_DEADLINE_NS);
+        f.deadline_misses = 12;
+        f.round_trip_ns.p50 = 30_000;
+        let mut h = LatencyHistogram::new();
+        for ns in [8_000, 9_000, 10_000, 499_000, 501_000, 2_000_000] {
+            h.record(ns);
+        }
+        assert_eq!(h.count_above(HIL_DEADLINE_NS), 2);
+        let t = PacedTransport {
+            load: Load::Busy,
+            round_trip_ns: h.percentiles(),
+            over_deadline: h.count_above(HIL_DEADLINE_NS),
+            deadline_ns: HIL_DEADLINE_NS,
+        };
+        let m = MissAccount::new(WaitMode::Adaptive, Load::Busy, &f, &t);
+        assert_eq!((m.loop_misses, m.transport_misses, m.beyond_transport), (12, 2, 10));
+        assert_eq!(m.ratio, Some(6.0));
+        // The median of 8, 9, 10, 499, 501, 2000 µs is the third value's bucket.
+        assert!((m.p50_ratio - 3.0).abs() < 0.01, "{}", m.p50_ratio);
+        // A transport that missed none: the ratio is 1 if the loop missed none, else unbounded.
+        let none = PacedTransport { over_deadline: 0, ..t };
+        assert_eq!(MissAccount::new(WaitMode::Spin, Load::Idle, &f, &none).ratio, None);
+        f.deadline_misses = 0;
+        let m = MissAccount::new(WaitMode::Spin, Load::Idle, &f, &none);
+        assert_eq!((m.beyond_transport, m.ratio), (0, Some(1.0)));
     }
 
     #[test]

@@ -7,6 +7,7 @@ use std::time::Duration;
 use super::*;
 use crate::domain::controller::JOINTS;
 use crate::run::hil::messages::answer;
+use crate::run::hil::misses::MissCauses;
 use crate::sys::clock::FakeClock;
 use crate::transport::link::{Link, LinkError, PeerState};
 use crate::transport::wire::target::space;
@@ -23,6 +24,9 @@ struct Scripted {
     inbox: Vec<(u64, CommandMsg)>,
     sent: Vec<MeasurementMsg>,
     peer: PeerState,
+    /// How each answer is stamped: its step took `compute` and it was sent `back` before it
+    /// arrives (ns); `None`: not stamped (`received_ns` 0).
+    stamps: Option<(u64, u64)>,
 }
 
 impl Scripted {
@@ -33,6 +37,7 @@ impl Scripted {
             inbox: Vec::new(),
             sent: Vec::new(),
             peer: PeerState::Alive(1),
+            stamps: None,
         }
     }
 
@@ -46,11 +51,14 @@ impl Scripted {
             scenario_hash: 0,
             max_dt: 0.1,
         };
-        let header =
-            CommandHeader { identity, flags: flags::NOTIFIES, received_ns: 0, skipped: 0, delay: 0.0 };
+        let (compute, back) = self.stamps.unwrap_or((0, at));
+        let received_ns = at - back - compute;
+        let header = CommandHeader { identity, flags: flags::NOTIFIES, received_ns, skipped: 0, delay: 0.0 };
         let mut report = StepReport::<JOINTS>::zero(None);
         report.command.platform.v = 1.0 + m.seq as f64;
-        self.inbox.push((at, answer(m, &header, &report)));
+        let mut c = answer(m, &header, &report);
+        c.compute_ns = compute;
+        self.inbox.push((at, c));
         self.inbox.sort_by_key(|(t, _)| *t);
     }
 }
@@ -141,7 +149,7 @@ fn release_publishes_at_the_release_and_awaits_until_the_deadline() {
         (r0, r1)
     });
     // The handshake at once, awaited up to the peer timeout; period 1 at its release.
-    assert_eq!(r0, Released { t_pub: 0, deadline: 2_000 * MS });
+    assert_eq!(r0, Released { release: 0, t_pub: 0, deadline: 2_000 * MS });
     assert!((MS..MS + 2_000).contains(&r1.t_pub), "{r1:?}");
     assert_eq!(r1.deadline, MS + MS / 2);
     assert_eq!(link.sent.iter().map(|m| m.seq).collect::<Vec<_>>(), [0, 1]);
@@ -212,6 +220,42 @@ fn await_gives_up_at_the_deadline_and_the_late_answer_counts_late_in_the_next_pe
     assert_eq!(stats.late_commands, 1);
 }
 
+/// The causes four late answers and a missing one get, through the phases: stamped by the
+/// scripted controller as a long step, a late wake-up, a late way back; unstamped; none.
+#[test]
+fn each_miss_is_put_down_to_the_part_of_the_round_trip_that_took_its_time() {
+    type Count = fn(&MissCauses) -> u64;
+    let cases: [(Option<(u64, u64)>, Count); 4] = [
+        // 700 µs after publication: a 600 µs step, received 100 µs in.
+        (Some((600_000, 0)), |c| c.controller_compute),
+        // A 50 µs step, received 650 µs in.
+        (Some((50_000, 0)), |c| c.controller_wake),
+        // Sent 150 µs in, 550 µs on the way back.
+        (Some((50_000, 550_000)), |c| c.return_path),
+        (None, |c| c.clocks_apart),
+    ];
+    for (stamps, count) in cases {
+        let clock = Rc::new(FakeClock::new(0, 1_000));
+        // Period 1's answer comes 700 µs after it (its deadline is at 500 µs); 2 is answered
+        // in time; 3 never.
+        let mut link = Scripted::new(&clock, &[Some(0), Some(700_000), Some(100_000), None]);
+        link.stamps = stamps;
+        let mut stats = PlantStats::default();
+        with_side(&clock, &mut link, &mut stats, |side, cy| {
+            for n in 0..5 {
+                let r = side.release(cy, n, &zero_measurement()).unwrap();
+                let h = side.await_command(cy, n, r.deadline).unwrap();
+                side.apply(cy, n, r, h, n as f64 * 1e-3);
+            }
+            cy.misses.finish(&mut side.stats.miss_causes);
+        });
+        let c = stats.miss_causes;
+        assert_eq!((stats.deadline_misses, c.total()), (3, 3), "{stamps:?}: {c:?}");
+        // 1 late with its cause; 3 and 4 unanswered.
+        assert_eq!((count(&c), c.unanswered), (1, 2), "{stamps:?}: {c:?}");
+    }
+}
+
 #[test]
 fn apply_switches_at_the_arrival_and_announces_that_delay_next() {
     let clock = Rc::new(FakeClock::new(0, 1_000));
@@ -220,10 +264,10 @@ fn apply_switches_at_the_arrival_and_announces_that_delay_next() {
     let (a, delay, applied, flagged) = with_side(&clock, &mut link, &mut stats, |side, cy| {
         let r = side.release(cy, 0, &zero_measurement()).unwrap();
         let h = side.await_command(cy, 0, r.deadline).unwrap();
-        side.apply(cy, 0, r.t_pub, h, 0.0);
+        side.apply(cy, 0, r, h, 0.0);
         let r = side.release(cy, 1, &zero_measurement()).unwrap();
         let h = side.await_command(cy, 1, r.deadline).unwrap();
-        let a = side.apply(cy, 1, r.t_pub, h, 1e-3);
+        let a = side.apply(cy, 1, r, h, 1e-3);
         side.release(cy, 2, &zero_measurement()).unwrap();
         (a, cy.delay, cy.applied, side.last_sent.map(|m| m.delay))
     });
@@ -247,7 +291,7 @@ fn misses_hold_the_last_command_for_the_hold_then_stop_the_robot() {
         for n in 0..5 {
             let r = side.release(cy, n, &zero_measurement()).unwrap();
             let h = side.await_command(cy, n, r.deadline).unwrap();
-            let a = side.apply(cy, n, r.t_pub, h, n as f64 * 1e-3);
+            let a = side.apply(cy, n, r, h, n as f64 * 1e-3);
             side.account(cy, n, a.source, true);
             sources.push((a.source, a.report.command.platform.v));
         }
@@ -270,7 +314,13 @@ fn a_refusal_stops_the_robot_and_ends_the_run_at_its_step() {
     let mut stats = PlantStats::default();
     let why = Refusal::JointCount { plant: 3, controller: 6 };
     let (a, end, last) = with_side(&clock, &mut link, &mut stats, |side, cy| {
-        let a = side.apply(cy, 4, 0, Heard { fresh: None, refused: Some(why) }, 4e-3);
+        let a = side.apply(
+            cy,
+            4,
+            Released { release: 0, t_pub: 0, deadline: 0 },
+            Heard { fresh: None, refused: Some(why) },
+            4e-3,
+        );
         (a, cy.end, cy.last_step)
     });
     assert_eq!(a.source, CommandSource::Stopped);
