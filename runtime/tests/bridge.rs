@@ -422,6 +422,10 @@ fn a_stalled_bridge_is_reported_hung_and_a_pause_below_the_peer_timeout_is_waite
     let (cs, ct) = finish(c, LIMIT, "controller");
     assert_eq!(cs.code(), Some(4), "{ct}");
     assert!(ct.contains("alive but has sent nothing"), "{ct}");
+    // What the silent bridge was doing when it was found (read from /proc before the
+    // controller gave up): its threads, each named with its state.
+    assert!(ct.contains("controller: the silent plant's thread "), "{ct}");
+    assert!(ct.contains("asleep") || ct.contains("running"), "{ct}");
     let _ = b.kill();
     let _ = b.wait();
     // Pauses of 100 ms (the controller's silence check fires after 20 ms and finds the bridge

@@ -563,6 +563,48 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     );
 }
 
+/// A controller stopped for longer than `--peer-timeout` is a hung peer to the plant, which
+/// records what its threads were doing when it gave up: every one stopped by a signal (`T`),
+/// read from `/proc` (`sys::threads`, whose own test checks that reading against `ps`).
+#[test]
+fn a_controller_stopped_past_the_peer_timeout_is_recorded_stopped_by_the_plant() {
+    let _g = serial();
+    let d = dir("hung-controller");
+    let n = name("hung-controller");
+    let mut demo = Demo::start(&[
+        "hil",
+        "--duration",
+        "30",
+        "--peer-timeout",
+        "1",
+        "--no-plots",
+        "--quiet",
+        "--name",
+        &n,
+        "--out",
+        d.to_str().unwrap(),
+    ]);
+    let plant = demo.plant_pid();
+    wait_rows(&d.join("timeseries.csv"), 500);
+    let controller = demo.child.id();
+    signal(controller, "STOP");
+    // The plant ends the run after a second of silence, writes latency.json and exits.
+    let end = Instant::now() + HANG;
+    while alive(plant) {
+        assert!(Instant::now() < end, "the plant did not give up on a stopped controller in {HANG:?}");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    signal(controller, "CONT");
+    let (st, seen) = demo.wait(Duration::from_secs(30));
+    assert!(!st.success(), "{seen:#?}");
+    let lat = json(&d.join("latency.json"));
+    assert!(lat["end"].as_str().unwrap().contains("alive but silent"), "{lat:#}");
+    let threads = lat["hung_controller_threads"].as_array().unwrap();
+    assert!(!threads.is_empty(), "{lat:#}");
+    assert!(threads.iter().all(|t| t["state"] == "T"), "{threads:#?}");
+    println!("the stopped controller's threads: {threads:?}");
+}
+
 #[test]
 fn a_second_demo_with_the_same_name_is_refused_and_other_names_run() {
     let _g = serial();

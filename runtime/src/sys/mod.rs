@@ -7,7 +7,8 @@
 //! - [`clock`]: time behind a trait, so the loops run on a fake clock in tests;
 //! - [`machine`]: what the machine is (CPUs, load, kernel) for the reports;
 //! - [`process`]: children and signals to them;
-//! - [`lock`]: one process per role and demo name.
+//! - [`lock`]: one process per role and demo name;
+//! - [`threads`]: what another process's threads are doing (a hung peer's record).
 //!
 //! `rt`, `process` and `lock` hold the crate's only `unsafe` (plain libc calls).
 
@@ -17,3 +18,4 @@ pub mod machine;
 pub mod process;
 pub mod rt;
 pub mod signals;
+pub mod threads;

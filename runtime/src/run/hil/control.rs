@@ -25,6 +25,7 @@ use crate::sys::lock::NameLock;
 use crate::sys::lock::Role;
 use crate::sys::process::{exit_text, send_signal, ChildGuard, Signal};
 use crate::sys::signals::termination_requested;
+use crate::sys::threads::{threads_of, ThreadState};
 use crate::transport::link::LinkCounts;
 use crate::transport::{self, ControlEndpoint};
 
@@ -132,6 +133,14 @@ pub fn session(
     if matches!(end, ControlEnd::PlantDied { .. }) {
         ep.cleanup_dead_nodes();
     }
+    if let ControlEnd::PlantHung { pid, .. } = end {
+        // What the silent plant is doing (its pid is this machine's only over shared memory).
+        if matches!(cfg.transport, transport::Transport::Iceoryx2) {
+            for t in threads_of(pid) {
+                observer.note(&format!("controller: the silent plant's thread {}", t.describe()));
+            }
+        }
+    }
     Ok(Session { end, stats, injected, link })
 }
 
@@ -223,6 +232,9 @@ struct Fault {
     noticed_after_last_measurement_ms: f64,
     rows_on_disk: Option<u64>,
     controller_answered: u64,
+    /// A hung plant's threads when it was found silent, before it was killed
+    /// ([`crate::sys::threads`]).
+    plant_threads: Vec<ThreadState>,
 }
 
 fn ms(ns: u64) -> f64 {
@@ -330,9 +342,11 @@ pub fn run_as_parent(
             lost(cfg, end, status, pid, &stats, observer)
         }
         ControlEnd::PlantHung { .. } => {
-            // Alive but silent: stop it (it cannot be trusted to end on its own).
+            // Alive but silent: what its threads are doing, then stop it (it cannot be
+            // trusted to end on its own).
+            let threads = threads_of(i32::try_from(pid).unwrap_or(0));
             let status = child.finish(Duration::ZERO)?;
-            lost(cfg, end, status, pid, &stats, observer)
+            lost_with(cfg, end, status, pid, &stats, threads, observer)
         }
     }
 }
@@ -344,6 +358,19 @@ fn lost(
     status: Option<ExitStatus>,
     pid: u32,
     stats: &ControlStats,
+    observer: &dyn Observer,
+) -> Result<ParentOutcome> {
+    lost_with(cfg, end, status, pid, stats, Vec::new(), observer)
+}
+
+/// [`lost`], with the threads of a hung plant.
+fn lost_with(
+    cfg: &HilConfig,
+    end: ControlEnd,
+    status: Option<ExitStatus>,
+    pid: u32,
+    stats: &ControlStats,
+    plant_threads: Vec<ThreadState>,
     observer: &dyn Observer,
 ) -> Result<ParentOutcome> {
     let how = status.map_or("unknown".to_string(), exit_text);
@@ -359,7 +386,7 @@ fn lost(
     let (last, silent) = match end {
         ControlEnd::PlantDied { last_seq, silent_ns, .. } => (last_seq, silent_ns),
         ControlEnd::PlantGone { last_seq } => (last_seq, 0),
-        ControlEnd::PlantHung { silent_ns } => (None, silent_ns),
+        ControlEnd::PlantHung { silent_ns, .. } => (None, silent_ns),
         ControlEnd::EndOfRun | ControlEnd::Interrupted => (None, 0),
     };
     let fault = Fault {
@@ -370,6 +397,7 @@ fn lost(
         noticed_after_last_measurement_ms: ms(silent),
         rows_on_disk: rows,
         controller_answered: stats.answered,
+        plant_threads,
     };
     let _ = std::fs::create_dir_all(&cfg.out);
     let path = cfg.out.join("fault.json");

@@ -34,6 +34,8 @@ pub enum PlantEnd {
         cycle: u64,
         /// Silence (ns).
         silent_ns: u64,
+        /// The controller's pid, as its transport reports it.
+        pid: i32,
     },
     /// The controller refused to serve this plant (a mismatch it names).
     Refused(Refusal),
@@ -59,7 +61,7 @@ impl PlantEnd {
             Self::ControllerGone { cycle } => {
                 format!("controller exited before the end of the run (noticed at cycle {cycle}); robot stopped")
             }
-            Self::ControllerHung { cycle, silent_ns } => format!(
+            Self::ControllerHung { cycle, silent_ns, .. } => format!(
                 "controller alive but silent for {:.0} ms (at cycle {cycle}); robot stopped, run abandoned",
                 ms(silent_ns)
             ),
@@ -93,6 +95,8 @@ pub enum ControlEnd {
     PlantHung {
         /// Silence (ns).
         silent_ns: u64,
+        /// The plant's pid, as its transport reports it.
+        pid: i32,
     },
     /// SIGINT/SIGTERM and no end of run within a second.
     Interrupted,
@@ -123,7 +127,7 @@ impl ControlEnd {
                 ms(*silent_ns)
             ),
             ControlEnd::PlantGone { last_seq } => format!("the plant left {}", seq(last_seq)),
-            ControlEnd::PlantHung { silent_ns } => {
+            ControlEnd::PlantHung { silent_ns, .. } => {
                 format!("the plant is alive but has sent nothing for {:.0} ms", ms(*silent_ns))
             }
             ControlEnd::Interrupted => "interrupted".into(),

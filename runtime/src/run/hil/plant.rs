@@ -292,6 +292,9 @@ fn write_latency(
     latency.chaos_stops = chaos_stops;
     latency.link_counts = link_counts;
     report::write_json(dir, &latency)?;
+    for t in &latency.hung_controller_threads {
+        observer.note(&format!("plant: the silent controller's thread {}", t.describe()));
+    }
     if !cfg.no_plots {
         if let Err(e) = report::write_svg(dir, stats, &latency) {
             observer.warn(&format!("latency plot: {e:#}"));

@@ -216,7 +216,7 @@ fn lost(loss: PeerLoss, cycle: u64) -> PlantEnd {
             PlantEnd::ControllerDied { pid, cycle, silent_ns, expired }
         }
         PeerLoss::Gone => PlantEnd::ControllerGone { cycle },
-        PeerLoss::Hung { silent_ns } => PlantEnd::ControllerHung { cycle, silent_ns },
+        PeerLoss::Hung { silent_ns, pid } => PlantEnd::ControllerHung { cycle, silent_ns, pid },
     }
 }
 

@@ -15,6 +15,7 @@ use crate::domain::record::Failure;
 use crate::domain::scenario::Scenario;
 use crate::sys::machine::Machine;
 use crate::sys::rt::RtReport;
+use crate::transport::Transport;
 
 /// The real-time setup as it was in force.
 #[derive(Clone, Debug, Default, Serialize)]
@@ -131,6 +132,9 @@ pub struct LatencyReport {
     /// (Zenoh; `null` on iceoryx2): against the controller's counts, the messages lost in
     /// transit (`link.json` of `companion hil`).
     pub link_counts: Option<crate::transport::link::LinkCounts>,
+    /// A hung controller's threads when the plant found it silent, on one machine (empty
+    /// otherwise; [`crate::sys::threads`]): running, runnable, asleep and where, or stopped.
+    pub hung_controller_threads: Vec<crate::sys::threads::ThreadState>,
     /// Wall-clock time (s).
     pub wall_time_s: f64,
     /// The machine.
@@ -205,6 +209,13 @@ impl LatencyReport {
             failures: Vec::new(),
             chaos_stops: Vec::new(),
             link_counts: None,
+            hung_controller_threads: match end {
+                // The pid is this machine's only over shared memory.
+                PlantEnd::ControllerHung { pid, .. } if matches!(cfg.transport, Transport::Iceoryx2) => {
+                    crate::sys::threads::threads_of(*pid)
+                }
+                _ => Vec::new(),
+            },
             wall_time_s,
             machine: Machine::now(),
         }

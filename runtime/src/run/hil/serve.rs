@@ -245,7 +245,7 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
                 return Ok(ControlEnd::PlantDied { pid, last_seq, silent_ns, expired })
             }
             Some(PeerLoss::Gone) => return Ok(ControlEnd::PlantGone { last_seq }),
-            Some(PeerLoss::Hung { silent_ns }) => return Ok(ControlEnd::PlantHung { silent_ns }),
+            Some(PeerLoss::Hung { silent_ns, pid }) => return Ok(ControlEnd::PlantHung { silent_ns, pid }),
             None => {}
         }
         if termination_requested() {

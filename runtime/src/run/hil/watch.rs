@@ -26,6 +26,8 @@ pub enum PeerLoss {
     Hung {
         /// Silence (ns).
         silent_ns: u64,
+        /// The pid its transport reports.
+        pid: i32,
     },
 }
 
@@ -78,7 +80,7 @@ impl PeerWatch {
             PeerState::Dead(pid) => Some(PeerLoss::Died { pid, silent_ns, expired: false }),
             PeerState::Expired(pid) => Some(PeerLoss::Died { pid, silent_ns, expired: true }),
             PeerState::Absent => Some(PeerLoss::Gone),
-            PeerState::Alive(_) if silent_ns >= timeout_ns => Some(PeerLoss::Hung { silent_ns }),
+            PeerState::Alive(pid) if silent_ns >= timeout_ns => Some(PeerLoss::Hung { silent_ns, pid }),
             PeerState::Alive(_) => None,
         })
     }
@@ -120,7 +122,7 @@ mod tests {
         assert_eq!(w.check(120, 50, &mut alive).unwrap(), None);
         assert_eq!(w.check(130, 50, &mut alive).unwrap(), None);
         assert_eq!(alive.1, 1, "one check per silence interval");
-        assert_eq!(w.check(150, 50, &mut alive).unwrap(), Some(PeerLoss::Hung { silent_ns: 50 }));
+        assert_eq!(w.check(150, 50, &mut alive).unwrap(), Some(PeerLoss::Hung { silent_ns: 50, pid: 7 }));
         w.heard(150);
         assert_eq!(w.check(160, 50, &mut alive).unwrap(), None);
         let mut dead = Peer(PeerState::Dead(9), 0);
