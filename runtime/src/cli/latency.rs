@@ -155,7 +155,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
         zenoh_low_latency: a.zenoh_low_latency,
         zenoh_spin: a.zenoh_spin,
     };
-    peer(&opts, &Terminal::lines())
+    Ok(peer(&opts, &Terminal::lines())?)
 }
 
 fn print_table(b: &Benchmark) {
