@@ -78,6 +78,14 @@ pub enum LatencyError {
         /// Its log.
         log: PathBuf,
     },
+    /// A HIL run's deadline is not the one the bare transport's misses were counted against.
+    #[error("the HIL run's deadline is {hil_ns} ns, the transport's count is against {transport_ns} ns")]
+    DeadlineMismatch {
+        /// The HIL run's (ns).
+        hil_ns: u64,
+        /// The transport's count's (ns).
+        transport_ns: u64,
+    },
     /// The peer's parent, the benchmark, is gone.
     #[error("the benchmark process is gone")]
     BenchmarkGone,

@@ -580,11 +580,10 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
             ));
             if let Some(t) = &paced {
                 if f.deadline_ns != t.deadline_ns {
-                    bail!(
-                        "the HIL run's deadline is {} ns, the transport's count is against {} ns",
-                        f.deadline_ns,
-                        t.deadline_ns
-                    );
+                    return Err(LatencyError::DeadlineMismatch {
+                        hil_ns: f.deadline_ns,
+                        transport_ns: t.deadline_ns,
+                    });
                 }
                 let m = MissAccount::new(*mode, *load, &f, t);
                 observer.note(&format!(
