@@ -310,7 +310,8 @@ impl HilArgs {
     /// # Errors
     /// A bad flag value or file, naming the flag or parameter and the rule.
     pub fn resolve(&self) -> Result<(HilConfig, HilScenario)> {
-        lock::validate_name(&self.name)?;
+        // The one check of the demo's name: everything below takes the checked name.
+        let name = lock::DemoName::new(&self.name)?;
         if self.delay != 0.0 && !self.lockstep {
             bail!(
                 "--delay simulates a pure delay in lockstep (--lockstep); in real time the plant measures the \
@@ -381,7 +382,7 @@ impl HilArgs {
             );
         }
         let cfg = HilConfig {
-            name: self.name.clone(),
+            name,
             out: self.out.clone(),
             timing,
             startup_timeout,

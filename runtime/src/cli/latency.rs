@@ -147,7 +147,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
     }
     let opts = PeerOptions {
         transport: a.transport,
-        name: a.name.clone(),
+        name: companion_runtime::sys::lock::DemoName::new(&a.name)?,
         socket_dir: a.socket_dir.clone(),
         endpoint: a.endpoint.clone(),
         tls_dir: a.tls_dir.clone(),

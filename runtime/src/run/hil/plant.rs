@@ -34,7 +34,7 @@ use crate::run::spatial::stream::{SpatialStream, StreamError};
 use crate::run::spatial::{self, SpatialOutcome, SpatialRunError, SpatialScenario};
 use crate::sys::clock::MonotonicClock;
 use crate::sys::lock::NameLock;
-use crate::sys::lock::{LockError, NameInUse, Role};
+use crate::sys::lock::{DemoName, LockError, NameInUse, Role};
 use crate::transport::error::{OpenError, StartError};
 use crate::transport::link::Link as _;
 use crate::transport::wire::{canonical, flags, platform};
@@ -162,7 +162,7 @@ impl PlantLock {
     ///
     /// # Errors
     /// [`crate::sys::lock::NameInUse`], or a child whose parent does not hold the role.
-    pub fn acquire(name: &str, child: bool) -> Result<Self, PlantRunError> {
+    pub fn acquire(name: &DemoName, child: bool) -> Result<Self, PlantRunError> {
         if !child {
             return Ok(Self::Own(NameLock::acquire(name, Role::Plant)?));
         }

@@ -7,6 +7,7 @@ use std::process::ExitStatus;
 
 use crate::domain::plant_setup::PlantSetupError;
 use crate::domain::scenario::ScenarioError;
+use crate::sys::lock::NameError;
 #[cfg(feature = "zenoh")]
 use crate::transport::certs::CertsError;
 use crate::transport::error::{OpenError, StartError};
@@ -24,6 +25,9 @@ pub enum LatencyError {
     /// `--transport zenoh` in a build without the feature.
     #[error("{}", crate::transport::BUILD_WITH_ZENOH)]
     NoZenoh,
+    /// A demo name made of this process's id is too long (a pid of 7 digits).
+    #[error(transparent)]
+    Name(#[from] NameError),
     /// The scenario of part (1) cannot be built.
     #[error(transparent)]
     Scenario(#[from] ScenarioError),

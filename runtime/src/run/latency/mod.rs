@@ -734,7 +734,7 @@ mod tests {
             max_command_age: 0,
         };
         let cfg = HilConfig {
-            name: "t".into(),
+            name: crate::sys::lock::DemoName::new("t").unwrap(),
             out: PathBuf::new(),
             timing,
             startup_timeout: Duration::from_secs(1),

@@ -21,6 +21,7 @@ use serde::Serialize;
 use super::error::{os, LatencyError};
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::observe::Observer;
+use crate::sys::lock::DemoName;
 use crate::sys::process::ChildGuard;
 use crate::sys::rt;
 use crate::transport::ipc::{ControlEndpoint, PlantEndpoint};
@@ -63,7 +64,7 @@ pub struct PeerOptions {
     /// The transport.
     pub transport: Transport,
     /// The iceoryx2 demo name.
-    pub name: String,
+    pub name: DemoName,
     /// The folder of the sockets (uds).
     pub socket_dir: Option<PathBuf>,
     /// The endpoint to connect to (zenoh).
@@ -113,7 +114,7 @@ pub(super) fn ping(seq: u64, last: bool) -> MeasurementMsg {
     MeasurementMsg::new(header, &m)
 }
 
-pub(super) fn peer_iox(name: &str, events: bool) -> Result<(), LatencyError> {
+pub(super) fn peer_iox(name: &DemoName, events: bool) -> Result<(), LatencyError> {
     let mut ep = ControlEndpoint::control(name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
@@ -215,18 +216,18 @@ pub fn iceoryx(
     pace_ns: Option<u64>,
     observer: &dyn Observer,
 ) -> Result<(LatencyHistogram, SecondClock), LatencyError> {
-    let name = format!(
+    let name = DemoName::new(&format!(
         "latency-{}-{}{}",
         std::process::id(),
         if events { "event" } else { "spin" },
         if pace_ns.is_some() { "-paced" } else { "" }
-    );
+    ))?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
         "--transport".to_string(),
         if events { Transport::IoxEvent } else { Transport::IoxSpin }.as_str().to_string(),
         "--name".to_string(),
-        name.clone(),
+        name.to_string(),
     ];
     if use_rt {
         args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);

@@ -15,7 +15,7 @@ use super::hops::{HopRecorder, HopReport, Stamps};
 use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Samples, SecondClock, Transport};
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::observe::Observer;
-use crate::sys::lock::Role;
+use crate::sys::lock::{DemoName, Role};
 use crate::sys::rt;
 use crate::transport::link::PeerState;
 use crate::transport::wire::flags;
@@ -154,7 +154,12 @@ fn security(dir: Option<&Path>, role: Role) -> Security {
 ///
 /// # Errors
 /// A bad endpoint, a Zenoh failure, or the benchmark gone.
-pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>, variant: Variant) -> Result<(), LatencyError> {
+pub fn peer(
+    name: &DemoName,
+    endpoint: &str,
+    tls: Option<&Path>,
+    variant: Variant,
+) -> Result<(), LatencyError> {
     let link = ZenohLink::Connect(TcpEndpoint::parse(endpoint)?);
     let mut ep = ZenohControl::open_tuned(
         name,
@@ -279,14 +284,14 @@ pub fn round_trips(
             format!("tcp/{}:{}", v.here, l.local_addr()?.port())
         }
     };
-    let name = format!(
+    let name = DemoName::new(&format!(
         "latency-{}-zenoh{}{}{}{}",
         std::process::id(),
         if veth.is_some() { "-netns" } else { "" },
         if tls.is_some() { "-tls" } else { "" },
         if variant.tuning.low_latency { "-ll" } else { "" },
         if variant.handoff == Handoff::Spin { "-spin" } else { "" },
-    );
+    ))?;
     let config = format!(
         "{}, {}",
         match (tls.is_some(), veth.is_some()) {
@@ -310,7 +315,7 @@ pub fn round_trips(
         "--transport".to_string(),
         Transport::Zenoh.as_str().to_string(),
         "--name".to_string(),
-        name,
+        name.to_string(),
         "--endpoint".to_string(),
         endpoint,
     ];
@@ -379,7 +384,11 @@ pub fn round_trips(
 pub fn session_setup(n: u32, tls: Option<&Tls>) -> Result<LatencyHistogram, LatencyError> {
     let tls_dir = tls.map(Tls::dir);
     let endpoint = TcpEndpoint::parse(&crate::transport::free_local_endpoint(tls.is_none())?)?;
-    let name = format!("latency-{}-setup{}", std::process::id(), if tls.is_some() { "-tls" } else { "" });
+    let name = DemoName::new(&format!(
+        "latency-{}-setup{}",
+        std::process::id(),
+        if tls.is_some() { "-tls" } else { "" }
+    ))?;
     let plant = ZenohPlant::open(
         &name,
         Role::Plant,
