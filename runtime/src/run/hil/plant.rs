@@ -286,11 +286,70 @@ impl Opened {
     }
 }
 
-/// What `summary.json` records of the link.
-fn link_record(cfg: &HilConfig) -> crate::domain::record::summary::LinkRecord {
-    crate::domain::record::summary::LinkRecord {
-        transport: cfg.transport.describe(),
-        insecure: cfg.transport.insecure(),
+/// A plant run after its loop, as its files describe it: what it was asked (the
+/// configuration, the scenario), where it writes, what the loop counted and how it ended,
+/// and whom it tells. What every step from the loop's end to the files reads.
+struct RunContext<'a> {
+    cfg: &'a HilConfig,
+    s: &'a Scenario,
+    dir: &'a std::path::Path,
+    observer: &'a dyn Observer,
+    stats: &'a PlantStats,
+    rt: Option<&'a crate::sys::rt::RtReport>,
+    end: PlantEnd,
+    /// The run's wall time (s).
+    wall_s: f64,
+}
+
+impl RunContext<'_> {
+    /// What `summary.json` records of the link.
+    fn link_record(&self) -> crate::domain::record::summary::LinkRecord {
+        crate::domain::record::summary::LinkRecord {
+            transport: self.cfg.transport.describe(),
+            insecure: self.cfg.transport.insecure(),
+        }
+    }
+
+    /// The real-time failures of a run that ended as it should (a lost controller stops the
+    /// robot by design, its end says so; a chaos run stops it on purpose, its own check
+    /// applies).
+    fn real_time_failures(&self) -> Vec<Failure> {
+        let (cfg, stats) = (self.cfg, self.stats);
+        let judged = matches!(self.end, PlantEnd::Completed | PlantEnd::Interrupted { .. });
+        if cfg.timing.lockstep || !judged || cfg.chaos.is_some() {
+            return Vec::new();
+        }
+        let figures = DeadlineFigures {
+            cycles: stats.cycles,
+            deadline_misses: stats.deadline_misses,
+            stop_events: stats.stop_events,
+            stopped_periods: stats.stopped_periods,
+        };
+        deadline_failures(&figures, stats.first_stop_t, cfg.acceptance.max_miss_fraction)
+    }
+
+    /// Writes `latency.json` (and its plot unless `--no-plots`) with the run's `failures`,
+    /// the chaos agent's stops and the transport's counts.
+    ///
+    /// # Errors
+    /// `latency.json` cannot be written.
+    fn write_latency(
+        &self,
+        failures: &[Failure],
+        chaos_stops: Vec<super::chaos::DoneStop>,
+        link_counts: Option<crate::transport::link::LinkCounts>,
+    ) -> Result<LatencyReport, RecordError> {
+        let mut latency = LatencyReport::new(self.s, self.cfg, self.stats, self.rt, &self.end, self.wall_s);
+        latency.failures = failures.to_vec();
+        latency.chaos_stops = chaos_stops;
+        latency.link_counts = link_counts;
+        report::write_json(self.dir, &latency)?;
+        if !self.cfg.no_plots {
+            if let Err(e) = report::write_svg(self.dir, self.stats, &latency) {
+                self.observer.warn(&format!("latency plot: {}", Causes(&e)));
+            }
+        }
+        Ok(latency)
     }
 }
 
@@ -323,53 +382,6 @@ fn after_loop(ep: &PlantEndpoint, stats: &PlantStats, end: &PlantEnd, observer: 
     if matches!(end, PlantEnd::ControllerDied { .. }) {
         ep.cleanup_dead_nodes();
     }
-}
-
-/// The real-time failures of a run that ended as it should (a lost controller stops the robot
-/// by design, its end says so; a chaos run stops it on purpose, its own check applies).
-fn real_time_failures(cfg: &HilConfig, stats: &PlantStats, end: &PlantEnd) -> Vec<Failure> {
-    let judged = matches!(end, PlantEnd::Completed | PlantEnd::Interrupted { .. });
-    if cfg.timing.lockstep || !judged || cfg.chaos.is_some() {
-        return Vec::new();
-    }
-    let figures = DeadlineFigures {
-        cycles: stats.cycles,
-        deadline_misses: stats.deadline_misses,
-        stop_events: stats.stop_events,
-        stopped_periods: stats.stopped_periods,
-    };
-    deadline_failures(&figures, stats.first_stop_t, cfg.acceptance.max_miss_fraction)
-}
-
-/// Writes `latency.json` (and its plot unless `--no-plots`).
-///
-/// # Errors
-/// `latency.json` cannot be written.
-#[allow(clippy::too_many_arguments)]
-fn write_latency(
-    cfg: &HilConfig,
-    s: &Scenario,
-    dir: &std::path::Path,
-    stats: &PlantStats,
-    rt: Option<&crate::sys::rt::RtReport>,
-    end: &PlantEnd,
-    wall_s: f64,
-    failures: &[Failure],
-    chaos_stops: Vec<super::chaos::DoneStop>,
-    link_counts: Option<crate::transport::link::LinkCounts>,
-    observer: &dyn Observer,
-) -> Result<LatencyReport, RecordError> {
-    let mut latency = LatencyReport::new(s, cfg, stats, rt, end, wall_s);
-    latency.failures = failures.to_vec();
-    latency.chaos_stops = chaos_stops;
-    latency.link_counts = link_counts;
-    report::write_json(dir, &latency)?;
-    if !cfg.no_plots {
-        if let Err(e) = report::write_svg(dir, stats, &latency) {
-            observer.warn(&format!("latency plot: {}", Causes(&e)));
-        }
-    }
-    Ok(latency)
 }
 
 /// The plant of the paper's arm.
@@ -456,6 +468,7 @@ fn run_planar(
     live.finish();
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
+    let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
     let mut summary = recorder.summary.finish(wall_s);
     summary.ended_early = end != PlantEnd::Completed;
     summary.failures.extend(rejection_failure(
@@ -464,22 +477,10 @@ fn run_planar(
         summary.first_rejection_at_s,
         cfg.acceptance.max_rejected,
     ));
-    summary.failures.extend(real_time_failures(cfg, &stats, &end));
-    summary.link = Some(link_record(cfg));
+    summary.failures.extend(ctx.real_time_failures());
+    summary.link = Some(ctx.link_record());
     write_summary(dir, s, &summary)?;
-    let latency = write_latency(
-        cfg,
-        s,
-        dir,
-        &stats,
-        rt_report.as_ref(),
-        &end,
-        wall_s,
-        &summary.failures,
-        chaos_stops,
-        ep.link_counts(),
-        observer,
-    )?;
+    let latency = ctx.write_latency(&summary.failures, chaos_stops, ep.link_counts())?;
     let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
     let run = RunOutcome { scenario: s.clone(), summary, rows };
     if !cfg.no_plots {
@@ -584,9 +585,10 @@ where
     live.finish();
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
+    let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
     outcome.summary.wall_time_s = wall_s;
-    outcome.summary.link = Some(link_record(cfg));
-    for f in real_time_failures(cfg, &stats, &end) {
+    outcome.summary.link = Some(ctx.link_record());
+    for f in ctx.real_time_failures() {
         outcome.summary.fail(f);
     }
     // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
@@ -596,19 +598,7 @@ where
         let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
         observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
     }
-    let latency = write_latency(
-        cfg,
-        s,
-        dir,
-        &stats,
-        rt_report.as_ref(),
-        &end,
-        wall_s,
-        &outcome.summary.failures,
-        Vec::new(),
-        ep.link_counts(),
-        observer,
-    )?;
+    let latency = ctx.write_latency(&outcome.summary.failures, Vec::new(), ep.link_counts())?;
     if !cfg.no_plots {
         if let Err(e) = crate::domain::plots::spatial::render(dir, &outcome.figures()) {
             observer.warn(&format!("plots: {}", Causes(&e)));
