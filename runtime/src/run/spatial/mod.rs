@@ -335,6 +335,9 @@ pub enum Halt<X> {
     Failed(LoopError),
 }
 
+/// What [`execute`] gives back: the run's outcome, and why it stopped early if it did.
+pub type Executed<X> = (SpatialOutcome, Option<Halt<X>>);
+
 /// The controller in this process.
 struct InProcess<'c, const N: usize> {
     controller: &'c mut (dyn SpatialStep<N> + Send),
@@ -493,7 +496,7 @@ pub fn execute<const N: usize, X: SpatialExchange<N>>(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<(SpatialOutcome, Option<Halt<X::End>>), SpatialRunError> {
+) -> Result<Executed<X::End>, SpatialRunError> {
     let (lower, upper) = limits(plant.chain());
     let mut acc = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
     let steps = s.steps();
