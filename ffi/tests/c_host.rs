@@ -36,6 +36,7 @@ use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, 
 use companion_runtime::domain::observe::Silent;
 use companion_runtime::domain::scenario::Scenario;
 use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::transport::link::LinkError;
 
 /// Commands compared per case: steps 0..=999.
 const COMMANDS: usize = 1000;
@@ -230,9 +231,13 @@ impl Exchange for Twin {
         &mut self,
         _n: u64,
         meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Infallible, StepReport>> {
+    ) -> Result<ControlFlow<Infallible, StepReport>, LinkError> {
         let reference = self.reference.report(meas);
-        let (c_status, c_command) = self.c.step(meas)?;
+        // The C controller answers over a pipe: its failures are the link's.
+        let (c_status, c_command) = self
+            .c
+            .step(meas)
+            .map_err(|e| LinkError::Receive { step: "the C controller's pipe", cause: format!("{e:#}") })?;
         self.steps.push(Pair { reference, c_status, c_command });
         Ok(ControlFlow::Continue(StepReport { command: c_command, ..reference }))
     }

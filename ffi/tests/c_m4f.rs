@@ -30,6 +30,7 @@ use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, 
 use companion_runtime::domain::observe::Silent;
 use companion_runtime::domain::scenario::Scenario;
 use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::transport::link::LinkError;
 
 const TARGET: &str = "thumbv7em-none-eabihf";
 const STEPS: usize = 1000;
@@ -68,7 +69,7 @@ impl Exchange for Recorder {
         &mut self,
         _n: u64,
         meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Infallible, StepReport>> {
+    ) -> Result<ControlFlow<Infallible, StepReport>, LinkError> {
         let report = self.reference.report(meas);
         self.steps.push((*meas, report));
         Ok(ControlFlow::Continue(report))

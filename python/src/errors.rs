@@ -287,6 +287,31 @@ pub fn runtime_error(py: Python<'_>, e: &anyhow::Error) -> PyErr {
     }
 }
 
+/// A planar run's error as [`runtime_error`] reads it: its cause (the scenario, the plant)
+/// itself, so that a parameter's class is found as when the cause came up alone.
+pub fn sim_error(py: Python<'_>, e: companion_runtime::run::sim::SimError) -> PyErr {
+    use companion_runtime::run::sim::SimError;
+    let e = match e {
+        SimError::Setup(e) => anyhow::Error::new(e),
+        SimError::Scenario(e) => anyhow::Error::new(e),
+        other => anyhow::Error::new(other),
+    };
+    runtime_error(py, &e)
+}
+
+/// A spatial run's error as [`runtime_error`] reads it: its cause (the scenario, the arm,
+/// the law) itself, so that a parameter's class is found as when the cause came up alone.
+pub fn spatial_error(py: Python<'_>, e: companion_runtime::run::spatial::SpatialRunError) -> PyErr {
+    use companion_runtime::run::spatial::SpatialRunError;
+    let e = match e {
+        SpatialRunError::Scenario(e) => anyhow::Error::new(e),
+        SpatialRunError::Arm(e) => anyhow::Error::new(e),
+        SpatialRunError::Controller(e) => anyhow::Error::new(e),
+        other => anyhow::Error::new(other),
+    };
+    runtime_error(py, &e)
+}
+
 /// Adds every exception class to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();

@@ -18,7 +18,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::errors::runtime_error;
+use crate::errors::{runtime_error, sim_error, spatial_error};
 use crate::law::{
     config_file, parse_choice, parse_discretisation, parse_limits, parse_platform, parse_scalar,
 };
@@ -227,7 +227,8 @@ pub fn simulate<'py>(
             let acceptance = Acceptance { max_rejected, ..Acceptance::default() };
             let run =
                 py.detach(|| companion_runtime::run::sim::run_one_with(&base, &dir, &Silent, &acceptance));
-            run.map_err(err).and_then(|o| Ok((planar_timeseries(py, &o.rows)?, json_dict(py, &o.summary)?)))
+            run.map_err(|e| sim_error(py, e))
+                .and_then(|o| Ok((planar_timeseries(py, &o.rows)?, json_dict(py, &o.summary)?)))
         }
         Some(arm) => {
             let target = match target_file {
@@ -235,10 +236,10 @@ pub fn simulate<'py>(
                 None => SpatialTargetChoice::Lifted(traj),
             };
             let s = SpatialScenario::new(base, arm, target).map_err(|e| err(e.into()))?;
-            companion_runtime::run::spatial::check(&s).map_err(err)?;
+            companion_runtime::run::spatial::check(&s).map_err(|e| spatial_error(py, e))?;
             let run =
                 py.detach(|| companion_runtime::run::spatial::run_spatial(&s, &dir, &Silent, max_rejected));
-            run.map_err(err)
+            run.map_err(|e| spatial_error(py, e))
                 .and_then(|o| Ok((spatial_timeseries(py, &o.records)?, json_dict(py, &o.summary)?)))
         }
     };

@@ -23,6 +23,7 @@ use companion_runtime::run::hil::serve::{serve, serve_law, ServeOptions};
 use companion_runtime::run::hil::stats::{ControlStats, LiveFigures, PlantStats};
 use companion_runtime::run::hil::{ControlEnd, Timing, WaitMode};
 use companion_runtime::sys::clock::{Clock, FakeClock, MonotonicClock};
+use companion_runtime::sys::lock::DemoName;
 use companion_runtime::transport::ipc::{ControlEndpoint, PlantEndpoint};
 use companion_runtime::transport::link::{Link, LinkError, PeerState};
 use companion_runtime::transport::wire::{
@@ -198,7 +199,7 @@ const DIAG: LoggedDiagnostics = LoggedDiagnostics::IDLE;
 /// 1 kHz: the allocations of the plant's loop and of the controller's (each less the
 /// transport's own), and the controller's answers.
 fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
-    let name = format!("noalloc-{}-{:.0}", std::process::id(), duration * 1000.0);
+    let name = DemoName::new(&format!("noalloc-{}-{:.0}", std::process::id(), duration * 1000.0)).unwrap();
     let timing = Timing { wait: WaitMode::Adaptive, ..TIMING };
     let s = scenario(duration);
     let steps = s.steps();
@@ -302,7 +303,7 @@ fn the_zenoh_exchange_allocates_only_in_zenoh() {
         Security, TcpEndpoint, ZenohControl, ZenohLink, ZenohPlant,
     };
 
-    let name = format!("noalloc-zenoh-{}", std::process::id());
+    let name = DemoName::new(&format!("noalloc-zenoh-{}", std::process::id())).unwrap();
     let port = std::net::TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port();
     let ep = TcpEndpoint::parse(&format!("tcp/127.0.0.1:{port}")).unwrap();
     let mut plant = ZenohPlant::open(

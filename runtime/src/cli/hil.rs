@@ -310,7 +310,8 @@ impl HilArgs {
     /// # Errors
     /// A bad flag value or file, naming the flag or parameter and the rule.
     pub fn resolve(&self) -> Result<(HilConfig, HilScenario)> {
-        lock::validate_name(&self.name)?;
+        // The one check of the demo's name: everything below takes the checked name.
+        let name = lock::DemoName::new(&self.name)?;
         if self.delay != 0.0 && !self.lockstep {
             bail!(
                 "--delay simulates a pure delay in lockstep (--lockstep); in real time the plant measures the \
@@ -381,7 +382,7 @@ impl HilArgs {
             );
         }
         let cfg = HilConfig {
-            name: self.name.clone(),
+            name,
             out: self.out.clone(),
             timing,
             startup_timeout,
@@ -459,12 +460,12 @@ fn control_exit_code(end: &ControlEnd) -> u8 {
     }
 }
 
-/// The exit code of an error: [`NameInUse`](lock::NameInUse) (printed), also inside the
-/// library's lock and start-up errors ([`transport::name_in_use`]), is 5; an error after
-/// SIGINT/SIGTERM (e.g. while waiting for the peer) is 130; other errors go up.
-fn name_in_use_or(e: impl Into<anyhow::Error>) -> Result<ExitCode> {
+/// The exit code of an error `e`: a demo found running (`in_use`, what the typed error's
+/// `name_in_use()` found in it; printed) is 5; an error after SIGINT/SIGTERM (e.g. while
+/// waiting for the peer) is 130; other errors go up.
+fn name_in_use_or(in_use: Option<lock::NameInUse>, e: impl Into<anyhow::Error>) -> Result<ExitCode> {
     let e: anyhow::Error = e.into();
-    if let Some(n) = transport::name_in_use(e.as_ref()) {
+    if let Some(n) = in_use {
         eprintln!("error: {n}");
         return Ok(ExitCode::from(EXIT_NAME_IN_USE));
     }
@@ -605,13 +606,13 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         .and_then(|c| Ok([c, NameLock::acquire(&cfg.name, Role::Plant)?]))
     {
         Ok(l) => l,
-        Err(e) => return name_in_use_or(e),
+        Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
     if cfg.transport == Transport::Iceoryx2 {
         let iox = ipc::config()?;
         for role in [Role::Control, Role::Plant] {
             if let Err(e) = ipc::ensure_name_free(&iox, &cfg.name, role) {
-                return name_in_use_or(e);
+                return name_in_use_or(e.name_in_use().cloned(), e);
             }
         }
     } else {
@@ -738,7 +739,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     }
     let lock = match PlantLock::acquire(&cfg.name, a.child) {
         Ok(l) => l,
-        Err(e) => return name_in_use_or(e),
+        Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
     let show_progress = !a.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr());
     let live = Arc::new(LiveFigures::default());
@@ -762,7 +763,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     term.finish();
     let outcome = match result {
         Ok(o) => o,
-        Err(e) => return name_in_use_or(e),
+        Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
     match &outcome.run {
         PlantRun::Planar(r) => print_table(std::slice::from_ref(r)),
@@ -802,7 +803,7 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     let inject = a.injections()?;
     let lock = match NameLock::acquire(&cfg.name, Role::Control) {
         Ok(l) => l,
-        Err(e) => return name_in_use_or(e),
+        Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
     eprintln!(
         "controller: demo '{}' waiting for its plant (companion plant --name {}) over {}; protocol version {}, \
@@ -818,7 +819,7 @@ pub fn run_control(a: &HilArgs) -> Result<ExitCode> {
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let Session { end, stats, .. } = match session(&cfg, &s, &faults, &Terminal::lines(), || None, &lock) {
         Ok(x) => x,
-        Err(e) => return name_in_use_or(e),
+        Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
     eprintln!("{}", stats.line());
     if end != ControlEnd::EndOfRun {
@@ -986,21 +987,28 @@ mod tests {
 
     #[test]
     fn a_name_in_use_is_exit_5_wherever_the_library_put_it() {
+        use companion_runtime::run::hil::control::ControlRunError;
+        use companion_runtime::run::hil::plant::PlantRunError;
         use companion_runtime::sys::lock::{LockError, NameInUse};
         use companion_runtime::transport::{OpenError, StartError};
         let n = || NameInUse { name: "d".into(), role: "plant", pid: 42 };
-        let open = OpenError { role: Role::Plant, cause: StartError::NameInUse(n()) };
-        for e in [
-            anyhow::Error::from(n()),
-            anyhow::Error::from(LockError::NameInUse(n())),
-            anyhow::Error::from(StartError::NameInUse(n())).context("waiting for the controller"),
-            anyhow::Error::from(open).context("running the plant"),
-        ] {
-            assert_eq!(transport::name_in_use(e.as_ref()), Some(&n()), "{e:#}");
-            assert_eq!(name_in_use_or(e).unwrap(), ExitCode::from(EXIT_NAME_IN_USE));
+        let open = || OpenError { role: Role::Plant, cause: StartError::NameInUse(n()) };
+        let found = [
+            LockError::NameInUse(n()).name_in_use().cloned(),
+            StartError::NameInUse(n()).name_in_use().cloned(),
+            PlantRunError::from(LockError::NameInUse(n())).name_in_use().cloned(),
+            PlantRunError::from(open()).name_in_use().cloned(),
+            PlantRunError::from(StartError::NameInUse(n())).name_in_use().cloned(),
+            ControlRunError::from(open()).name_in_use().cloned(),
+            ControlRunError::from(StartError::NameInUse(n())).name_in_use().cloned(),
+        ];
+        for f in found {
+            assert_eq!(f, Some(n()));
+            assert_eq!(name_in_use_or(f, StartError::NoZenoh).unwrap(), ExitCode::from(EXIT_NAME_IN_USE));
         }
-        let other = anyhow::Error::from(StartError::NoZenoh);
-        assert!(name_in_use_or(other).is_err() || termination_requested());
+        let other = PlantRunError::from(OpenError { role: Role::Plant, cause: StartError::NoZenoh });
+        assert_eq!(other.name_in_use(), None);
+        assert!(name_in_use_or(other.name_in_use().cloned(), other).is_err() || termination_requested());
     }
 
     #[test]

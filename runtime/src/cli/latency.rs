@@ -147,7 +147,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
     }
     let opts = PeerOptions {
         transport: a.transport,
-        name: a.name.clone(),
+        name: companion_runtime::sys::lock::DemoName::new(&a.name)?,
         socket_dir: a.socket_dir.clone(),
         endpoint: a.endpoint.clone(),
         tls_dir: a.tls_dir.clone(),
@@ -155,7 +155,7 @@ pub fn run_peer(a: &PeerArgs) -> Result<()> {
         zenoh_low_latency: a.zenoh_low_latency,
         zenoh_spin: a.zenoh_spin,
     };
-    peer(&opts, &Terminal::lines())
+    Ok(peer(&opts, &Terminal::lines())?)
 }
 
 fn print_table(b: &Benchmark) {

@@ -122,7 +122,7 @@ fn run_scenarios(
         let outcomes: Vec<RunOutcome> = list
             .par_iter()
             .map(|s| run_one_with(s, &args.out.join(&s.name), &term, acceptance))
-            .collect::<Result<Vec<_>>>()?;
+            .collect::<Result<Vec<_>, _>>()?;
         term.finish();
         if !args.no_plots {
             companion_runtime::domain::plots::render_all(&args.out, &outcomes)?;
@@ -173,7 +173,7 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
             if let Some(m) = mcap {
                 m.discard();
             }
-            return Err(e);
+            return Err(e.into());
         }
     };
     if let Some(m) = mcap {

@@ -17,3 +17,35 @@ pub trait Observer: Sync {
 pub struct Silent;
 
 impl Observer for Silent {}
+
+/// An error and its causes on one line, `outer: inner: …` (as the command line prints an
+/// error), for a message to an [`Observer`].
+#[derive(Clone, Copy, Debug)]
+pub struct Causes<'a>(pub &'a (dyn std::error::Error + 'static));
+
+impl std::fmt::Display for Causes<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.0)?;
+        let mut cause = self.0.source();
+        while let Some(c) = cause {
+            write!(f, ": {c}")?;
+            cause = c.source();
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("writing x.json")]
+    struct Outer(#[source] std::io::Error);
+
+    #[test]
+    fn causes_are_printed_outer_first() {
+        let e = Outer(std::io::Error::other("disk full"));
+        assert_eq!(Causes(&e).to_string(), "writing x.json: disk full");
+    }
+}

@@ -9,13 +9,14 @@ use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
 use companion_core::{Command, Measurement, PaperRun, PlatformKind, Pose, Rpr};
-use companion_plant::{PaperTrajectory, Plant};
+use companion_plant::{AdvanceError, PaperTrajectory, Plant};
 
 use crate::domain::controller::{AnyController, StepReport, JOINTS};
 use crate::domain::observe::Observer;
 pub use crate::domain::plant_setup::build as build_plant;
+use crate::domain::plant_setup::PlantSetupError;
+use crate::domain::record::error::RecordError;
 use crate::domain::record::recorder::{summary_for, Log};
 use crate::domain::record::verdict::rejection_failure;
 use crate::domain::record::{
@@ -23,6 +24,38 @@ use crate::domain::record::{
     RowSink, RunOutcome, SummaryAccumulator,
 };
 use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
+use crate::transport::link::LinkError;
+
+/// Why [`run_loop`] stopped on an error (its ends, SIGINT among them, are [`LoopEnd`]s).
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// The exchange failed (HIL: the transport).
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// A row cannot be recorded.
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// The plant refused a step.
+    #[error(transparent)]
+    Advance(#[from] AdvanceError),
+}
+
+/// Why a simulation in process ([`run_one`]) failed.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    /// The scenario's plant cannot be built.
+    #[error(transparent)]
+    Setup(#[from] PlantSetupError),
+    /// The scenario's controller cannot be built.
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The run's files cannot be written.
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// The loop failed.
+    #[error(transparent)]
+    Loop(#[from] LoopError),
+}
 
 /// Turns a measurement into the controller's report: in process, or over the wire.
 pub trait Exchange {
@@ -39,7 +72,7 @@ pub trait Exchange {
         &mut self,
         n: u64,
         meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Self::End, StepReport>>;
+    ) -> Result<ControlFlow<Self::End, StepReport>, LinkError>;
 }
 
 /// The controller in this process.
@@ -78,7 +111,7 @@ impl Exchange for InProcess {
         &mut self,
         _n: u64,
         meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Infallible, StepReport>> {
+    ) -> Result<ControlFlow<Infallible, StepReport>, LinkError> {
         Ok(ControlFlow::Continue(self.report(meas)))
     }
 }
@@ -179,7 +212,7 @@ pub fn run_loop<E: Exchange, R: RowSink>(
     exchange: &mut E,
     sink: &mut R,
     observer: &dyn Observer,
-) -> Result<LoopEnd<E::End>> {
+) -> Result<LoopEnd<E::End>, LoopError> {
     let steps = s.steps();
     let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
     let star = s.controller.params::<f64>().primary.target_in_effector;
@@ -232,7 +265,7 @@ impl RowSink for Background {
     }
 
     #[inline]
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), crate::domain::record::RecordError> {
+    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
         self.summary.add(row);
         if self.logs(n, last) {
             self.log.record(n, row, last)?;
@@ -246,7 +279,7 @@ impl RowSink for Background {
 ///
 /// # Errors
 /// A bad scenario or an I/O failure.
-pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunOutcome> {
+pub fn run_one(s: &Scenario, dir: &Path, observer: &dyn Observer) -> Result<RunOutcome, SimError> {
     run_one_with(s, dir, observer, &Acceptance::default())
 }
 
@@ -261,7 +294,7 @@ pub fn run_one_with(
     dir: &Path,
     observer: &dyn Observer,
     acceptance: &Acceptance,
-) -> Result<RunOutcome> {
+) -> Result<RunOutcome, SimError> {
     run_one_replayed(s, dir, observer, acceptance, None).map(|(outcome, _)| outcome)
 }
 
@@ -277,7 +310,7 @@ pub fn run_one_replayed(
     observer: &dyn Observer,
     acceptance: &Acceptance,
     replay: Option<PlanarReplay>,
-) -> Result<(RunOutcome, Option<ReplaySummary>)> {
+) -> Result<(RunOutcome, Option<ReplaySummary>), SimError> {
     let mut plant = build_plant(s)?;
     let mut exchange = InProcess::new(s)?;
     let log = Log::for_scenario(s, dir)?.with_replay(replay);
@@ -290,7 +323,7 @@ pub fn run_one_replayed(
     // stopped). A log dropped here finishes its replay file as it goes.
     let end = looped?;
     let mut log = finished?;
-    let replayed = log.finish_replay()?;
+    let replayed = log.finish_replay().map_err(RecordError::from)?;
     let mut summary = sink.summary.finish(start.elapsed().as_secs_f64());
     summary.ended_early = end != LoopEnd::Completed;
     summary.failures.extend(rejection_failure(

@@ -70,14 +70,53 @@ pub struct NameInUse {
 /// A demo name that is not 1–32 characters of `A–Z a–z 0–9 _ -`.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got {0:?}")]
-pub struct BadName(pub String);
+pub struct NameError(pub String);
+
+/// A demo's name, checked once where it is given (`--name`): 1–32 characters of
+/// `A–Z a–z 0–9 _ -`, since it names lock files, iceoryx2 services and Zenoh key expressions.
+/// Whatever takes one (the lock, the transports) relies on that and checks nothing again.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub struct DemoName(String);
+
+impl DemoName {
+    /// Checks `name`.
+    ///
+    /// # Errors
+    /// [`NameError`]: the name is empty, too long, or has another character.
+    pub fn new(name: &str) -> Result<Self, NameError> {
+        let ok = !name.is_empty()
+            && name.len() <= 32
+            && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
+        if ok {
+            Ok(Self(name.to_string()))
+        } else {
+            Err(NameError(name.to_string()))
+        }
+    }
+
+    /// The name.
+    pub fn as_str(&self) -> &str {
+        &self.0
+    }
+}
+
+impl std::ops::Deref for DemoName {
+    type Target = str;
+
+    fn deref(&self) -> &str {
+        &self.0
+    }
+}
+
+impl std::fmt::Display for DemoName {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
 
 /// Why [`NameLock::acquire`] did not take the lock.
 #[derive(Debug, thiserror::Error)]
 pub enum LockError {
-    /// The name is not a demo name ([`validate_name`]).
-    #[error(transparent)]
-    BadName(#[from] BadName),
     /// Another process holds the lock.
     #[error(transparent)]
     NameInUse(#[from] NameInUse),
@@ -108,22 +147,6 @@ fn file_error(what: impl FnOnce() -> String) -> impl FnOnce(std::io::Error) -> L
     move |source| LockError::File { what: what(), source }
 }
 
-/// Checks a demo name: 1–32 characters of `A–Z a–z 0–9 _ -` (it names files, iceoryx2
-/// services and Zenoh key expressions).
-///
-/// # Errors
-/// [`BadName`]: the name is empty, too long, or has another character.
-pub fn validate_name(name: &str) -> Result<(), BadName> {
-    let ok = !name.is_empty()
-        && name.len() <= 32
-        && name.bytes().all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-');
-    if ok {
-        Ok(())
-    } else {
-        Err(BadName(name.to_string()))
-    }
-}
-
 /// The folder of the lock files.
 pub const LOCK_DIR: &str = "/tmp/companion";
 
@@ -132,7 +155,7 @@ pub const LOCK_DIR: &str = "/tmp/companion";
 pub struct NameLock {
     file: File,
     /// The demo's name.
-    pub name: String,
+    pub name: DemoName,
     /// The role.
     pub role: Role,
 }
@@ -158,14 +181,12 @@ fn try_flock(f: &File) -> std::io::Result<bool> {
 }
 
 impl NameLock {
-    /// Takes the lock of `role` in demo `name` (a name checked by [`validate_name`]).
+    /// Takes the lock of `role` in demo `name`.
     ///
     /// # Errors
-    /// [`LockError::BadName`] for a name [`validate_name`] refuses, [`LockError::NameInUse`]
-    /// if another process holds it (with its pid when known), or [`LockError::File`] if the
-    /// lock file cannot be made.
-    pub fn acquire(name: &str, role: Role) -> Result<Self, LockError> {
-        validate_name(name)?;
+    /// [`LockError::NameInUse`] if another process holds it (with its pid when known), or
+    /// [`LockError::File`] if the lock file cannot be made.
+    pub fn acquire(name: &DemoName, role: Role) -> Result<Self, LockError> {
         std::fs::create_dir_all(LOCK_DIR).map_err(file_error(|| format!("creating {LOCK_DIR}")))?;
         let p = path(name, role);
         let file = loop {
@@ -199,7 +220,7 @@ impl NameLock {
         file.write_all_at(pid.as_bytes(), 0)
             .and_then(|()| file.set_len(pid.len() as u64))
             .map_err(file_error(|| format!("writing {}", p.display())))?;
-        Ok(Self { file, name: name.to_string(), role })
+        Ok(Self { file, name: name.clone(), role })
     }
 
     /// The pid written in the lock file of `role` in demo `name` (its holder's, or the last
@@ -207,7 +228,7 @@ impl NameLock {
     ///
     /// # Errors
     /// No such file, or no pid in it ([`std::io::ErrorKind::InvalidData`]).
-    pub fn holder(name: &str, role: Role) -> std::io::Result<i32> {
+    pub fn holder(name: &DemoName, role: Role) -> std::io::Result<i32> {
         let mut f = File::open(path(name, role))?;
         holder_of(&mut f)
             .ok_or_else(|| std::io::Error::new(std::io::ErrorKind::InvalidData, "no pid in the lock file"))
@@ -272,16 +293,21 @@ mod tests {
 
     #[test]
     fn names_are_checked() {
-        assert!(validate_name("demo").is_ok());
-        assert!(validate_name("a_b-9").is_ok());
+        assert_eq!(DemoName::new("demo").map(|n| n.to_string()), Ok("demo".to_string()));
+        assert_eq!(DemoName::new("a_b-9").unwrap().as_str(), "a_b-9");
+        assert!(DemoName::new(&"x".repeat(32)).is_ok());
         for bad in ["", "a/b", &"x".repeat(33)] {
-            assert_eq!(validate_name(bad), Err(BadName(bad.to_string())), "{bad:?}");
+            assert_eq!(DemoName::new(bad), Err(NameError(bad.to_string())), "{bad:?}");
         }
+        assert_eq!(
+            NameError("bad/name".into()).to_string(),
+            r#"--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got "bad/name""#
+        );
     }
 
     #[test]
     fn a_lock_is_held_once_and_released_when_dropped() {
-        let name = format!("locktest-{}", std::process::id());
+        let name = DemoName::new(&format!("locktest-{}", std::process::id())).unwrap();
         let a = NameLock::acquire(&name, Role::Plant).unwrap();
         // Another open file description of the same file is refused, even in this process.
         let e = NameLock::acquire(&name, Role::Plant).unwrap_err();
@@ -317,13 +343,6 @@ mod tests {
         let mode = std::fs::metadata(path(&name, Role::Plant)).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600);
         drop(a);
-        let e = NameLock::acquire("bad/name", Role::Plant).unwrap_err();
-        assert!(matches!(&e, LockError::BadName(BadName(n)) if n == "bad/name"), "{e}");
-        assert_eq!(
-            e.to_string(),
-            r#"--name must be 1 to 32 characters of A-Z, a-z, 0-9, '_' and '-', got "bad/name""#
-        );
-        assert_eq!(e.name_in_use(), None);
     }
 
     #[test]
@@ -331,7 +350,7 @@ mod tests {
         // Users saw "its control is process 0": the loser read the lock file while the winner
         // had created or emptied it but not yet written its pid. Two threads race for one
         // name many times; the loser must always name this process.
-        let name = format!("lockrace-{}", std::process::id());
+        let name = DemoName::new(&format!("lockrace-{}", std::process::id())).unwrap();
         let me = i32::try_from(std::process::id()).unwrap();
         let mut pids = Vec::new();
         for _ in 0..300 {

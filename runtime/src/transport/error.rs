@@ -5,7 +5,7 @@
 //! Every variant's text is the message the command line prints; [`name_in_use`] finds the
 //! one error with an exit code of its own (5, [`NameInUse`]) wherever a layer put it.
 
-use crate::sys::lock::{BadName, LockError, NameInUse, Role};
+use crate::sys::lock::{LockError, NameInUse, Role};
 use crate::transport::wire::PROTOCOL_VERSION;
 
 /// How this program was told to build when it lacks the Zenoh transport.
@@ -34,9 +34,6 @@ pub struct OtherVersion {
 /// before the first message, in the words the command line prints.
 #[derive(Debug, thiserror::Error)]
 pub enum StartError {
-    /// The demo's name is not one ([`crate::sys::lock::validate_name`]).
-    #[error(transparent)]
-    BadName(#[from] BadName),
     /// A process of this program already plays this role in the demo (exit 5).
     #[error(transparent)]
     NameInUse(#[from] NameInUse),
@@ -223,7 +220,6 @@ mod tests {
         // Others carry none.
         let other = OpenError { role: Role::Control, cause: StartError::NoZenoh };
         assert_eq!(name_in_use(&other), None);
-        assert_eq!(name_in_use(&LockError::from(BadName("a/b".into()))), None);
     }
 
     #[test]

@@ -68,7 +68,7 @@ use iceoryx2::service::port_factory::{event as event_factory, publish_subscribe 
 use iceoryx2::service::static_config::message_type_details::TypeDetail;
 use iceoryx2::service::static_config::messaging_pattern::MessagingPattern as StaticPattern;
 
-use crate::sys::lock::{NameInUse, Role};
+use crate::sys::lock::{DemoName, NameInUse, Role};
 pub use crate::transport::error::OtherVersion;
 use crate::transport::error::{OpenError, StartError};
 use crate::transport::link::{Link, LinkError, PeerState};
@@ -255,7 +255,7 @@ pub fn find_node(cfg: &Config, name: &str, role: Role) -> Result<PeerState, Star
 ///
 /// # Errors
 /// [`StartError::NameInUse`], or [`StartError::Iceoryx2`]: the node list cannot be read.
-pub fn ensure_name_free(cfg: &Config, name: &str, role: Role) -> Result<(), StartError> {
+pub fn ensure_name_free(cfg: &Config, name: &DemoName, role: Role) -> Result<(), StartError> {
     if let PeerState::Alive(pid) = find_node(cfg, name, role)? {
         return Err(NameInUse { name: name.to_string(), role: role.as_str(), pid }.into());
     }
@@ -443,10 +443,9 @@ impl<Tx: WireMessage, Rx: WireMessage> Endpoint<Tx, Rx> {
     /// event services too (a notifier on ours, a listener on the peer's).
     ///
     /// # Errors
-    /// [`StartError::BadName`], [`StartError::NameInUse`], [`StartError::IncompatibleTypes`],
-    /// or an iceoryx2 failure ([`StartError::Iceoryx2`]).
-    pub fn open(name: &str, role: Role, events: bool) -> Result<Self, StartError> {
-        crate::sys::lock::validate_name(name)?;
+    /// [`StartError::NameInUse`], [`StartError::IncompatibleTypes`], or an iceoryx2 failure
+    /// ([`StartError::Iceoryx2`]).
+    pub fn open(name: &DemoName, role: Role, events: bool) -> Result<Self, StartError> {
         let cfg = config()?;
         ensure_name_free(&cfg, name, role)?;
         remove_dead_nodes_of_demo(&cfg, name);
@@ -721,7 +720,7 @@ impl PlantEndpoint {
     ///
     /// # Errors
     /// [`OpenError`], its cause as [`Endpoint::open`]'s.
-    pub fn plant(name: &str, events: bool) -> Result<Self, OpenError> {
+    pub fn plant(name: &DemoName, events: bool) -> Result<Self, OpenError> {
         Self::open(name, Role::Plant, events).map_err(|cause| OpenError { role: Role::Plant, cause })
     }
 }
@@ -731,7 +730,7 @@ impl ControlEndpoint {
     ///
     /// # Errors
     /// [`OpenError`], its cause as [`Endpoint::open`]'s.
-    pub fn control(name: &str, events: bool) -> Result<Self, OpenError> {
+    pub fn control(name: &DemoName, events: bool) -> Result<Self, OpenError> {
         Self::open(name, Role::Control, events).map_err(|cause| OpenError { role: Role::Control, cause })
     }
 }

@@ -32,7 +32,7 @@ use std::time::Duration;
 
 pub use error::{name_in_use, OpenError, StartError, BUILD_WITH_ZENOH};
 
-use crate::sys::lock::Role;
+use crate::sys::lock::{DemoName, Role};
 use link::{Link, LinkError, PeerState};
 use wire::{CommandMsg, MeasurementMsg, WireMessage};
 use zerocopy::{FromBytes, Immutable, IntoBytes};
@@ -227,7 +227,7 @@ pub type ControlEndpoint = Endpoint<CommandMsg, MeasurementMsg>;
 /// `zenoh_link::ZenohEndpoint::open`.
 pub fn open<Tx: Message, Rx: Message>(
     transport: &Transport,
-    name: &str,
+    name: &DemoName,
     role: Role,
     events: bool,
     peer_timeout: Duration,
@@ -387,26 +387,10 @@ impl<Tx: Message, Rx: Message> Link for Endpoint<Tx, Rx> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sys::lock::BadName;
-
-    #[test]
-    fn a_bad_name_is_refused_before_iceoryx2_is_touched() {
-        let e = ipc::Endpoint::<CommandMsg, MeasurementMsg>::open("a/b", Role::Control, false).unwrap_err();
-        assert!(matches!(&e, StartError::BadName(BadName(n)) if n == "a/b"), "{e}");
-        let e = open::<MeasurementMsg, CommandMsg>(
-            &Transport::Iceoryx2,
-            "",
-            Role::Plant,
-            false,
-            Duration::from_secs(1),
-        )
-        .unwrap_err();
-        assert!(matches!(e, OpenError { role: Role::Plant, cause: StartError::BadName(_) }), "{e}");
-    }
 
     #[test]
     fn a_second_process_of_a_role_is_a_name_in_use() {
-        let name = format!("starterr-{}", std::process::id());
+        let name = DemoName::new(&format!("starterr-{}", std::process::id())).unwrap();
         let first = ipc::PlantEndpoint::plant(&name, false).unwrap();
         let own = i32::try_from(std::process::id()).unwrap();
         let e = ipc::PlantEndpoint::plant(&name, false).unwrap_err();

@@ -25,7 +25,6 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use anyhow::{bail, Context, Result};
 use rand::rngs::ChaCha12Rng;
 use rand::{RngExt, SeedableRng};
 use serde::{Deserialize, Serialize};
@@ -66,19 +65,33 @@ pub struct Plan {
     pub stops: Vec<Stop>,
 }
 
+/// Why a chaos run cannot start.
+#[derive(Debug, thiserror::Error)]
+pub enum ChaosError {
+    /// A lockstep run: no deadlines to miss.
+    #[error("--chaos needs real time (not --lockstep)")]
+    Lockstep,
+    /// A run shorter than [`MIN_DURATION_S`].
+    #[error("--chaos needs a run of at least {MIN_DURATION_S} s (--duration)")]
+    TooShort,
+    /// The thread that stops the processes cannot be started.
+    #[error("starting the chaos thread")]
+    Spawn(#[source] std::io::Error),
+}
+
 impl Plan {
     /// The plan of seed `seed` for a run of `steps` periods with `timing`.
     ///
     /// # Errors
     /// A lockstep run (no deadlines to miss), or one shorter than [`MIN_DURATION_S`].
-    pub fn new(seed: u64, steps: u64, timing: &Timing) -> Result<Self> {
+    pub fn new(seed: u64, steps: u64, timing: &Timing) -> Result<Self, ChaosError> {
         let period = timing.period_ns;
         if timing.lockstep || period == 0 {
-            bail!("--chaos needs real time (not --lockstep)");
+            return Err(ChaosError::Lockstep);
         }
         let run_ns = steps.saturating_mul(period);
         if (run_ns as f64) < MIN_DURATION_S * 1e9 {
-            bail!("--chaos needs a run of at least {MIN_DURATION_S} s (--duration)");
+            return Err(ChaosError::TooShort);
         }
         let mut rng = ChaCha12Rng::seed_from_u64(seed);
         let (first, last) = (FIRST_FAULT_NS, run_ns - LAST_FAULT_MARGIN_NS);
@@ -156,7 +169,7 @@ impl Agent {
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub fn spawn(stops: Vec<Stop>, pid: i32, epoch_ns: u64) -> Result<Self> {
+    pub fn spawn(stops: Vec<Stop>, pid: i32, epoch_ns: u64) -> Result<Self, ChaosError> {
         let quit = Arc::new(AtomicBool::new(false));
         let q = Arc::clone(&quit);
         let thread = std::thread::Builder::new()
@@ -178,7 +191,7 @@ impl Agent {
                 }
                 done
             })
-            .context("starting the chaos thread")?;
+            .map_err(ChaosError::Spawn)?;
         Ok(Self { quit, thread: Some(thread) })
     }
 

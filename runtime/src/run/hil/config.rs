@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 use crate::domain::record::Acceptance;
 use crate::domain::scenario::Scenario;
 use crate::run::spatial::SpatialScenario;
-use crate::sys::lock::Role;
+use crate::sys::lock::{DemoName, Role};
 use crate::sys::rt::RtConfig;
 
 /// How a process waits for its peer's message.
@@ -118,7 +118,7 @@ impl RtPlan {
 #[derive(Clone, Debug, PartialEq)]
 pub struct HilConfig {
     /// The demo's name (its iceoryx2 services are `companion/NAME/…`).
-    pub name: String,
+    pub name: DemoName,
     /// The output folder (the plant writes it).
     pub out: PathBuf,
     /// Timing.

@@ -4,30 +4,87 @@
 //! `fault.json`. With `--chaos` it injects the plan's command faults and plant stops, and
 //! checks the plant's counts against them (`chaos.json`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitStatus;
 use std::time::Duration;
 
-use anyhow::{anyhow, Context, Result};
 use serde::Serialize;
 
-use super::chaos::{self, Agent, Observed, Plan};
+use super::chaos::{self, Agent, ChaosError, Observed, Plan};
 use super::config::{HilConfig, HilScenario};
 use super::end::ControlEnd;
 use super::fault::{Corruption, Injected, Injecting};
-use super::serve::{serve_scenario, ServeOptions};
+use super::serve::{serve_scenario, ServeError, ServeOptions};
 use super::stats::ControlStats;
 use crate::domain::histogram::fmt_ns;
-use crate::domain::observe::Observer;
+use crate::domain::observe::{Causes, Observer};
 use crate::domain::scenario::Scenario;
 use crate::sys::clock::MonotonicClock;
 use crate::sys::lock::NameLock;
-use crate::sys::lock::Role;
+use crate::sys::lock::{NameInUse, Role};
 use crate::sys::process::{exit_text, send_signal, ChildGuard, Signal};
 use crate::sys::signals::termination_requested;
 use crate::sys::threads::{threads_of, ThreadState};
+use crate::transport::error::{OpenError, StartError};
 use crate::transport::link::LinkCounts;
 use crate::transport::{self, ControlEndpoint};
+
+/// Why the controller's session, or `companion hil`'s side of it, failed (its ends, a lost
+/// plant among them, are [`ControlEnd`]s).
+#[derive(Debug, thiserror::Error)]
+pub enum ControlRunError {
+    /// The transport cannot be opened.
+    #[error(transparent)]
+    Open(#[from] OpenError),
+    /// The plant did not join.
+    #[error(transparent)]
+    Start(#[from] StartError),
+    /// The loop failed, or refused the plant.
+    #[error(transparent)]
+    Serve(#[from] ServeError),
+    /// The chaos plan or its thread.
+    #[error(transparent)]
+    Chaos(#[from] ChaosError),
+    /// `companion hil` was given no lock of the controller's role.
+    #[error("no lock")]
+    NoLock,
+    /// Waiting for the plant process failed.
+    #[error(transparent)]
+    Wait(#[from] std::io::Error),
+    /// A report cannot be put as JSON.
+    #[error(transparent)]
+    Serialize(#[from] serde_json::Error),
+    /// `link.json` or `chaos.json` cannot be written.
+    #[error("writing {}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `timeseries.csv` cannot be read or written back trimmed.
+    #[error("{doing} {}: {cause}", path.display())]
+    Trim {
+        /// `reading` or `writing`.
+        doing: &'static str,
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        cause: std::io::Error,
+    },
+}
+
+impl ControlRunError {
+    /// The demo found running, if that is the error (the command line's exit code 5).
+    pub fn name_in_use(&self) -> Option<&NameInUse> {
+        match self {
+            Self::Open(e) => e.cause.name_in_use(),
+            Self::Start(e) => e.name_in_use(),
+            _ => None,
+        }
+    }
+}
 
 /// How long the controller waits for the plant to read its last message.
 const LINGER: Duration = Duration::from_secs(1);
@@ -83,7 +140,7 @@ pub fn session(
     observer: &dyn Observer,
     abort: impl FnMut() -> Option<String>,
     lock: &NameLock,
-) -> Result<Session> {
+) -> Result<Session, ControlRunError> {
     debug_assert!(lock.role == Role::Control && lock.name == cfg.name);
     let opt = serve_options(cfg, s.base());
     let ep: ControlEndpoint = transport::open(
@@ -121,7 +178,7 @@ pub fn session(
     }
     // The last message (the answer to the end of the run, or a refusal) must reach the plant
     // before this process exits and its samples with it.
-    if matches!(&r, Ok(ControlEnd::EndOfRun)) || r.as_ref().is_err_and(|e| e.is::<super::serve::Refused>()) {
+    if matches!(&r, Ok(ControlEnd::EndOfRun)) || matches!(&r, Err(ServeError::Refused(_))) {
         ep.linger(LINGER);
     }
     let dropped = ep.transport_malformed();
@@ -206,7 +263,7 @@ pub enum ParentOutcome {
     PlantExitedEarly(ExitStatus),
     /// The session failed (printed as the error); the plant was left to stop the robot and
     /// write its files, and exited with this status.
-    Failed(anyhow::Error, Option<ExitStatus>),
+    Failed(ControlRunError, Option<ExitStatus>),
     /// The run ended (or was interrupted) and the plant exited with `plant`.
     Finished {
         /// How the controller's side ended.
@@ -254,7 +311,7 @@ pub fn run_as_parent(
     mut child: ChildGuard,
     observer: &dyn Observer,
     locks: &[NameLock; 2],
-) -> Result<ParentOutcome> {
+) -> Result<ParentOutcome, ControlRunError> {
     let pid = child.id();
     let pid_i32 = i32::try_from(pid).unwrap_or(0);
     let mut faults = faults.clone();
@@ -282,7 +339,7 @@ pub fn run_as_parent(
             _ => None,
         }
     };
-    let control_lock = locks.iter().find(|l| l.role == Role::Control).ok_or_else(|| anyhow!("no lock"))?;
+    let control_lock = locks.iter().find(|l| l.role == Role::Control).ok_or(ControlRunError::NoLock)?;
     let result = session(cfg, s, &faults, observer, abort, control_lock);
     let stops = agent.map(Agent::finish).unwrap_or_default();
     if exited.is_some() {
@@ -297,7 +354,7 @@ pub fn run_as_parent(
             }
             // Leave the plant to notice the lost controller, stop the robot and write its
             // files (it does so within --silence-ms); kill it only if it does not.
-            observer.note(&format!("error: {e:#}"));
+            observer.note(&format!("error: {}", Causes(&e)));
             let grace = Duration::from_nanos(cfg.timing.peer_timeout_ns) + Duration::from_secs(5);
             let st = child.finish(grace).ok().flatten();
             return Ok(ParentOutcome::Failed(e, st));
@@ -359,7 +416,7 @@ fn lost(
     pid: u32,
     stats: &ControlStats,
     observer: &dyn Observer,
-) -> Result<ParentOutcome> {
+) -> Result<ParentOutcome, ControlRunError> {
     lost_with(cfg, end, status, pid, stats, Vec::new(), observer)
 }
 
@@ -372,7 +429,7 @@ fn lost_with(
     stats: &ControlStats,
     plant_threads: Vec<ThreadState>,
     observer: &dyn Observer,
-) -> Result<ParentOutcome> {
+) -> Result<ParentOutcome, ControlRunError> {
     let how = status.map_or("unknown".to_string(), exit_text);
     observer.note(&format!("controller: {} ({how})", end.describe()));
     let rows = trim_partial_csv(&cfg.out).ok();
@@ -434,7 +491,11 @@ pub struct LinkReport {
 ///
 /// # Errors
 /// `link.json` cannot be written.
-fn link_report(cfg: &HilConfig, controller: LinkCounts, observer: &dyn Observer) -> Result<LinkReport> {
+fn link_report(
+    cfg: &HilConfig,
+    controller: LinkCounts,
+    observer: &dyn Observer,
+) -> Result<LinkReport, ControlRunError> {
     let plant: Option<LinkCounts> = std::fs::read_to_string(cfg.out.join("latency.json"))
         .ok()
         .and_then(|t| serde_json::from_str::<serde_json::Value>(&t).ok())
@@ -466,7 +527,7 @@ fn link_report(cfg: &HilConfig, controller: LinkCounts, observer: &dyn Observer)
     }
     let path = cfg.out.join("link.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| ControlRunError::Write { path, source })?;
     Ok(report)
 }
 
@@ -479,13 +540,13 @@ fn chaos_report(
     injected: Injected,
     stops: &[chaos::DoneStop],
     sent: Option<LinkCounts>,
-) -> Result<chaos::Report> {
+) -> Result<chaos::Report, ControlRunError> {
     let path = cfg.out.join("latency.json");
     let observed: Observed = std::fs::read_to_string(&path)
-        .map_err(anyhow::Error::from)
-        .and_then(|t| Ok(serde_json::from_str(&t)?))
+        .map_err(|e| e.to_string())
+        .and_then(|t| serde_json::from_str(&t).map_err(|e| e.to_string()))
         .unwrap_or_else(|e| Observed {
-            end: format!("no readable {}: {e:#}", path.display()),
+            end: format!("no readable {}: {e}", path.display()),
             ..Observed::default()
         });
     let rows = complete_rows(&cfg.out).unwrap_or(0);
@@ -494,7 +555,7 @@ fn chaos_report(
     let report = chaos::check(seed, &cfg.timing, injected, &all, observed, (rows, expected_rows(s)), sent);
     let path = cfg.out.join("chaos.json");
     std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| ControlRunError::Write { path, source })?;
     Ok(report)
 }
 
@@ -503,7 +564,7 @@ fn chaos_report(
 ///
 /// # Errors
 /// The file cannot be read.
-pub fn complete_rows(dir: &Path) -> Result<u64> {
+pub fn complete_rows(dir: &Path) -> std::io::Result<u64> {
     let text = std::fs::read_to_string(dir.join("timeseries.csv"))?;
     let mut lines = text.split_inclusive('\n');
     let fields = |l: &str| l.split(',').count();
@@ -517,13 +578,18 @@ pub fn complete_rows(dir: &Path) -> Result<u64> {
 ///
 /// # Errors
 /// The file cannot be read or written.
-pub fn trim_partial_csv(dir: &Path) -> Result<u64> {
+pub fn trim_partial_csv(dir: &Path) -> Result<u64, ControlRunError> {
     let path = dir.join("timeseries.csv");
-    let mut bytes = std::fs::read(&path).map_err(|e| anyhow!("reading {}: {e}", path.display()))?;
+    let mut bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(cause) => return Err(ControlRunError::Trim { doing: "reading", path, cause }),
+    };
     let keep = bytes.iter().rposition(|b| *b == b'\n').map_or(0, |i| i + 1);
     if keep < bytes.len() {
         bytes.truncate(keep);
-        std::fs::write(&path, &bytes).map_err(|e| anyhow!("writing {}: {e}", path.display()))?;
+        if let Err(cause) = std::fs::write(&path, &bytes) {
+            return Err(ControlRunError::Trim { doing: "writing", path, cause });
+        }
     }
     let lines = bytes.iter().filter(|b| **b == b'\n').count() as u64;
     Ok(lines.saturating_sub(1))

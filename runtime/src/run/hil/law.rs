@@ -3,17 +3,29 @@
 //! the paper's planar law ([`PlanarLaw`]) or the spatial law of §5 for an arm of `N` joints
 //! ([`SpatialLaw`]). The loop ([`super::serve`]) is the same for both.
 
-use anyhow::Result;
 use companion_core::{Manipulator, Measurement, Planar, Spatial, SpatialArm, HISTORY};
 
 use super::handshake;
 use crate::domain::arm::SpatialArmSpec;
 use crate::domain::controller::{
-    boxed_spatial_controller, AnyController, ControllerSpec, SpatialStep, StepReport, JOINTS,
+    boxed_spatial_controller, AnyController, ControllerSpec, SpatialControllerError, SpatialStep, StepReport,
+    JOINTS,
 };
 use crate::domain::scenario::ScenarioError;
 use crate::transport::wire::target::WireSpace;
 use crate::transport::wire::{Announcement, ControllerIdentity};
+
+/// Why the law for the plant that announced itself cannot be built: a parameter of the
+/// planar law, or the spatial law's arm or parameters.
+#[derive(Debug, thiserror::Error)]
+pub enum LawError {
+    /// The planar law.
+    #[error(transparent)]
+    Planar(#[from] ScenarioError),
+    /// The spatial law.
+    #[error(transparent)]
+    Spatial(#[from] SpatialControllerError),
+}
 
 /// One controller step on an `f64` measurement: the command to hold for `dt` seconds, taking
 /// effect `delay` seconds after the measurement.
@@ -51,7 +63,7 @@ pub trait Served<const N: usize> {
     ///
     /// # Errors
     /// An invalid parameter.
-    fn build(&self, a: &Announcement) -> Result<(Self::Law, f64)>;
+    fn build(&self, a: &Announcement) -> Result<(Self::Law, f64), LawError>;
 }
 
 /// The largest delay a law of `spec` admits at period `dt`: its `max_delay`, and no more
@@ -73,7 +85,7 @@ impl Served<JOINTS> for PlanarLaw<'_> {
         handshake::identity(self.0)
     }
 
-    fn build(&self, a: &Announcement) -> Result<(AnyController, f64)> {
+    fn build(&self, a: &Announcement) -> Result<(AnyController, f64), LawError> {
         let run = handshake::for_plant(self.0, a);
         let ctrl = AnyController::new(&run).map_err(ScenarioError::Param)?;
         Ok((ctrl, max_delay(&run, a.dt)))
@@ -103,7 +115,7 @@ where
         handshake::spatial_identity(self.spec, N, self.arm_hash)
     }
 
-    fn build(&self, a: &Announcement) -> Result<(Self::Law, f64)> {
+    fn build(&self, a: &Announcement) -> Result<(Self::Law, f64), LawError> {
         let run = handshake::for_plant(self.spec, a);
         let law = boxed_spatial_controller::<N>(&run, self.arm)?;
         Ok((law, max_delay(&run, a.dt)))

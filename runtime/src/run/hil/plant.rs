@@ -3,10 +3,9 @@
 
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, bail, Result};
 use companion_core::{Manipulator, Spatial, SpatialArm};
 
-use super::chaos::{Agent, Plan};
+use super::chaos::{Agent, ChaosError, Plan};
 use super::config::{HilConfig, HilScenario};
 use super::end::PlantEnd;
 use super::handshake::controller_hash;
@@ -15,8 +14,14 @@ use super::plant_loop::{run_real_time, Lockstep, PlantSide};
 use super::report::{self, LatencyReport};
 use super::robot::{PlanarRobot, SpatialRobot};
 use super::stats::{LiveFigures, PlantStats};
-use crate::domain::observe::Observer;
+use crate::domain::arm::ArmError;
+use crate::domain::controller::SpatialControllerError;
+use crate::domain::observe::{Causes, Observer};
+use crate::domain::plant_setup::PlantSetupError;
+use crate::domain::record::error::RecordError;
 use crate::domain::record::mcap::McapRecorder;
+use crate::domain::record::mcap::ReplayError;
+use crate::domain::record::output::OutputError;
 use crate::domain::record::spatial::{SpatialAccumulator, SpatialRecord};
 use crate::domain::record::verdict::{deadline_failures, rejection_failure, DeadlineFigures};
 use crate::domain::record::{
@@ -24,12 +29,13 @@ use crate::domain::record::{
     RunOutcome,
 };
 use crate::domain::scenario::Scenario;
-use crate::run::sim::{self, LoopEnd};
-use crate::run::spatial::stream::SpatialStream;
-use crate::run::spatial::{self, SpatialOutcome, SpatialScenario};
+use crate::run::sim::{self, LoopEnd, LoopError};
+use crate::run::spatial::stream::{SpatialStream, StreamError};
+use crate::run::spatial::{self, SpatialOutcome, SpatialRunError, SpatialScenario};
 use crate::sys::clock::MonotonicClock;
 use crate::sys::lock::NameLock;
-use crate::sys::lock::Role;
+use crate::sys::lock::{DemoName, LockError, NameInUse, Role};
+use crate::transport::error::{OpenError, StartError};
 use crate::transport::link::Link as _;
 use crate::transport::wire::{canonical, flags, platform};
 use crate::transport::{self, PlantEndpoint};
@@ -41,6 +47,74 @@ const LOG_RING: usize = 1 << 15;
 const SPATIAL_RING: usize = 1 << 12;
 /// How often the writer thread flushes `timeseries.csv`.
 const FLUSH_EVERY: Duration = Duration::from_millis(50);
+
+/// Why the plant's role could not be taken, or its run failed (its ends, a lost controller
+/// among them, are [`PlantEnd`]s).
+#[derive(Debug, thiserror::Error)]
+pub enum PlantRunError {
+    /// The plant's role of the demo's name cannot be taken.
+    #[error(transparent)]
+    Lock(#[from] LockError),
+    /// `--child`, but the parent does not hold the plant's role.
+    #[error("--child: the plant's role of demo '{name}' is not held by the parent process ({parent})")]
+    NotParent {
+        /// The demo's name.
+        name: String,
+        /// The parent's pid.
+        parent: i32,
+    },
+    /// `--chaos` with a spatial arm.
+    #[error("--chaos runs the paper's planar arm; it cannot be combined with a spatial --arm")]
+    ChaosSpatial,
+    /// The chaos plan or its thread.
+    #[error(transparent)]
+    Chaos(#[from] ChaosError),
+    /// The arm cannot be built.
+    #[error(transparent)]
+    Arm(#[from] ArmError),
+    /// The spatial law cannot be built.
+    #[error(transparent)]
+    Controller(#[from] SpatialControllerError),
+    /// The planar plant cannot be built.
+    #[error(transparent)]
+    Setup(#[from] PlantSetupError),
+    /// The spatial plant cannot be built, or its lockstep run or files failed.
+    #[error(transparent)]
+    Spatial(#[from] SpatialRunError),
+    /// The transport cannot be opened.
+    #[error(transparent)]
+    Open(#[from] OpenError),
+    /// The controller did not join.
+    #[error(transparent)]
+    Start(#[from] StartError),
+    /// The output folder cannot be used.
+    #[error(transparent)]
+    Output(#[from] OutputError),
+    /// The run's records cannot be written.
+    #[error(transparent)]
+    Record(#[from] RecordError),
+    /// The replay file (`--mcap`) failed.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
+    /// A spatial run's rows cannot be streamed.
+    #[error(transparent)]
+    Stream(#[from] StreamError),
+    /// The loop failed: the transport, or a step the plant refused.
+    #[error(transparent)]
+    Loop(#[from] LoopError),
+}
+
+impl PlantRunError {
+    /// The demo found running, if that is the error (the command line's exit code 5).
+    pub fn name_in_use(&self) -> Option<&NameInUse> {
+        match self {
+            Self::Lock(e) => e.name_in_use(),
+            Self::Open(e) => e.cause.name_in_use(),
+            Self::Start(e) => e.name_in_use(),
+            _ => None,
+        }
+    }
+}
 
 /// What a plant run produced.
 #[derive(Debug)]
@@ -88,16 +162,14 @@ impl PlantLock {
     ///
     /// # Errors
     /// [`crate::sys::lock::NameInUse`], or a child whose parent does not hold the role.
-    pub fn acquire(name: &str, child: bool) -> Result<Self> {
+    pub fn acquire(name: &DemoName, child: bool) -> Result<Self, PlantRunError> {
         if !child {
             return Ok(Self::Own(NameLock::acquire(name, Role::Plant)?));
         }
         let parent = crate::sys::process::parent_pid();
         match NameLock::holder(name, Role::Plant) {
             Ok(pid) if pid == parent => Ok(Self::Parent),
-            _ => Err(anyhow!(
-                "--child: the plant's role of demo '{name}' is not held by the parent process ({parent})"
-            )),
+            _ => Err(PlantRunError::NotParent { name: name.to_string(), parent }),
         }
     }
 }
@@ -117,14 +189,14 @@ pub fn run(
     live: &LiveFigures,
     observer: &dyn Observer,
     lock: &PlantLock,
-) -> Result<PlantOutcome> {
+) -> Result<PlantOutcome, PlantRunError> {
     match s {
         HilScenario::Planar(s) => run_planar(cfg, s, live, observer, lock),
         HilScenario::Spatial(ss) => match ss.arm.joints() {
             6 => run_spatial::<6>(cfg, ss, live, observer),
             7 => run_spatial::<7>(cfg, ss, live, observer),
             8 => run_spatial::<8>(cfg, ss, live, observer),
-            n => Err(crate::domain::arm::ArmError::JointCount { found: n }.into()),
+            n => Err(ArmError::JointCount { found: n }.into()),
         },
     }
 }
@@ -138,7 +210,7 @@ struct Opened {
 
 /// Opens the plant's transport for the scenario `s` (its hash) and the arm `arm_hash`, and
 /// prepares `cfg.out`.
-fn open(cfg: &HilConfig, s: &Scenario, arm_hash: u64) -> Result<Opened> {
+fn open(cfg: &HilConfig, s: &Scenario, arm_hash: u64) -> Result<Opened, PlantRunError> {
     let timing = cfg.timing;
     let ep: PlantEndpoint = transport::open(
         &cfg.transport,
@@ -173,14 +245,14 @@ impl Opened {
         self,
         cfg: &HilConfig,
         observer: &dyn Observer,
-        create: impl FnOnce(&std::path::Path) -> Result<R>,
+        create: impl FnOnce(&std::path::Path) -> Result<R, ReplayError>,
         discard: impl FnOnce(R),
-    ) -> Result<(Self, Option<R>)> {
+    ) -> Result<(Self, Option<R>), PlantRunError> {
         let replay = match cfg.mcap.as_deref().map(create).transpose() {
             Ok(r) => r,
             Err(e) => {
                 self.out.discard();
-                return Err(e);
+                return Err(e.into());
             }
         };
         if let Err(e) = self.wait_for_controller(cfg, observer) {
@@ -188,13 +260,13 @@ impl Opened {
                 discard(r);
             }
             self.out.discard();
-            return Err(e);
+            return Err(e.into());
         }
         Ok((self, replay))
     }
 
     /// Waits for the controller to join.
-    fn wait_for_controller(&self, cfg: &HilConfig, observer: &dyn Observer) -> Result<()> {
+    fn wait_for_controller(&self, cfg: &HilConfig, observer: &dyn Observer) -> Result<(), StartError> {
         observer.note(&format!(
             "plant: demo '{}' waiting for its controller (companion control --name {}) over {}; scenario hash \
              {:#018x}, arm {}",
@@ -205,20 +277,82 @@ impl Opened {
             crate::transport::wire::canonical::describe_arm(self.stamp.arm_hash)
         ));
         // Peers refused on the way (their certificate, their name) are named as they come.
-        Ok(self.ep.wait_for_peer(cfg.startup_timeout, || {
+        self.ep.wait_for_peer(cfg.startup_timeout, || {
             for r in self.ep.take_refusals() {
                 observer.warn(&format!("plant: {r}"));
             }
             None
-        })?)
+        })
     }
 }
 
-/// What `summary.json` records of the link.
-fn link_record(cfg: &HilConfig) -> crate::domain::record::summary::LinkRecord {
-    crate::domain::record::summary::LinkRecord {
-        transport: cfg.transport.describe(),
-        insecure: cfg.transport.insecure(),
+/// A plant run after its loop, as its files describe it: what it was asked (the
+/// configuration, the scenario), where it writes, what the loop counted and how it ended,
+/// and whom it tells. What every step from the loop's end to the files reads.
+struct RunContext<'a> {
+    cfg: &'a HilConfig,
+    s: &'a Scenario,
+    dir: &'a std::path::Path,
+    observer: &'a dyn Observer,
+    stats: &'a PlantStats,
+    rt: Option<&'a crate::sys::rt::RtReport>,
+    end: PlantEnd,
+    /// The run's wall time (s).
+    wall_s: f64,
+}
+
+impl RunContext<'_> {
+    /// What `summary.json` records of the link.
+    fn link_record(&self) -> crate::domain::record::summary::LinkRecord {
+        crate::domain::record::summary::LinkRecord {
+            transport: self.cfg.transport.describe(),
+            insecure: self.cfg.transport.insecure(),
+        }
+    }
+
+    /// The real-time failures of a run that ended as it should (a lost controller stops the
+    /// robot by design, its end says so; a chaos run stops it on purpose, its own check
+    /// applies).
+    fn real_time_failures(&self) -> Vec<Failure> {
+        let (cfg, stats) = (self.cfg, self.stats);
+        let judged = matches!(self.end, PlantEnd::Completed | PlantEnd::Interrupted { .. });
+        if cfg.timing.lockstep || !judged || cfg.chaos.is_some() {
+            return Vec::new();
+        }
+        let figures = DeadlineFigures {
+            cycles: stats.cycles,
+            deadline_misses: stats.deadline_misses,
+            stop_events: stats.stop_events,
+            stopped_periods: stats.stopped_periods,
+        };
+        deadline_failures(&figures, stats.first_stop_t, cfg.acceptance.max_miss_fraction)
+    }
+
+    /// Writes `latency.json` (and its plot unless `--no-plots`) with the run's `failures`,
+    /// the chaos agent's stops and the transport's counts.
+    ///
+    /// # Errors
+    /// `latency.json` cannot be written.
+    fn write_latency(
+        &self,
+        failures: &[Failure],
+        chaos_stops: Vec<super::chaos::DoneStop>,
+        link_counts: Option<crate::transport::link::LinkCounts>,
+    ) -> Result<LatencyReport, RecordError> {
+        let mut latency = LatencyReport::new(self.s, self.cfg, self.stats, self.rt, &self.end, self.wall_s);
+        latency.failures = failures.to_vec();
+        latency.chaos_stops = chaos_stops;
+        latency.link_counts = link_counts;
+        report::write_json(self.dir, &latency)?;
+        for t in &latency.hung_controller_threads {
+            self.observer.note(&format!("plant: the silent controller's thread {}", t.describe()));
+        }
+        if !self.cfg.no_plots {
+            if let Err(e) = report::write_svg(self.dir, self.stats, &latency) {
+                self.observer.warn(&format!("latency plot: {}", Causes(&e)));
+            }
+        }
+        Ok(latency)
     }
 }
 
@@ -253,56 +387,6 @@ fn after_loop(ep: &PlantEndpoint, stats: &PlantStats, end: &PlantEnd, observer: 
     }
 }
 
-/// The real-time failures of a run that ended as it should (a lost controller stops the robot
-/// by design, its end says so; a chaos run stops it on purpose, its own check applies).
-fn real_time_failures(cfg: &HilConfig, stats: &PlantStats, end: &PlantEnd) -> Vec<Failure> {
-    let judged = matches!(end, PlantEnd::Completed | PlantEnd::Interrupted { .. });
-    if cfg.timing.lockstep || !judged || cfg.chaos.is_some() {
-        return Vec::new();
-    }
-    let figures = DeadlineFigures {
-        cycles: stats.cycles,
-        deadline_misses: stats.deadline_misses,
-        stop_events: stats.stop_events,
-        stopped_periods: stats.stopped_periods,
-    };
-    deadline_failures(&figures, stats.first_stop_t, cfg.acceptance.max_miss_fraction)
-}
-
-/// Writes `latency.json` (and its plot unless `--no-plots`).
-///
-/// # Errors
-/// `latency.json` cannot be written.
-#[allow(clippy::too_many_arguments)]
-fn write_latency(
-    cfg: &HilConfig,
-    s: &Scenario,
-    dir: &std::path::Path,
-    stats: &PlantStats,
-    rt: Option<&crate::sys::rt::RtReport>,
-    end: &PlantEnd,
-    wall_s: f64,
-    failures: &[Failure],
-    chaos_stops: Vec<super::chaos::DoneStop>,
-    link_counts: Option<crate::transport::link::LinkCounts>,
-    observer: &dyn Observer,
-) -> Result<LatencyReport> {
-    let mut latency = LatencyReport::new(s, cfg, stats, rt, end, wall_s);
-    latency.failures = failures.to_vec();
-    latency.chaos_stops = chaos_stops;
-    latency.link_counts = link_counts;
-    report::write_json(dir, &latency)?;
-    for t in &latency.hung_controller_threads {
-        observer.note(&format!("plant: the silent controller's thread {}", t.describe()));
-    }
-    if !cfg.no_plots {
-        if let Err(e) = report::write_svg(dir, stats, &latency) {
-            observer.warn(&format!("latency plot: {e:#}"));
-        }
-    }
-    Ok(latency)
-}
-
 /// The plant of the paper's arm.
 fn run_planar(
     cfg: &HilConfig,
@@ -310,14 +394,14 @@ fn run_planar(
     live: &LiveFigures,
     observer: &dyn Observer,
     _lock: &PlantLock,
-) -> Result<PlantOutcome> {
+) -> Result<PlantOutcome, PlantRunError> {
     let timing = cfg.timing;
     let mut plant = sim::build_plant(s)?;
     let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
     let opened = open(cfg, s, super::handshake::arm_hash())?;
     let (opened, replay) =
-        opened.join(cfg, observer, |p| Ok(PlanarReplay::create(p, s)?), PlanarReplay::discard)?;
+        opened.join(cfg, observer, |p| PlanarReplay::create(p, s), PlanarReplay::discard)?;
     let steps = s.steps();
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
@@ -352,7 +436,7 @@ fn run_planar(
             Ok(LoopEnd::Completed) => PlantEnd::Completed,
             Ok(LoopEnd::Interrupted { last }) => PlantEnd::Interrupted { cycle: last },
             Ok(LoopEnd::Ended(end)) => end,
-            Err(e) => return Err(e),
+            Err(e) => return Err(e.into()),
         };
         recorder.flush()?;
         if let Some(w) = rt_report.as_ref().and_then(|r| r.warning("plant")) {
@@ -387,6 +471,7 @@ fn run_planar(
     live.finish();
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
+    let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
     let mut summary = recorder.summary.finish(wall_s);
     summary.ended_early = end != PlantEnd::Completed;
     summary.failures.extend(rejection_failure(
@@ -395,27 +480,15 @@ fn run_planar(
         summary.first_rejection_at_s,
         cfg.acceptance.max_rejected,
     ));
-    summary.failures.extend(real_time_failures(cfg, &stats, &end));
-    summary.link = Some(link_record(cfg));
+    summary.failures.extend(ctx.real_time_failures());
+    summary.link = Some(ctx.link_record());
     write_summary(dir, s, &summary)?;
-    let latency = write_latency(
-        cfg,
-        s,
-        dir,
-        &stats,
-        rt_report.as_ref(),
-        &end,
-        wall_s,
-        &summary.failures,
-        chaos_stops,
-        ep.link_counts(),
-        observer,
-    )?;
+    let latency = ctx.write_latency(&summary.failures, chaos_stops, ep.link_counts())?;
     let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
     let run = RunOutcome { scenario: s.clone(), summary, rows };
     if !cfg.no_plots {
         if let Err(e) = crate::domain::plots::render_run(dir, &run) {
-            observer.warn(&format!("plots: {e:#}"));
+            observer.warn(&format!("plots: {}", Causes(&e)));
         }
     }
     Ok(PlantOutcome { end, run: PlantRun::Planar(run), latency })
@@ -429,7 +502,7 @@ fn run_spatial<const N: usize>(
     ss: &SpatialScenario,
     live: &LiveFigures,
     observer: &dyn Observer,
-) -> Result<PlantOutcome>
+) -> Result<PlantOutcome, PlantRunError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -437,7 +510,7 @@ where
     let s = &ss.base;
     let timing = cfg.timing;
     if cfg.chaos.is_some() {
-        bail!("--chaos runs the paper's planar arm; it cannot be combined with a spatial --arm");
+        return Err(PlantRunError::ChaosSpatial);
     }
     let chain = ss.arm.chain::<f64, N>()?;
     let star = spatial::target_in_effector::<N>(ss)?;
@@ -445,7 +518,7 @@ where
     let opened = open(cfg, s, canonical::arm_hash(&chain))?;
     let layout = spatial::replay::layout(ss);
     let (opened, mcap) =
-        opened.join(cfg, observer, |p| Ok(McapRecorder::create(p, layout)?), McapRecorder::discard)?;
+        opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
     let steps = s.steps();
@@ -472,7 +545,7 @@ where
             None if outcome.summary.ended_early => PlantEnd::Interrupted { cycle: outcome.summary.steps },
             None => PlantEnd::Completed,
             Some(spatial::Halt::Ended(end)) => end,
-            Some(spatial::Halt::Failed(e)) => return Err(e),
+            Some(spatial::Halt::Failed(e)) => return Err(e.into()),
         };
         crate::sys::rt::reset_thread();
         (outcome, end)
@@ -515,9 +588,10 @@ where
     live.finish();
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
+    let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
     outcome.summary.wall_time_s = wall_s;
-    outcome.summary.link = Some(link_record(cfg));
-    for f in real_time_failures(cfg, &stats, &end) {
+    outcome.summary.link = Some(ctx.link_record());
+    for f in ctx.real_time_failures() {
         outcome.summary.fail(f);
     }
     // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
@@ -527,22 +601,10 @@ where
         let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
         observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
     }
-    let latency = write_latency(
-        cfg,
-        s,
-        dir,
-        &stats,
-        rt_report.as_ref(),
-        &end,
-        wall_s,
-        &outcome.summary.failures,
-        Vec::new(),
-        ep.link_counts(),
-        observer,
-    )?;
+    let latency = ctx.write_latency(&outcome.summary.failures, Vec::new(), ep.link_counts())?;
     if !cfg.no_plots {
         if let Err(e) = crate::domain::plots::spatial::render(dir, &outcome.figures()) {
-            observer.warn(&format!("plots: {e:#}"));
+            observer.warn(&format!("plots: {}", Causes(&e)));
         }
     }
     Ok(PlantOutcome { end, run: PlantRun::Spatial(outcome), latency })

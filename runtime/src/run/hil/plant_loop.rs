@@ -25,7 +25,6 @@
 use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 
-use anyhow::Result;
 use companion_core::{Command, Measurement, Pose, Spatial};
 
 use super::config::Timing;
@@ -40,11 +39,11 @@ use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::domain::controller::{StepReport, JOINTS};
 use crate::domain::record::CommandSource;
-use crate::run::sim::Exchange;
+use crate::run::sim::{Exchange, LoopError};
 use crate::run::spatial::SpatialExchange;
 use crate::sys::clock::Clock;
 use crate::sys::signals::termination_requested;
-use crate::transport::link::PlantLink;
+use crate::transport::link::{LinkError, PlantLink};
 use crate::transport::wire::target::WireSpace;
 use crate::transport::wire::{check_command, flags, CommandMsg, MeasurementMsg, Refusal, WireError};
 
@@ -109,7 +108,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         fl: u32,
         delay: f64,
         meas: &Measurement<f64, N, S>,
-    ) -> Result<u64> {
+    ) -> Result<u64, LinkError> {
         let t_pub = self.clock.now_ns();
         let m = self.stamp.message(n, fl, t_pub, delay, meas);
         self.link.publish(&m)?;
@@ -125,7 +124,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         &mut self,
         want: Wanted,
         mut misses: Option<&mut MissLedger>,
-    ) -> Result<Result<Option<Fresh>, Refusal>> {
+    ) -> Result<Result<Option<Fresh>, Refusal>, LinkError> {
         let n = want.n;
         let mut fresh: Option<Fresh> = None;
         while let Some(c) = self.link.try_receive()? {
@@ -316,7 +315,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         cy: &mut Cycle<N>,
         n: u64,
         meas: &Measurement<f64, N, S>,
-    ) -> Result<Released> {
+    ) -> Result<Released, LinkError> {
         let period = self.timing.period_ns;
         let mut fl = 0;
         if n == cy.last_step {
@@ -357,7 +356,12 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// **Await the command**: drains and waits until the answer to `n` (or a refusal) came or
     /// the deadline passed — not at all once the controller is known to be gone. Real time
     /// starts when the handshake (`n = 0`) is answered.
-    fn await_command<const N: usize>(&mut self, cy: &mut Cycle<N>, n: u64, deadline: u64) -> Result<Heard> {
+    fn await_command<const N: usize>(
+        &mut self,
+        cy: &mut Cycle<N>,
+        n: u64,
+        deadline: u64,
+    ) -> Result<Heard, LinkError> {
         let mut heard = Heard::default();
         cy.idler.reset();
         let peer_lost = matches!(cy.end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
@@ -485,7 +489,12 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// **Liveness**: after a period without an answer, whether the controller is still there
     /// (a few syscalls, in the degraded state only); and SIGINT/SIGTERM. Either ends the run
     /// after the next step.
-    fn look_out<const N: usize>(&mut self, cy: &mut Cycle<N>, n: u64, answered: bool) -> Result<()> {
+    fn look_out<const N: usize>(
+        &mut self,
+        cy: &mut Cycle<N>,
+        n: u64,
+        answered: bool,
+    ) -> Result<(), LinkError> {
         if !answered && cy.last_step > n + 1 {
             let now = self.clock.now_ns();
             if let Some(loss) = cy.watch.check(now, self.timing.peer_timeout_ns, self.link)? {
@@ -515,13 +524,13 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
 /// controller sees the end of the run.
 ///
 /// # Errors
-/// A transport failure.
+/// A transport failure, or a step the plant refused.
 pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
     side: &mut PlantSide<'_, C, L>,
     plant: &mut R,
     steps: u64,
     sink: &mut impl FnMut(u64, &R::Row, bool) -> bool,
-) -> Result<PlantEnd> {
+) -> Result<PlantEnd, LoopError> {
     let runqueue_before = crate::sys::rt::runqueue_wait_ns();
     let mut cy = Cycle::<N>::new(&side.timing, steps, side.clock.now_ns());
     let mut answered_last;
@@ -560,7 +569,7 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
 impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     /// Waits up to [`GOODBYE_NS`] for the answer to the last measurement `last` (not applied:
     /// the run is over), while the controller is alive.
-    fn goodbye(&mut self, last: u64, watch: &mut PeerWatch) -> Result<()> {
+    fn goodbye(&mut self, last: u64, watch: &mut PeerWatch) -> Result<(), LinkError> {
         let t0 = self.clock.now_ns();
         loop {
             while let Some(c) = self.link.try_receive()? {
@@ -595,7 +604,7 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
         &mut self,
         n: u64,
         meas: &Measurement<f64, N, S>,
-    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>> {
+    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>, LinkError> {
         let fl = if n == self.steps { flags::END_OF_RUN } else { 0 };
         let side = &mut self.side;
         let t_pub = side.publish(n, fl, self.delay, meas)?;
@@ -637,7 +646,7 @@ impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
         &mut self,
         n: u64,
         meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<PlantEnd, StepReport>> {
+    ) -> Result<ControlFlow<PlantEnd, StepReport>, LinkError> {
         self.exchange_any(n, meas)
     }
 }
@@ -649,7 +658,7 @@ impl<C: Clock, L: PlantLink, const N: usize> SpatialExchange<N> for Lockstep<'_,
         &mut self,
         n: u64,
         meas: &Measurement<f64, N, Spatial>,
-    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>> {
+    ) -> Result<ControlFlow<PlantEnd, StepReport<N>>, LinkError> {
         self.exchange_any(n, meas)
     }
 }

@@ -2,7 +2,6 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
 use serde::Serialize;
 
 use super::chaos::DoneStop;
@@ -11,6 +10,8 @@ use super::end::PlantEnd;
 use super::stats::{InvalidCounts, PlantStats};
 use super::wait::WaitCounts;
 use crate::domain::histogram::Percentiles;
+use crate::domain::plots::PlotError;
+use crate::domain::record::error::RecordError;
 use crate::domain::record::Failure;
 use crate::domain::scenario::Scenario;
 use crate::sys::machine::Machine;
@@ -226,17 +227,17 @@ impl LatencyReport {
 ///
 /// # Errors
 /// Writing failed.
-pub fn write_json(dir: &Path, r: &LatencyReport) -> Result<()> {
+pub fn write_json(dir: &Path, r: &LatencyReport) -> Result<(), RecordError> {
     let path = dir.join("latency.json");
     std::fs::write(&path, serde_json::to_string_pretty(r)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))
+        .map_err(|source| RecordError::Json { path, source })
 }
 
 /// Writes `dir/latency.svg`: the three distributions.
 ///
 /// # Errors
 /// Drawing failed.
-pub fn write_svg(dir: &Path, st: &PlantStats, r: &LatencyReport) -> Result<()> {
+pub fn write_svg(dir: &Path, st: &PlantStats, r: &LatencyReport) -> Result<(), PlotError> {
     let mut series = vec![("controller compute", &st.compute), ("round trip", &st.round_trip)];
     if st.jitter.count() > 0 {
         series.push(("release jitter", &st.jitter));
@@ -250,5 +251,5 @@ pub fn write_svg(dir: &Path, st: &PlantStats, r: &LatencyReport) -> Result<()> {
         r.deadline_misses
     );
     let deadline = (r.deadline_ns > 0).then_some(r.deadline_ns);
-    Ok(crate::domain::plots::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)?)
+    crate::domain::plots::latency_svg(&dir.join("latency.svg"), &title, &series, deadline)
 }

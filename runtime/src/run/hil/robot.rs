@@ -4,9 +4,8 @@
 //! are the planar [`Row`]s of `companion sim`); [`SpatialRobot`] a 6- to 8-joint arm in
 //! SE(3) (§5; its rows are the [`SpatialRecord`]s of `companion sim --arm`).
 
-use anyhow::Result;
 use companion_core::{Command, Measurement, Planar, Pose, Pose3, Rpr, Spatial};
-use companion_plant::{Plant, SpatialPlant};
+use companion_plant::{AdvanceError, Plant, SpatialPlant};
 
 use crate::domain::controller::{StepReport, JOINTS};
 use crate::domain::record::spatial::SpatialRecord;
@@ -38,7 +37,7 @@ pub trait Robot<const N: usize> {
         command: &Command<f64, N>,
         switch_at: f64,
         dt: f64,
-    ) -> Result<()>;
+    ) -> Result<(), AdvanceError>;
 
     /// The record of the current step with the report applied over the next period.
     fn row(&self, report: &StepReport<N>, source: CommandSource) -> Self::Row;
@@ -73,8 +72,8 @@ impl Robot<JOINTS> for PlanarRobot<'_> {
         command: &Command<f64, JOINTS>,
         switch_at: f64,
         dt: f64,
-    ) -> Result<()> {
-        Ok(self.plant.try_advance_delayed(previous, command, switch_at, dt)?)
+    ) -> Result<(), AdvanceError> {
+        self.plant.try_advance_delayed(previous, command, switch_at, dt)
     }
 
     #[inline]
@@ -112,8 +111,8 @@ impl<const N: usize> Robot<N> for SpatialRobot<'_, N> {
         command: &Command<f64, N>,
         switch_at: f64,
         dt: f64,
-    ) -> Result<()> {
-        Ok(self.plant.try_advance_delayed(previous, command, switch_at, dt)?)
+    ) -> Result<(), AdvanceError> {
+        self.plant.try_advance_delayed(previous, command, switch_at, dt)
     }
 
     #[inline]

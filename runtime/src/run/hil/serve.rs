@@ -7,23 +7,23 @@
 //! `[0, min(max_delay, HISTORY · dt)]`; a non-finite delay is left to the law, which answers
 //! it with the safe command and status `0x700`).
 
-use anyhow::Result;
 use companion_core::{Manipulator, Spatial, SpatialArm};
 
 use super::config::HilScenario;
 use super::config::WaitMode;
 use super::end::ControlEnd;
-use super::law::{Law as _, PlanarLaw, Served, SpatialLaw};
+use super::law::{Law as _, LawError, PlanarLaw, Served, SpatialLaw};
 use super::messages::answer;
 use super::stats::ControlStats;
 use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
+use crate::domain::arm::ArmError;
 use crate::domain::controller::ControllerSpec;
 use crate::domain::observe::Observer;
 use crate::run::spatial::SpatialScenario;
 use crate::sys::clock::Clock;
 use crate::sys::signals::termination_requested;
-use crate::transport::link::{ControlLink, PeerState};
+use crate::transport::link::{ControlLink, LinkError, PeerState};
 use crate::transport::wire::canonical;
 use crate::transport::wire::{
     check_measurement, flags, Announcement, CommandHeader, CommandMsg, ControllerIdentity, MeasurementMsg,
@@ -54,6 +54,24 @@ pub struct ServeOptions {
 #[derive(Clone, Copy, Debug, PartialEq, thiserror::Error)]
 #[error("refused the plant: {0}")]
 pub struct Refused(pub Refusal);
+
+/// Why the controller's loop failed (its ends, a lost plant among them, are
+/// [`ControlEnd`]s).
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// The transport failed.
+    #[error(transparent)]
+    Link(#[from] LinkError),
+    /// The controller refused the plant.
+    #[error(transparent)]
+    Refused(#[from] Refused),
+    /// The law for the plant cannot be built.
+    #[error(transparent)]
+    Law(#[from] LawError),
+    /// The scenario's arm cannot be built.
+    #[error(transparent)]
+    Arm(#[from] ArmError),
+}
 
 /// How long the controller waits for the plant's end of run after SIGINT/SIGTERM (ns).
 const INTERRUPT_GRACE_NS: u64 = 1_000_000_000;
@@ -104,7 +122,7 @@ pub fn serve<C: Clock, L: ControlLink>(
     opt: &ServeOptions,
     stats: &mut ControlStats,
     observer: &dyn Observer,
-) -> Result<ControlEnd> {
+) -> Result<ControlEnd, ServeError> {
     serve_law(clock, link, &PlanarLaw(spec), opt, stats, observer)
 }
 
@@ -119,7 +137,7 @@ pub fn serve_scenario<C: Clock, L: ControlLink>(
     opt: &ServeOptions,
     stats: &mut ControlStats,
     observer: &dyn Observer,
-) -> Result<ControlEnd> {
+) -> Result<ControlEnd, ServeError> {
     fn spatial<C: Clock, L: ControlLink, const N: usize>(
         clock: &C,
         link: &mut L,
@@ -127,7 +145,7 @@ pub fn serve_scenario<C: Clock, L: ControlLink>(
         opt: &ServeOptions,
         stats: &mut ControlStats,
         observer: &dyn Observer,
-    ) -> Result<ControlEnd>
+    ) -> Result<ControlEnd, ServeError>
     where
         SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
         SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -142,7 +160,7 @@ pub fn serve_scenario<C: Clock, L: ControlLink>(
             6 => spatial::<C, L, 6>(clock, link, ss, opt, stats, observer),
             7 => spatial::<C, L, 7>(clock, link, ss, opt, stats, observer),
             8 => spatial::<C, L, 8>(clock, link, ss, opt, stats, observer),
-            n => Err(crate::domain::arm::ArmError::JointCount { found: n }.into()),
+            n => Err(ArmError::JointCount { found: n }.into()),
         },
     }
 }
@@ -159,7 +177,7 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
     opt: &ServeOptions,
     stats: &mut ControlStats,
     observer: &dyn Observer,
-) -> Result<ControlEnd> {
+) -> Result<ControlEnd, ServeError> {
     let identity = law.identity();
     let notify = if link.notifies() { flags::NOTIFIES } else { 0 };
     let mut idler = Idler::new(opt.wait, opt.spin_margin_ns);
@@ -278,7 +296,7 @@ fn admit<L: ControlLink, const N: usize, F: Served<N>>(
     m: &MeasurementMsg,
     notify: u32,
     now: u64,
-) -> Result<Session<F::Law>> {
+) -> Result<Session<F::Law>, ServeError> {
     let announced = match identity.admit(m) {
         Ok(a) => a,
         Err(why) => {

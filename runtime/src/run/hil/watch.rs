@@ -3,9 +3,7 @@
 //! interval; a dead or departed peer is found at once, a live one that stays silent for the
 //! timeout is hung.
 
-use anyhow::Result;
-
-use crate::transport::link::{Link, PeerState};
+use crate::transport::link::{Link, LinkError, PeerState};
 
 /// What the watch found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -70,7 +68,12 @@ impl PeerWatch {
     /// # Errors
     /// The peer's state cannot be read.
     #[inline]
-    pub fn check<L: Link>(&mut self, now_ns: u64, timeout_ns: u64, link: &mut L) -> Result<Option<PeerLoss>> {
+    pub fn check<L: Link>(
+        &mut self,
+        now_ns: u64,
+        timeout_ns: u64,
+        link: &mut L,
+    ) -> Result<Option<PeerLoss>, LinkError> {
         let silent_ns = self.silent_ns(now_ns);
         if silent_ns < self.silence_ns || now_ns.saturating_sub(self.last_check_ns) < self.silence_ns {
             return Ok(None);
@@ -91,7 +94,6 @@ mod tests {
     use std::time::Duration;
 
     use super::*;
-    use crate::transport::link::LinkError;
 
     struct Peer(PeerState, u32);
 

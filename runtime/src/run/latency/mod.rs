@@ -29,6 +29,7 @@
 //! give p50 … p99.99 and the maximum, and the ratios (4)/(2) and (3)/(2) of the medians.
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
+pub mod error;
 pub mod hops;
 pub mod pingpong;
 #[cfg(feature = "zenoh")]
@@ -37,15 +38,15 @@ pub mod zenoh;
 use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
 
-use anyhow::{anyhow, bail, Context, Result};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 use serde::{Deserialize, Serialize};
 
+use self::error::{os, LatencyError};
 use self::pingpong::{PeerOptions, RtScope, SecondClock, Transport};
 use crate::domain::controller::{platform_name, AnyController, Scalar};
 use crate::domain::histogram::{fmt_ns, LatencyHistogram, Percentiles};
-use crate::domain::observe::Observer;
+use crate::domain::observe::{Causes, Observer};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::hil::misses::MissCauses;
 use crate::run::hil::WaitMode;
@@ -107,7 +108,7 @@ impl BusyLoad {
     ///
     /// # Errors
     /// A thread cannot be started.
-    pub fn start(threads: usize) -> Result<Self> {
+    pub fn start(threads: usize) -> Result<Self, LatencyError> {
         use std::sync::atomic::{AtomicBool, Ordering};
         let stop = std::sync::Arc::new(AtomicBool::new(false));
         let mut handles = Vec::with_capacity(threads);
@@ -121,7 +122,7 @@ impl BusyLoad {
                             std::hint::spin_loop();
                         }
                     })
-                    .context("starting a load thread")?,
+                    .map_err(os(|| "starting a load thread".into()))?,
             );
         }
         Ok(Self { stop, threads: handles })
@@ -146,7 +147,7 @@ pub fn controller_step(
     scalar: Scalar,
     cycles: u64,
     warmup: u64,
-) -> Result<LatencyHistogram> {
+) -> Result<LatencyHistogram, LatencyError> {
     let s = Scenario::builder(PaperTrajectory::One, PaperRun::A, platform)
         .scalar(scalar)
         .duration((cycles + warmup + 1) as f64 * 1e-3)
@@ -261,7 +262,13 @@ pub struct RtFigures {
 ///
 /// # Errors
 /// The run failed.
-pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool) -> Result<HilFigures> {
+pub fn hil_run(
+    exe: &Path,
+    dir: &Path,
+    mode: WaitMode,
+    cycles: u64,
+    use_rt: bool,
+) -> Result<HilFigures, LatencyError> {
     std::fs::create_dir_all(dir)?;
     let duration = format!("{}", cycles as f64 * 1e-3);
     let name = format!("latency-{}-{}", std::process::id(), mode.as_str());
@@ -289,18 +296,14 @@ pub fn hil_run(exe: &Path, dir: &Path, mode: WaitMode, cycles: u64, use_rt: bool
     if use_rt {
         cmd.arg("--rt");
     }
-    let status = cmd.status().context("running companion hil")?;
+    let status = cmd.status().map_err(os(|| "running companion hil".into()))?;
     // 7: real time was not kept — what this benchmark measures, not a failure of it.
     if !(status.success() || status.code() == Some(7)) {
-        bail!(
-            "companion hil --wait {} failed ({status}); see {}",
-            mode.as_str(),
-            dir.join("log.txt").display()
-        );
+        return Err(LatencyError::HilFailed { mode: mode.as_str(), status, log: dir.join("log.txt") });
     }
     let path = dir.join("latency.json");
-    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("reading {}", path.display()))
+    let text = std::fs::read_to_string(&path).map_err(os(|| format!("reading {}", path.display())))?;
+    serde_json::from_str(&text).map_err(|source| LatencyError::Json { path, source })
 }
 
 /// One row of the table.
@@ -360,12 +363,12 @@ fn ratio(a: u64, b: u64) -> f64 {
 ///
 /// # Errors
 /// A child process or a file failed.
-pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
+pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, LatencyError> {
     if a.cycles == 0 {
-        bail!("--cycles must be at least 1");
+        return Err(LatencyError::NoCycles);
     }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    let exe = std::env::current_exe().context("locating this program")?;
+    std::fs::create_dir_all(&a.out).map_err(os(|| format!("creating {}", a.out.display())))?;
+    let exe = std::env::current_exe().map_err(os(|| "locating this program".into()))?;
     let load_start = std::fs::read_to_string("/proc/loadavg").unwrap_or_default().trim().to_string();
     let (own_cpu, _) = pingpong::rt_cpus();
     let mut rows: Vec<Row> = Vec::new();
@@ -518,7 +521,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
                 note_hops(h);
             }
             Err(e) => observer.warn(&format!(
-                "(3) Zenoh across network namespaces skipped: {e:#} (needs root and `ip netns`)"
+                "(3) Zenoh across network namespaces skipped: {} (needs root and `ip netns`)",
+                Causes(&e)
             )),
         }
         (p50, tls_p50)
@@ -576,11 +580,10 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
             ));
             if let Some(t) = &paced {
                 if f.deadline_ns != t.deadline_ns {
-                    bail!(
-                        "the HIL run's deadline is {} ns, the transport's count is against {} ns",
-                        f.deadline_ns,
-                        t.deadline_ns
-                    );
+                    return Err(LatencyError::DeadlineMismatch {
+                        hil_ns: f.deadline_ns,
+                        transport_ns: t.deadline_ns,
+                    });
                 }
                 let m = MissAccount::new(*mode, *load, &f, t);
                 observer.note(&format!(
@@ -652,8 +655,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         miss_account,
     };
     let path = a.out.join("latency-benchmark.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&bench)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+    let text = serde_json::to_string_pretty(&bench).map_err(LatencyError::Serialize)?;
+    std::fs::write(&path, text + "\n").map_err(os(|| format!("writing {}", path.display())))?;
     let series: Vec<(&str, &LatencyHistogram)> =
         hists.iter().filter(|(n, _)| !n.contains("f32")).map(|(n, h)| (n.as_str(), h)).collect();
     let svg = a.out.join("latency-benchmark.svg");
@@ -663,7 +666,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
         &series,
         None,
     ) {
-        observer.warn(&format!("plot: {e:#}"));
+        observer.warn(&format!("plot: {}", Causes(&e)));
     }
     Ok(bench)
 }
@@ -673,7 +676,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark> {
 ///
 /// # Errors
 /// A transport failure.
-pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
+pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<(), LatencyError> {
     if let Some(cpu) = a.rt_cpu {
         if let Some(w) = rt::apply(&rt::RtConfig::with_cpu(Some(cpu))).warning("latency peer") {
             observer.warn(&w);
@@ -684,12 +687,18 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
             pingpong::peer_iox(&a.name, a.transport == Transport::IoxEvent)
         }
         Transport::Uds => {
-            let dir = a.socket_dir.as_ref().ok_or_else(|| anyhow!("--socket-dir is required with uds"))?;
+            let dir = a
+                .socket_dir
+                .as_ref()
+                .ok_or(LatencyError::MissingFlag("--socket-dir is required with uds"))?;
             pingpong::peer_uds(dir)
         }
         #[cfg(feature = "zenoh")]
         Transport::Zenoh => {
-            let ep = a.endpoint.as_deref().ok_or_else(|| anyhow!("--endpoint is required with zenoh"))?;
+            let ep = a
+                .endpoint
+                .as_deref()
+                .ok_or(LatencyError::MissingFlag("--endpoint is required with zenoh"))?;
             let variant = zenoh::Variant {
                 tuning: crate::transport::zenoh_link::Tuning { low_latency: a.zenoh_low_latency },
                 handoff: if a.zenoh_spin { zenoh::Handoff::Spin } else { zenoh::Handoff::Park },
@@ -697,7 +706,7 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<()> {
             zenoh::peer(&a.name, ep, a.tls_dir.as_deref(), variant)
         }
         #[cfg(not(feature = "zenoh"))]
-        Transport::Zenoh => bail!("{}", crate::transport::BUILD_WITH_ZENOH),
+        Transport::Zenoh => Err(LatencyError::NoZenoh),
     }
 }
 
@@ -725,7 +734,7 @@ mod tests {
             max_command_age: 0,
         };
         let cfg = HilConfig {
-            name: "t".into(),
+            name: crate::sys::lock::DemoName::new("t").unwrap(),
             out: PathBuf::new(),
             timing,
             startup_timeout: Duration::from_secs(1),

@@ -15,12 +15,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command as Process, Stdio};
 use std::time::Duration;
 
-use anyhow::{bail, Context, Result};
 use companion_core::Command;
 use serde::Serialize;
 
+use super::error::{os, LatencyError};
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::observe::Observer;
+use crate::sys::lock::DemoName;
 use crate::sys::process::ChildGuard;
 use crate::sys::rt;
 use crate::transport::ipc::{ControlEndpoint, PlantEndpoint};
@@ -63,7 +64,7 @@ pub struct PeerOptions {
     /// The transport.
     pub transport: Transport,
     /// The iceoryx2 demo name.
-    pub name: String,
+    pub name: DemoName,
     /// The folder of the sockets (uds).
     pub socket_dir: Option<PathBuf>,
     /// The endpoint to connect to (zenoh).
@@ -113,7 +114,7 @@ pub(super) fn ping(seq: u64, last: bool) -> MeasurementMsg {
     MeasurementMsg::new(header, &m)
 }
 
-pub(super) fn peer_iox(name: &str, events: bool) -> Result<()> {
+pub(super) fn peer_iox(name: &DemoName, events: bool) -> Result<(), LatencyError> {
     let mut ep = ControlEndpoint::control(name, events)?;
     ep.wait_for_peer(Duration::from_secs(10), || None)?;
     let mut silent_since = rt::monotonic_ns();
@@ -135,41 +136,45 @@ pub(super) fn peer_iox(name: &str, events: bool) -> Result<()> {
         let now = rt::monotonic_ns();
         if now - silent_since > 2_000_000_000 {
             if matches!(ep.peer_state()?, PeerState::Dead(_) | PeerState::Expired(_) | PeerState::Absent) {
-                bail!("the benchmark process is gone");
+                return Err(LatencyError::BenchmarkGone);
             }
             silent_since = now;
         }
     }
 }
 
-pub(super) fn peer_uds(dir: &Path) -> Result<()> {
+pub(super) fn peer_uds(dir: &Path) -> Result<(), LatencyError> {
     let me = dir.join("peer.sock");
-    let sock = UnixDatagram::bind(&me).with_context(|| format!("binding {}", me.display()))?;
-    sock.connect(dir.join("bench.sock")).context("connecting to the benchmark's socket")?;
+    let sock = UnixDatagram::bind(&me).map_err(os(|| format!("binding {}", me.display())))?;
+    sock.connect(dir.join("bench.sock")).map_err(os(|| "connecting to the benchmark's socket".into()))?;
     sock.set_read_timeout(Some(Duration::from_secs(5)))?;
     sock.send(b"hello")?;
     let mut buf = [0u8; MEASUREMENT_SIZE];
     loop {
-        let n = sock.recv(&mut buf).context("peer recv")?;
+        let n = sock.recv(&mut buf).map_err(os(|| "peer recv".into()))?;
         if n != MEASUREMENT_SIZE {
-            bail!("peer received {n} bytes");
+            return Err(LatencyError::PeerReceived(n));
         }
         let m = MeasurementMsg::from_bytes(&buf);
         let reply = echo(&m, rt::monotonic_ns()).to_bytes();
-        sock.send(&reply).context("peer send")?;
+        sock.send(&reply).map_err(os(|| "peer send".into()))?;
         if m.has(flags::END_OF_RUN) {
             return Ok(());
         }
     }
 }
 
-pub(super) fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard> {
+pub(super) fn spawn_peer(exe: &Path, args: &[String]) -> Result<ChildGuard, LatencyError> {
     spawn_peer_in(None, exe, args)
 }
 
 /// [`spawn_peer`] in network namespace `netns` (`ip netns exec`, which execs the program: the
 /// child is the peer itself).
-pub(super) fn spawn_peer_in(netns: Option<&str>, exe: &Path, args: &[String]) -> Result<ChildGuard> {
+pub(super) fn spawn_peer_in(
+    netns: Option<&str>,
+    exe: &Path,
+    args: &[String],
+) -> Result<ChildGuard, LatencyError> {
     let mut cmd = match netns {
         Some(ns) => {
             let mut c = Process::new("ip");
@@ -183,7 +188,7 @@ pub(super) fn spawn_peer_in(netns: Option<&str>, exe: &Path, args: &[String]) ->
         .args(args)
         .stdin(Stdio::null())
         .spawn()
-        .with_context(|| format!("starting {} latency-peer", exe.display()))?;
+        .map_err(os(|| format!("starting {} latency-peer", exe.display())))?;
     Ok(ChildGuard::new(child))
 }
 
@@ -210,19 +215,19 @@ pub fn iceoryx(
     use_rt: bool,
     pace_ns: Option<u64>,
     observer: &dyn Observer,
-) -> Result<(LatencyHistogram, SecondClock)> {
-    let name = format!(
+) -> Result<(LatencyHistogram, SecondClock), LatencyError> {
+    let name = DemoName::new(&format!(
         "latency-{}-{}{}",
         std::process::id(),
         if events { "event" } else { "spin" },
         if pace_ns.is_some() { "-paced" } else { "" }
-    );
+    ))?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
         "--transport".to_string(),
         if events { Transport::IoxEvent } else { Transport::IoxSpin }.as_str().to_string(),
         "--name".to_string(),
-        name.clone(),
+        name.to_string(),
     ];
     if use_rt {
         args.extend(["--rt-cpu".to_string(), peer_cpu.to_string()]);
@@ -260,7 +265,7 @@ pub fn iceoryx(
             }
             spins = spins.wrapping_add(1);
             if spins % 4096 == 0 && rt::monotonic_ns() - t0 > 5_000_000_000 {
-                bail!("the iceoryx2 ping-pong peer stopped answering at iteration {i}");
+                return Err(LatencyError::PeerStopped { transport: "iceoryx2", iteration: i });
             }
         }
         samples.record(i, rt::monotonic_ns() - t0);
@@ -280,7 +285,7 @@ pub fn unix_socket(
     warmup: u64,
     use_rt: bool,
     observer: &dyn Observer,
-) -> Result<(LatencyHistogram, SecondClock)> {
+) -> Result<(LatencyHistogram, SecondClock), LatencyError> {
     let dir = std::env::temp_dir().join(format!("companion-latency-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir)?;
@@ -296,8 +301,9 @@ fn unix_socket_in(
     warmup: u64,
     use_rt: bool,
     observer: &dyn Observer,
-) -> Result<(LatencyHistogram, SecondClock)> {
-    let sock = UnixDatagram::bind(dir.join("bench.sock")).context("binding the benchmark's socket")?;
+) -> Result<(LatencyHistogram, SecondClock), LatencyError> {
+    let sock =
+        UnixDatagram::bind(dir.join("bench.sock")).map_err(os(|| "binding the benchmark's socket".into()))?;
     sock.set_read_timeout(Some(Duration::from_secs(10)))?;
     let (own_cpu, peer_cpu) = rt_cpus();
     let mut args = vec![
@@ -311,9 +317,9 @@ fn unix_socket_in(
     }
     let mut child = spawn_peer(exe, &args)?;
     let mut buf = [0u8; COMMAND_SIZE];
-    let n = sock.recv(&mut buf).context("waiting for the socket peer")?;
+    let n = sock.recv(&mut buf).map_err(os(|| "waiting for the socket peer".into()))?;
     if &buf[..n] != b"hello" {
-        bail!("unexpected greeting from the socket peer");
+        return Err(LatencyError::Greeting);
     }
     sock.connect(dir.join("peer.sock"))?;
     let _rt = use_rt.then(|| RtScope::enter(own_cpu, observer));
@@ -325,9 +331,9 @@ fn unix_socket_in(
         let t0 = msg.plant_time_ns;
         sock.send(&msg.to_bytes())?;
         loop {
-            let n = sock.recv(&mut buf).context("socket ping-pong")?;
+            let n = sock.recv(&mut buf).map_err(os(|| "socket ping-pong".into()))?;
             if n != COMMAND_SIZE {
-                bail!("received {n} bytes");
+                return Err(LatencyError::Received(n));
             }
             if CommandMsg::from_bytes(&buf).seq == i {
                 break;

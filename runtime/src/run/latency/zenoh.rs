@@ -10,13 +10,12 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use anyhow::{bail, Result};
-
+use super::error::LatencyError;
 use super::hops::{HopRecorder, HopReport, Stamps};
 use super::pingpong::{echo, ping, rt_cpus, spawn_peer_in, RtScope, Samples, SecondClock, Transport};
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::observe::Observer;
-use crate::sys::lock::Role;
+use crate::sys::lock::{DemoName, Role};
 use crate::sys::rt;
 use crate::transport::link::PeerState;
 use crate::transport::wire::flags;
@@ -115,7 +114,7 @@ impl Tls {
     ///
     /// # Errors
     /// The folder or the certificates cannot be made.
-    pub fn make() -> Result<Self> {
+    pub fn make() -> Result<Self, LatencyError> {
         let dir = std::env::temp_dir().join(format!("companion-latency-tls-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let hosts = crate::transport::certs::Host::parse_list("plant=127.0.0.1,control")?;
@@ -155,7 +154,12 @@ fn security(dir: Option<&Path>, role: Role) -> Security {
 ///
 /// # Errors
 /// A bad endpoint, a Zenoh failure, or the benchmark gone.
-pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>, variant: Variant) -> Result<()> {
+pub fn peer(
+    name: &DemoName,
+    endpoint: &str,
+    tls: Option<&Path>,
+    variant: Variant,
+) -> Result<(), LatencyError> {
     let link = ZenohLink::Connect(TcpEndpoint::parse(endpoint)?);
     let mut ep = ZenohControl::open_tuned(
         name,
@@ -194,7 +198,7 @@ pub fn peer(name: &str, endpoint: &str, tls: Option<&Path>, variant: Variant) ->
         let now = rt::monotonic_ns();
         if now - silent_since > 2_000_000_000 {
             if matches!(ep.peer_state(), PeerState::Dead(_) | PeerState::Expired(_) | PeerState::Absent) {
-                bail!("the benchmark process is gone");
+                return Err(LatencyError::BenchmarkGone);
             }
             silent_since = now;
         }
@@ -212,13 +216,14 @@ pub struct Veth {
     pub here: String,
 }
 
-fn ip(args: &[&str]) -> Result<()> {
+fn ip(args: &[&str]) -> Result<(), LatencyError> {
     let o = std::process::Command::new("ip")
         .args(args)
         .output()
-        .map_err(|e| anyhow::anyhow!("ip {}: {e}", args.join(" ")))?;
+        .map_err(|e| LatencyError::Ip { args: args.join(" "), cause: e.to_string() })?;
     if !o.status.success() {
-        bail!("ip {}: {}", args.join(" "), String::from_utf8_lossy(&o.stderr).trim());
+        let cause = String::from_utf8_lossy(&o.stderr).trim().to_string();
+        return Err(LatencyError::Ip { args: args.join(" "), cause });
     }
     Ok(())
 }
@@ -228,7 +233,7 @@ impl Veth {
     ///
     /// # Errors
     /// `ip` is missing or namespaces are not permitted (not root): the reason.
-    pub fn create() -> Result<Self> {
+    pub fn create() -> Result<Self, LatencyError> {
         let pid = std::process::id();
         let netns = format!("companion-lat-{pid}");
         let (outer, inner) = (format!("clat{pid}a"), format!("clat{pid}b"));
@@ -269,24 +274,24 @@ pub fn round_trips(
     tls: Option<&Tls>,
     variant: Variant,
     observer: &dyn Observer,
-) -> Result<(LatencyHistogram, SecondClock, HopReport)> {
+) -> Result<(LatencyHistogram, SecondClock, HopReport), LatencyError> {
     let tls_dir = tls.map(Tls::dir);
     let endpoint = match veth {
         None => crate::transport::free_local_endpoint(tls.is_none())?,
         Some(v) => {
             let l = std::net::TcpListener::bind((v.here.as_str(), 0))
-                .map_err(|e| anyhow::anyhow!("a free port on {}: {e}", v.here))?;
+                .map_err(|cause| LatencyError::FreePort { here: v.here.clone(), cause })?;
             format!("tcp/{}:{}", v.here, l.local_addr()?.port())
         }
     };
-    let name = format!(
+    let name = DemoName::new(&format!(
         "latency-{}-zenoh{}{}{}{}",
         std::process::id(),
         if veth.is_some() { "-netns" } else { "" },
         if tls.is_some() { "-tls" } else { "" },
         if variant.tuning.low_latency { "-ll" } else { "" },
         if variant.handoff == Handoff::Spin { "-spin" } else { "" },
-    );
+    ))?;
     let config = format!(
         "{}, {}",
         match (tls.is_some(), veth.is_some()) {
@@ -310,7 +315,7 @@ pub fn round_trips(
         "--transport".to_string(),
         Transport::Zenoh.as_str().to_string(),
         "--name".to_string(),
-        name,
+        name.to_string(),
         "--endpoint".to_string(),
         endpoint,
     ];
@@ -347,7 +352,7 @@ pub fn round_trips(
             if (variant.handoff == Handoff::Park || spins % 4096 == 0)
                 && rt::monotonic_ns() - t0 > 5_000_000_000
             {
-                bail!("the Zenoh ping-pong peer stopped answering at iteration {i}");
+                return Err(LatencyError::PeerStopped { transport: "Zenoh", iteration: i });
             }
         };
         samples.record(i, rt::monotonic_ns() - t0);
@@ -376,10 +381,14 @@ pub fn round_trips(
 ///
 /// # Errors
 /// A session cannot be opened, or the peer is not seen within 10 s.
-pub fn session_setup(n: u32, tls: Option<&Tls>) -> Result<LatencyHistogram> {
+pub fn session_setup(n: u32, tls: Option<&Tls>) -> Result<LatencyHistogram, LatencyError> {
     let tls_dir = tls.map(Tls::dir);
     let endpoint = TcpEndpoint::parse(&crate::transport::free_local_endpoint(tls.is_none())?)?;
-    let name = format!("latency-{}-setup{}", std::process::id(), if tls.is_some() { "-tls" } else { "" });
+    let name = DemoName::new(&format!(
+        "latency-{}-setup{}",
+        std::process::id(),
+        if tls.is_some() { "-tls" } else { "" }
+    ))?;
     let plant = ZenohPlant::open(
         &name,
         Role::Plant,
@@ -400,7 +409,7 @@ pub fn session_setup(n: u32, tls: Option<&Tls>) -> Result<LatencyHistogram> {
         // (Not `wait_for_peer`, which waits 50 ms more for rivals' tokens.)
         while !c.peer_connected() {
             if rt::monotonic_ns() - t0 > 10_000_000_000 {
-                bail!("no session to {endpoint} within 10 s");
+                return Err(LatencyError::NoSession { endpoint: endpoint.to_string() });
             }
             std::thread::sleep(Duration::from_micros(100));
         }

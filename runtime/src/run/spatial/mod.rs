@@ -21,17 +21,17 @@ use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, Result};
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
 use companion_core::{Chain, Manipulator, Measurement, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::{
-    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PlantConfig, SpatialInitial,
-    SpatialPiecewise, SpatialPlant, SpatialTarget,
+    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PlantConfig, PlantError,
+    SpatialInitial, SpatialPiecewise, SpatialPlant, SpatialTarget, TrajectoryError,
 };
 
-use crate::domain::arm::{SpatialArmSpec, MAX_JOINTS};
+use crate::domain::arm::{ArmError, SpatialArmSpec, MAX_JOINTS};
 use crate::domain::controller::{
-    boxed_spatial_controller, planar_only_keys, SpatialStep, StepReport, TARGET_DISTANCE,
+    boxed_spatial_controller, planar_only_keys, SpatialControllerError, SpatialStep, StepReport,
+    TARGET_DISTANCE,
 };
 use crate::domain::observe::Observer;
 use crate::domain::plant_setup::matched_steering;
@@ -39,6 +39,8 @@ use crate::domain::plots::spatial::SpatialFigures;
 use crate::domain::record::spatial::{write_csv, SpatialAccumulator, SpatialRecord, SpatialSummary};
 use crate::domain::record::CommandSource;
 use crate::domain::scenario::Scenario;
+use crate::run::sim::LoopError;
+use crate::transport::link::LinkError;
 
 /// The target of a spatial run.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -109,6 +111,66 @@ pub enum SpatialError {
         /// The limits.
         upper: f64,
     },
+}
+
+/// Why a spatial run failed: its scenario, arm, law, target or plant (before anything is
+/// written), its loop, or its files.
+#[derive(Debug, thiserror::Error)]
+pub enum SpatialRunError {
+    /// The scenario breaks a rule of spatial runs.
+    #[error(transparent)]
+    Scenario(#[from] SpatialError),
+    /// The arm cannot be built.
+    #[error(transparent)]
+    Arm(#[from] ArmError),
+    /// The spatial law cannot be built.
+    #[error(transparent)]
+    Controller(#[from] SpatialControllerError),
+    /// The target file cannot be read or breaks a rule.
+    #[error("target file {}", path.display())]
+    TargetFile {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        #[source]
+        source: TrajectoryError,
+    },
+    /// A plant parameter breaks a rule.
+    #[error("plant parameters")]
+    Plant(#[source] PlantError),
+    /// The loop failed: the exchange (HIL: the transport), or a step the plant refused.
+    #[error(transparent)]
+    Loop(#[from] LoopError),
+    /// A folder or `timeseries.csv` cannot be created.
+    #[error("creating {}", path.display())]
+    Create {
+        /// The folder or file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `timeseries.csv` cannot be written.
+    #[error("writing {}", path.display())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// The CSV writer's error.
+        #[source]
+        source: csv::Error,
+    },
+    /// `summary.json` or `scenario.json` cannot be written.
+    #[error("writing {}", path.display())]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The summary or the scenario cannot be put as JSON.
+    #[error(transparent)]
+    Serialize(#[from] serde_json::Error),
 }
 
 impl SpatialScenario {
@@ -188,12 +250,12 @@ pub fn run_spatial(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome> {
+) -> Result<SpatialOutcome, SpatialRunError> {
     match s.arm.joints() {
         6 => run_n::<6>(s, dir, observer, max_rejected),
         7 => run_n::<7>(s, dir, observer, max_rejected),
         8 => run_n::<8>(s, dir, observer, max_rejected),
-        n => Err(crate::domain::arm::ArmError::JointCount { found: n }.into()),
+        n => Err(ArmError::JointCount { found: n }.into()),
     }
 }
 
@@ -203,7 +265,7 @@ fn run_n<const N: usize>(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome>
+) -> Result<SpatialOutcome, SpatialRunError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -216,7 +278,7 @@ where
     let (outcome, failed) = execute(s, &mut plant, &star, &mut exchange, dir, observer, max_rejected)?;
     match failed {
         None => Ok(outcome),
-        Some(Halt::Failed(e)) => Err(e),
+        Some(Halt::Failed(e)) => Err(e.into()),
         Some(Halt::Ended(never)) => match never {},
     }
 }
@@ -227,8 +289,8 @@ where
 ///
 /// # Errors
 /// [`SpatialError`], a bad arm, target file or parameter.
-pub fn check(s: &SpatialScenario) -> Result<()> {
-    fn n<const N: usize>(s: &SpatialScenario) -> Result<()>
+pub fn check(s: &SpatialScenario) -> Result<(), SpatialRunError> {
+    fn n<const N: usize>(s: &SpatialScenario) -> Result<(), SpatialRunError>
     where
         SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
         SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -240,7 +302,7 @@ pub fn check(s: &SpatialScenario) -> Result<()> {
         6 => n::<6>(s),
         7 => n::<7>(s),
         8 => n::<8>(s),
-        j => Err(crate::domain::arm::ArmError::JointCount { found: j }.into()),
+        j => Err(ArmError::JointCount { found: j }.into()),
     }
 }
 
@@ -260,7 +322,7 @@ pub trait SpatialExchange<const N: usize> {
         &mut self,
         n: u64,
         meas: &Measurement<f64, N, Spatial>,
-    ) -> Result<ControlFlow<Self::End, StepReport<N>>>;
+    ) -> Result<ControlFlow<Self::End, StepReport<N>>, LinkError>;
 }
 
 /// Why [`execute`] stopped before its last step (its records up to there are kept and
@@ -270,8 +332,11 @@ pub enum Halt<X> {
     /// The exchange ended the run ([`SpatialExchange::End`]).
     Ended(X),
     /// The exchange or the plant failed.
-    Failed(anyhow::Error),
+    Failed(LoopError),
 }
+
+/// What [`execute`] gives back: the run's outcome, and why it stopped early if it did.
+pub type Executed<X> = (SpatialOutcome, Option<Halt<X>>);
 
 /// The controller in this process.
 struct InProcess<'c, const N: usize> {
@@ -287,7 +352,7 @@ impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
         &mut self,
         _n: u64,
         meas: &Measurement<f64, N, Spatial>,
-    ) -> Result<ControlFlow<Infallible, StepReport<N>>> {
+    ) -> Result<ControlFlow<Infallible, StepReport<N>>, LinkError> {
         Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, 0.0)))
     }
 }
@@ -297,7 +362,7 @@ impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
 ///
 /// # Errors
 /// A bad arm or parameter.
-pub fn target_in_effector<const N: usize>(s: &SpatialScenario) -> Result<Pose3<f64>>
+pub fn target_in_effector<const N: usize>(s: &SpatialScenario) -> Result<Pose3<f64>, SpatialControllerError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -316,14 +381,14 @@ pub fn build_plant<const N: usize>(
     s: &SpatialScenario,
     chain: &Chain<f64, N>,
     star: &Pose3<f64>,
-) -> Result<SpatialPlant<N>> {
+) -> Result<SpatialPlant<N>, SpatialRunError> {
     let home = chain.home();
     let height = chain.end_effector(&home).compose(star).translation[2];
     let (target, joints) = match &s.target {
         SpatialTargetChoice::Lifted(t) => (SpatialTarget::Lifted(LiftedTrajectory::new(*t, height)), home),
         SpatialTargetChoice::File(path) => {
-            let p =
-                SpatialPiecewise::load(path).with_context(|| format!("target file {}", path.display()))?;
+            let p = SpatialPiecewise::load(path)
+                .map_err(|source| SpatialRunError::TargetFile { path: path.clone(), source })?;
             let q = match p.initial_joints() {
                 None => home,
                 Some(q) if q.len() == N => SVector::<f64, N>::from_column_slice(q),
@@ -362,7 +427,7 @@ pub fn build_plant<const N: usize>(
     };
     let config = PlantConfig::new(s.base.controller.platform).with_imperfections(imperfections);
     let initial = SpatialInitial { base: Pose::identity(), steering, joints, r_bd };
-    SpatialPlant::new(config, *chain, &initial, target).context("plant parameters")
+    SpatialPlant::new(config, *chain, &initial, target).map_err(SpatialRunError::Plant)
 }
 
 /// How often the loop reports progress and looks for SIGINT/SIGTERM (steps).
@@ -431,7 +496,7 @@ pub fn execute<const N: usize, X: SpatialExchange<N>>(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<(SpatialOutcome, Option<Halt<X::End>>)> {
+) -> Result<Executed<X::End>, SpatialRunError> {
     let (lower, upper) = limits(plant.chain());
     let mut acc = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
     let steps = s.steps();
@@ -449,7 +514,7 @@ pub fn execute<const N: usize, X: SpatialExchange<N>>(
                 break;
             }
             Err(e) => {
-                failed = Some(Halt::Failed(e));
+                failed = Some(Halt::Failed(e.into()));
                 break;
             }
         };
@@ -497,12 +562,16 @@ pub fn limits<const N: usize>(chain: &Chain<f64, N>) -> (Vec<f64>, Vec<f64>) {
 ///
 /// # Errors
 /// An I/O failure.
-pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<(), SpatialRunError> {
+    std::fs::create_dir_all(dir)
+        .map_err(|source| SpatialRunError::Create { path: dir.to_path_buf(), source })?;
     let csv = dir.join("timeseries.csv");
-    let file = std::fs::File::create(&csv).with_context(|| format!("creating {}", csv.display()))?;
+    let file = match std::fs::File::create(&csv) {
+        Ok(f) => f,
+        Err(source) => return Err(SpatialRunError::Create { path: csv, source }),
+    };
     write_csv(std::io::BufWriter::new(file), &o.records)
-        .with_context(|| format!("writing {}", csv.display()))?;
+        .map_err(|source| SpatialRunError::Csv { path: csv, source })?;
     write_summary_files(o, star, dir)
 }
 
@@ -511,11 +580,11 @@ pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<
 ///
 /// # Errors
 /// An I/O failure.
-pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<()> {
+pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<(), SpatialRunError> {
     let s = &o.scenario;
     let path = dir.join("summary.json");
     std::fs::write(&path, serde_json::to_string_pretty(&o.summary)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| SpatialRunError::Json { path, source })?;
     let path = dir.join("scenario.json");
     let described = serde_json::json!({
         "name": s.name,
@@ -529,6 +598,6 @@ pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) ->
         "base": s.base,
     });
     std::fs::write(&path, serde_json::to_string_pretty(&described)? + "\n")
-        .with_context(|| format!("writing {}", path.display()))?;
+        .map_err(|source| SpatialRunError::Json { path, source })?;
     Ok(())
 }

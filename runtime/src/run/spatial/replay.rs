@@ -12,11 +12,11 @@
 //!
 //! Composing them back gives the world poses to rounding (tested).
 
-use anyhow::Result;
 use companion_core::{PlatformKind, Pose3};
 
 use super::SpatialScenario;
 use crate::domain::arm::MAX_JOINTS;
+use crate::domain::record::mcap::ReplayError;
 use crate::domain::record::replay::{platform_command, platform_command_names};
 use crate::domain::record::spatial::SpatialRecord;
 use crate::domain::record::{McapRecorder, ReplayFrame, ReplayLayout, ReplaySummary};
@@ -56,7 +56,11 @@ pub fn parent_frames(r: &SpatialRecord) -> ([Pose3<f64>; MAX_JOINTS], Pose3<f64>
 ///
 /// # Errors
 /// Writing failed.
-pub fn write(mut mcap: McapRecorder, kind: PlatformKind, records: &[SpatialRecord]) -> Result<ReplaySummary> {
+pub fn write(
+    mut mcap: McapRecorder,
+    kind: PlatformKind,
+    records: &[SpatialRecord],
+) -> Result<ReplaySummary, ReplayError> {
     let mut status = String::with_capacity(64);
     for r in records {
         let (links, effector) = parent_frames(r);
@@ -82,7 +86,7 @@ pub fn write(mut mcap: McapRecorder, kind: PlatformKind, records: &[SpatialRecor
         };
         mcap.write(&frame)?;
     }
-    Ok(mcap.finish()?)
+    mcap.finish()
 }
 
 #[cfg(test)]

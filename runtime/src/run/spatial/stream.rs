@@ -6,15 +6,57 @@
 
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use anyhow::{anyhow, Context, Result};
-
 use crate::domain::record::spatial::{SpatialCsv, SpatialRecord};
+
+/// Why the rows of a spatial run could not be streamed into `timeseries.csv`.
+#[derive(Debug, thiserror::Error)]
+pub enum StreamError {
+    /// The file cannot be created.
+    #[error("creating {}", path.display())]
+    Create {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The header cannot be written.
+    #[error(transparent)]
+    Header(csv::Error),
+    /// A row cannot be written.
+    #[error("writing {}", path.display())]
+    Row {
+        /// The file.
+        path: PathBuf,
+        /// The CSV writer's error.
+        #[source]
+        source: csv::Error,
+    },
+    /// The file cannot be flushed to the disk.
+    #[error("writing {}", path.display())]
+    Flush {
+        /// The file.
+        path: PathBuf,
+        /// The operating system's error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The thread cannot be started.
+    #[error("starting the CSV writer thread")]
+    Spawn(#[source] std::io::Error),
+    /// [`SpatialStream::finish`] was called after the thread was joined.
+    #[error("the writer was finished twice")]
+    FinishedTwice,
+    /// The thread panicked.
+    #[error("the CSV writer thread panicked")]
+    Panicked,
+}
 
 /// How often the thread flushes the file.
 const FLUSH_EVERY: Duration = Duration::from_millis(50);
@@ -26,7 +68,7 @@ const IDLE: Duration = Duration::from_millis(2);
 pub struct SpatialStream {
     tx: rtrb::Producer<SpatialRecord>,
     done: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<Vec<SpatialRecord>>>>,
+    thread: Option<JoinHandle<Result<Vec<SpatialRecord>, StreamError>>>,
 }
 
 impl SpatialStream {
@@ -35,37 +77,41 @@ impl SpatialStream {
     ///
     /// # Errors
     /// The file cannot be created or the thread started.
-    pub fn spawn(dir: &Path, joints: usize, capacity: usize, expected: usize) -> Result<Self> {
+    pub fn spawn(dir: &Path, joints: usize, capacity: usize, expected: usize) -> Result<Self, StreamError> {
         let path = dir.join("timeseries.csv");
-        let file = File::create(&path).with_context(|| format!("creating {}", path.display()))?;
-        let mut csv = SpatialCsv::new(BufWriter::new(file), joints)?;
+        let file = match File::create(&path) {
+            Ok(f) => f,
+            Err(source) => return Err(StreamError::Create { path, source }),
+        };
+        let mut csv = SpatialCsv::new(BufWriter::new(file), joints).map_err(StreamError::Header)?;
         let (tx, mut rx) = rtrb::RingBuffer::<SpatialRecord>::new(capacity);
         let done = Arc::new(AtomicBool::new(false));
         let finish = Arc::clone(&done);
         let thread = std::thread::Builder::new()
             .name("csv-writer".into())
-            .spawn(move || -> Result<Vec<SpatialRecord>> {
+            .spawn(move || -> Result<Vec<SpatialRecord>, StreamError> {
+                let flush = |source| StreamError::Flush { path: path.clone(), source };
                 let mut kept = Vec::with_capacity(expected);
                 let mut flushed = Instant::now();
                 loop {
                     // Read the flag first: rows pushed before it was set are then popped here.
                     let last_round = finish.load(Ordering::Acquire);
                     while let Ok(r) = rx.pop() {
-                        csv.write(&r).with_context(|| format!("writing {}", path.display()))?;
+                        csv.write(&r).map_err(|source| StreamError::Row { path: path.clone(), source })?;
                         kept.push(r);
                     }
                     if last_round {
-                        csv.flush().with_context(|| format!("writing {}", path.display()))?;
+                        csv.flush().map_err(flush)?;
                         return Ok(kept);
                     }
                     if flushed.elapsed() >= FLUSH_EVERY {
-                        csv.flush().with_context(|| format!("writing {}", path.display()))?;
+                        csv.flush().map_err(flush)?;
                         flushed = Instant::now();
                     }
                     std::thread::sleep(IDLE);
                 }
             })
-            .context("starting the CSV writer thread")?;
+            .map_err(StreamError::Spawn)?;
         Ok(Self { tx, done, thread: Some(thread) })
     }
 
@@ -80,10 +126,10 @@ impl SpatialStream {
     ///
     /// # Errors
     /// Writing failed, or the thread panicked.
-    pub fn finish(mut self) -> Result<Vec<SpatialRecord>> {
+    pub fn finish(mut self) -> Result<Vec<SpatialRecord>, StreamError> {
         self.done.store(true, Ordering::Release);
-        let t = self.thread.take().ok_or_else(|| anyhow!("the writer was finished twice"))?;
-        t.join().map_err(|_| anyhow!("the CSV writer thread panicked"))?
+        let t = self.thread.take().ok_or(StreamError::FinishedTwice)?;
+        t.join().map_err(|_| StreamError::Panicked)?
     }
 }
 

@@ -2,7 +2,6 @@ use std::collections::VecDeque;
 use std::rc::Rc;
 use std::time::Duration;
 
-use anyhow::Result;
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
 
@@ -97,7 +96,7 @@ fn run(
     clock: &FakeClock,
     s: &Scenario,
     opt: &ServeOptions,
-) -> (Result<ControlEnd>, ControlStats) {
+) -> (Result<ControlEnd, ServeError>, ControlStats) {
     let mut st = ControlStats::default();
     let r = serve(clock, link, &s.controller, opt, &mut st, &Silent);
     (r, st)
@@ -179,7 +178,8 @@ fn a_plant_the_controller_cannot_serve_is_refused_on_the_wire_and_in_the_error()
         link.inbox.push_back((0, m));
         let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
         let e = end.unwrap_err();
-        let why = e.downcast_ref::<Refused>().unwrap_or_else(|| panic!("{e}")).0;
+        let ServeError::Refused(Refused(why)) = &e else { panic!("{e}") };
+        let why = *why;
         assert!(e.to_string().contains(text), "{e}");
         // The plant gets the refusal, answering its measurement, and reads the same reason.
         assert_eq!(link.sent.len(), 1);
