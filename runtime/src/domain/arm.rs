@@ -114,6 +114,52 @@ pub enum SpatialArmSpec {
     Panda,
     /// An arm read from a file.
     File(Box<ArmDescription>),
+    /// Another arm made faster or larger, for a study of what limits it
+    /// (`companion explore --arm`'s `joint_speed` and `reach`): [`ArmScale`].
+    Scaled(Box<SpatialArmSpec>, ArmScale),
+}
+
+/// Factors on an arm's published figures ([`SpatialArmSpec::Scaled`]); `1` changes nothing,
+/// bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArmScale {
+    /// Every joint's largest speed (`max_velocity`) times this (> 0).
+    pub joint_speed: f64,
+    /// Every length of the arm times this (> 0): each joint's and the tool's `xyz`, and a
+    /// prismatic joint's limits, home and speed — a geometric copy of the arm, mounted where
+    /// the arm is (`[mount]` unchanged).
+    pub reach: f64,
+}
+
+impl ArmScale {
+    /// No change.
+    pub const ONE: Self = Self { joint_speed: 1.0, reach: 1.0 };
+
+    /// `chain` scaled.
+    ///
+    /// # Errors
+    /// A factor that is not finite and positive (named `joint_speed` or `reach`).
+    pub fn apply<T: Real, const N: usize>(self, chain: &Chain<T, N>) -> Result<Chain<T, N>, ArmError> {
+        for (field, x) in [("joint_speed", self.joint_speed), ("reach", self.reach)] {
+            if !(x.is_finite() && x > 0.0) {
+                return Err(ArmError::Scale { field, value: x });
+            }
+        }
+        let (speed, reach) = (T::of(self.joint_speed), T::of(self.reach));
+        let mut c = *chain;
+        for j in &mut c.joints {
+            j.origin.translation *= reach;
+            j.max_velocity *= speed;
+            if j.kind == JointKind::Prismatic {
+                j.lower *= reach;
+                j.upper *= reach;
+                j.home *= reach;
+                j.max_velocity *= reach;
+            }
+        }
+        c.tool.translation *= reach;
+        Ok(c)
+    }
 }
 
 impl SpatialArmSpec {
@@ -136,6 +182,7 @@ impl SpatialArmSpec {
             Self::Ur5 => "ur5",
             Self::Panda => "panda",
             Self::File(d) => &d.name,
+            Self::Scaled(a, _) => a.name(),
         }
     }
 
@@ -146,6 +193,7 @@ impl SpatialArmSpec {
             Self::Ur5 => PlatformDefaults::default(),
             Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: None },
             Self::File(d) => d.platform,
+            Self::Scaled(a, _) => a.platform_defaults(),
         }
     }
 
@@ -155,6 +203,7 @@ impl SpatialArmSpec {
             Self::Ur5 => 6,
             Self::Panda => 7,
             Self::File(d) => d.joints.len(),
+            Self::Scaled(a, _) => a.joints(),
         }
     }
 
@@ -168,6 +217,21 @@ impl SpatialArmSpec {
             Self::Ur5 => resize(Chain::<T, 6>::ur5()).ok_or_else(wrong),
             Self::Panda => resize(Chain::<T, 7>::panda()).ok_or_else(wrong),
             Self::File(d) => d.chain(),
+            Self::Scaled(a, scale) => scale.apply(&a.chain::<T, N>()?),
+        }
+    }
+
+    /// This arm with its joints' speeds and its lengths scaled (`ArmScale::ONE`: itself).
+    pub fn scaled(self, scale: ArmScale) -> Self {
+        if scale == ArmScale::ONE {
+            return self;
+        }
+        match self {
+            Self::Scaled(a, s) => Self::Scaled(
+                a,
+                ArmScale { joint_speed: s.joint_speed * scale.joint_speed, reach: s.reach * scale.reach },
+            ),
+            a => Self::Scaled(Box::new(a), scale),
         }
     }
 }
@@ -229,6 +293,14 @@ pub enum ArmError {
     TwoRotations {
         /// The frame, e.g. `mount`.
         field: String,
+    },
+    /// A scale factor ([`ArmScale`]) is not finite and positive.
+    #[error("arm scale: {field} = {value} must be finite and > 0")]
+    Scale {
+        /// `joint_speed` or `reach`.
+        field: &'static str,
+        /// The factor.
+        value: f64,
     },
     /// A value breaks one of the chain's rules.
     #[error("arm file: {field}: {rule}")]
@@ -516,6 +588,36 @@ mod tests {
         let bad = format!("{}\n[unicycle]\nepsilon_1 = 0.2\nepsilon = 0.8\n", ur5_text());
         let e = ArmDescription::from_toml_str(&bad, "x").unwrap_err().to_string();
         assert!(e.contains("unknown field `epsilon`"), "{e}");
+    }
+
+    /// A scaled arm: its speeds times `joint_speed`, its lengths times `reach` (the end
+    /// effector's offset from the mount at any configuration scales with it, its orientation
+    /// does not), its limits and name the arm's; the factor 1 is the arm bit for bit, and a
+    /// factor that is not positive is refused by name.
+    #[test]
+    fn a_scaled_arm_is_a_faster_or_larger_copy() {
+        let scale = ArmScale { joint_speed: 1.5, reach: 0.8 };
+        let spec = SpatialArmSpec::Panda.scaled(scale);
+        assert_eq!((spec.name(), spec.joints()), ("panda", 7));
+        assert_eq!(spec.platform_defaults(), SpatialArmSpec::Panda.platform_defaults());
+        let (a, b) = (Chain::<f64, 7>::panda(), spec.chain::<f64, 7>().unwrap());
+        assert_eq!(a.limits(), b.limits());
+        assert_eq!(b.max_velocities(), a.max_velocities() * 1.5);
+        for k in 0..10 {
+            let q = SVector::<f64, 7>::from_fn(|i, _| ((k * 3 + i) as f64).sin());
+            let (ea, eb) = (a.end_effector(&q), b.end_effector(&q));
+            let offset = |e: &companion_core::Pose3<f64>| e.translation - a.mount.translation;
+            assert!((offset(&eb) - offset(&ea) * 0.8).norm() < 1e-12, "q = {q}");
+            assert!((eb.rotation - ea.rotation).norm() < 1e-12);
+        }
+        // Scaled twice: the factors multiply.
+        let twice = spec.clone().scaled(ArmScale { joint_speed: 2.0, reach: 1.0 });
+        assert_eq!(twice.chain::<f64, 7>().unwrap().max_velocities(), a.max_velocities() * 3.0);
+        assert_eq!(SpatialArmSpec::Ur5.scaled(ArmScale::ONE), SpatialArmSpec::Ur5);
+        assert_eq!(ArmScale::ONE.apply(&Chain::<f32, 6>::ur5()).unwrap(), Chain::<f32, 6>::ur5());
+        let bad = SpatialArmSpec::Ur5.scaled(ArmScale { joint_speed: 1.0, reach: -1.0 });
+        let e = bad.chain::<f64, 6>().unwrap_err().to_string();
+        assert_eq!(e, "arm scale: reach = -1 must be finite and > 0");
     }
 
     fn ur5_text() -> String {
