@@ -3,7 +3,8 @@
 `--log-every 1`), from 20 s on (after the start's transient, as the tracked fraction), the
 steps where the joint guard slowed the arm (joint_scale > 1) and, per joint, how many of them
 it set (its commanded speed at its published limit) and the largest speed the law asked of it
-(|u_q| x joint_scale); the platform's largest curvature |xi| (car: 1/m) and turn rate
+(|u_q| x joint_scale); the spells in which the guard acts (a guard that chattered would
+switch on and off from one step to the next); the platform's largest curvature |xi| (car: 1/m) and turn rate
 |omega| over the same steps; and for the presets, how close the target came to joint 1's
 (vertical) axis, where joint 1's rate grows as the inverse of that distance. The published
 speeds are the preset's (`ur5`, `panda`, from scenario.json's arm) or given:
@@ -36,10 +37,22 @@ for r in rows:
         at = [i for i in range(n) if abs(abs(u[i]) - speeds[i]) <= 1e-9 * speeds[i]]
         for i in at:
             setter[i] += 1
+spells, run = [], 0
+for r in rows:
+    if float(r["joint_scale"]) > 1.0:
+        run += 1
+    elif run:
+        spells.append(run)
+        run = 0
+if run:
+    spells.append(run)
 xi = max((abs(float(r["xi"])) for r in rows), default=0.0)
 omega = max((abs(float(r["omega"])) for r in rows), default=0.0)
 print(f"{d}: {len(rows)} rows from 20 s, {guarded} with the joint guard acting; "
       f"platform: |xi| up to {xi:.2f}, |omega| up to {omega:.2f} rad/s")
+if spells:
+    print(f"  the guard acted in {len(spells)} spells of {min(spells)} to {max(spells)} rows "
+          f"({sum(1 for n in spells if n <= 2)} of one or two rows)")
 if arm in AXIS and rows:
     mx, my = AXIS[arm]
     def distance(r):
