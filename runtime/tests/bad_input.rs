@@ -501,4 +501,22 @@ fn bad_arm_files_and_spatial_targets_are_refused_by_field() {
     refused(&d, &["sim", "--arm", "panda", "--noise"], &["noise", "spatial arm"]);
     let gain = file(&d, "gain.toml", "[controller]\ngain = [1.0, 1.0, 1.0]\n");
     refused(&d, &["sim", "--arm", "ur5", "--config", &gain], &["controller.gain", "planar arm"]);
+    // `explore --arm`: a space of parameters is needed, with no planar start in it; the
+    // arm's checks are sim --arm's.
+    refused(&d, &["explore", "--arm", "ur5", "--samples", "1"], &["spatial --arm needs a --space file"]);
+    let start = file(&d, "start-space.toml", "[initial]\ndistance = [1.0, 2.0]\n");
+    refused(
+        &d,
+        &["explore", "--arm", "panda", "--space", &start, "--samples", "1"],
+        &["`distance` is not available with a spatial arm"],
+    );
+    let slow = file(&d, "slow-space.toml", "[parameters]\njoint_speed = [-1.0, 2.0]\n");
+    refused(
+        &d,
+        &["explore", "--arm", "ur5", "--space", &slow, "--samples", "1"],
+        &["joint_speed = -1", "must be finite and > 0"],
+    );
+    let reach = file(&d, "reach-space.toml", "[parameters]\nreach = [0.5, 2.0]\n");
+    refused(&d, &["explore", "--space", &reach, "--samples", "1"], &["`reach` scales a spatial arm"]);
+    refused(&d, &["explore", "--arm", "ur5", "--space", &reach, "--noise"], &["noise", "spatial arm"]);
 }

@@ -271,13 +271,29 @@ impl ScenarioArgs {
         default_duration: f64,
         more: impl FnOnce(ScenarioBuilder) -> ScenarioBuilder,
     ) -> Result<SpatialScenario> {
+        let (b, target) = self.spatial_parts(&arm, default_duration)?;
+        let s = SpatialScenario::new(more(b).build()?, arm, target)?;
+        companion_runtime::run::spatial::check(&s)?;
+        Ok(s)
+    }
+
+    /// The parts of the spatial run these flags describe with `arm`: the builder of its planar
+    /// scenario, which carries every other flag (its own target is not used) and the arm's
+    /// platform settings where the config file has no table of its own, and the target
+    /// (the paper's trajectory lifted, or a spatial `--target-file`).
+    ///
+    /// # Errors
+    /// The config file cannot be read or has an error.
+    pub fn spatial_parts(
+        &self,
+        arm: &SpatialArmSpec,
+        default_duration: f64,
+    ) -> Result<(ScenarioBuilder, SpatialTargetChoice)> {
         let target = match &self.target_file {
             Some(p) => SpatialTargetChoice::File(p.clone()),
             None if self.trajectory == 2 => SpatialTargetChoice::Lifted(PaperTrajectory::Two),
             None => SpatialTargetChoice::Lifted(PaperTrajectory::One),
         };
-        // The planar scenario carries every other flag; its own target is not used. The
-        // arm's platform settings apply where the config file has no table of its own.
         let b = self.builder(
             self.config_file()?.with_arm_settings(arm.platform_defaults()),
             Target::Paper(PaperTrajectory::One),
@@ -285,9 +301,7 @@ impl ScenarioArgs {
             self.platform.into(),
             default_duration,
         );
-        let s = SpatialScenario::new(more(b).build()?, arm, target)?;
-        companion_runtime::run::spatial::check(&s)?;
-        Ok(s)
+        Ok((b, target))
     }
 
     /// What a run is held to (`--max-rejected`; `max_miss_fraction` for real-time runs).

@@ -5,7 +5,8 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use companion_runtime::study::explore::{self, Exploration, Shard, SpaceFile};
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::study::explore::{self, Exploration, Shard, SpaceFile, SpatialSetup};
 use companion_runtime::sys::signals;
 
 use super::args::ScenarioArgs;
@@ -50,10 +51,18 @@ pub struct ExploreRunArgs {
     pub scenario: ScenarioArgs,
     /// A TOML file of ranges to sample: `[initial]` (distance, bearing, heading, q1–q3,
     /// alpha_1, alpha_2, steering), `[parameters]` (epsilon, eta_1..3, k, epsilon_1,
-    /// epsilon_2, k_bar_1..3, d, gain, lambda, stroke), `[map]` and `[judge]`. Without it:
-    /// starts around the target (distance 0.5–6 m, any bearing and relative heading).
+    /// epsilon_2, k_bar_1..3, d, gain, lambda, stroke; with a spatial --arm joint_speed and
+    /// reach), `[map]` and `[judge]`. Without it: starts around the target (distance 0.5–6 m,
+    /// any bearing and relative heading; the planar arm only).
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
+    /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
+    /// file) run as `sim --arm` runs it (its platform settings, the lifted --trajectory, the
+    /// start at home). With a spatial arm the space file draws α(0) and parameters only, and
+    /// may scale the arm: `joint_speed` (every joint's published speed times it) and `reach`
+    /// (every length of the arm times it), to see what limits its tracking and by how much.
+    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    pub arm: String,
     /// How many samples.
     #[arg(long, default_value_t = 1000, value_name = "N")]
     pub samples: u64,
@@ -96,13 +105,33 @@ pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
     let out = a.out.clone().context("--out DIR is required")?;
     let shard = a.shard.as_deref().map(Shard::parse).transpose()?.unwrap_or(Shard::WHOLE);
     let sc = &a.scenario;
-    let builder =
-        sc.builder(sc.config_file()?, sc.target(), sc.choice.into(), sc.platform.into(), DEFAULT_DURATION);
-    let file = match &a.space {
-        Some(p) => SpaceFile::load(p)?,
-        None => SpaceFile::around_the_target(),
+    let (builder, spatial) = match SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
+        None => (
+            sc.builder(
+                sc.config_file()?,
+                sc.target(),
+                sc.choice.into(),
+                sc.platform.into(),
+                DEFAULT_DURATION,
+            ),
+            None,
+        ),
+        Some(arm) => {
+            // The run `sim --arm` would make, checked as it checks it.
+            sc.spatial_scenario(arm.clone(), DEFAULT_DURATION, |b| b)?;
+            let (builder, target) = sc.spatial_parts(&arm, DEFAULT_DURATION)?;
+            (builder, Some(SpatialSetup { arm, target }))
+        }
     };
-    let exploration = Exploration::new(builder, &file, a.samples, sc.seed)?;
+    let file = match (&a.space, &spatial) {
+        (Some(p), _) => SpaceFile::load(p)?,
+        (None, None) => SpaceFile::around_the_target(),
+        (None, Some(_)) => anyhow::bail!(
+            "a spatial --arm needs a --space file: its start is sim --arm's (the arm at home), so there are no \
+             starts around the target to draw; draw parameters (e.g. joint_speed, reach, epsilon_1) instead"
+        ),
+    };
+    let exploration = Exploration::with_arm(builder, spatial, &file, a.samples, sc.seed)?;
     signals::install_termination_handler()?;
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads.unwrap_or(0)).build()?;
     let mine = shard.samples(a.samples).count() as u64;

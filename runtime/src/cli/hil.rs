@@ -228,7 +228,8 @@ pub struct HilArgs {
     /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml) — the
     /// spatial law of §5 on the paper's trajectory lifted (--trajectory 1|2) or a spatial
     /// --target-file, as `companion sim --arm`, with the platform settings the arm carries
-    /// (`panda`: the unicycle's epsilon_2 = 0.8 m; see `companion sim --help`). Give both
+    /// (`panda`: the unicycle's epsilon_2 = 0.8 m and its own Lemma 2 parameters on the car;
+    /// see `companion sim --help`). Give both
     /// roles the same arm: the handshake compares the arms' hashes.
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,

@@ -50,9 +50,12 @@ pub struct SimArgs {
     /// An arm carries the platform settings it needs where the paper's cannot work with its
     /// published joint speeds: `panda` (and examples/arms/panda.toml) runs the unicycle with
     /// Lemma 1's epsilon_2 = 0.8 m instead of the paper's 0.4 (with 0.4 the manoeuvres ask
-    /// its shoulder for 2.59 rad/s, beyond the published 2.175, and it does not settle); an
-    /// arm file may carry `[unicycle]` and `[car]` tables as --config's. A --config table of
-    /// the same name overrides the arm's. The UR5 on the unicycle tracks --trajectory 2 with
+    /// its shoulder for 2.59 rad/s, beyond the published 2.175, and it does not settle), and
+    /// the car with Lemma 2's (epsilon, eta_1, eta_2, eta_3, k) = (0.176, 12.1, 3.33, 28.2,
+    /// 19.9) instead of the car's defaults (with those the car's sharp turns and reversals ask
+    /// its joints 1 and 7 for up to 2.5 times their published speeds and it does not settle;
+    /// docs/explore/panda-car.toml found these); an arm file may carry `[unicycle]` and
+    /// `[car]` tables as --config's. A --config table of the same name overrides the arm's. The UR5 on the unicycle tracks --trajectory 2 with
     /// --config examples/arms/ur5-trajectory2.toml (the paper's settings ask its base,
     /// shoulder and elbow for more than their published 180 deg/s: 70 % tracked).
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]

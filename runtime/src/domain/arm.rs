@@ -35,8 +35,9 @@
 //!
 //! The paper's transverse functions ask the arm to compensate the platform's manoeuvres; an
 //! arm whose published joint speeds cannot ([`PlatformDefaults`]) carries the settings that
-//! do — the `panda` preset and `examples/arms/panda.toml` the unicycle's `ε₂ = 0.8 m` — and
-//! they apply wherever the run's `--config` has no table of its own for that platform.
+//! do — the `panda` preset and `examples/arms/panda.toml` the unicycle's `ε₂ = 0.8 m`
+//! ([`PANDA_UNICYCLE`]) and the car's Lemma 2 parameters ([`PANDA_CAR`]) — and they apply
+//! wherever the run's `--config` has no table of its own for that platform.
 //!
 //! Every error names the field (`joint 3: limits`, `mount.rotation`) and the rule, and the
 //! CLI reports it with exit code 2 before anything runs.
@@ -83,10 +84,27 @@ impl ArmChoice {
 /// 0.4 m. With the paper's, run (a) of lifted trajectory 1 makes the platform manoeuvre at up
 /// to 0.83 m/s and asks the Panda's shoulder (joint 2) for 2.59 rad/s, beyond its published
 /// 2.175 rad/s: the joint guard slows the whole arm, and `e_p` stays at ~2e−2 until the
-/// manoeuvres calm (final ‖e_p‖ 6.4e−5 after 40 s). The wider function buys the same lateral
+/// manoeuvres calm (final ‖e_p‖ 1.9e−4 after 40 s). The wider function buys the same lateral
 /// motion with slower manoeuvres (0.54 m/s), which the published speeds follow (final
 /// ‖e_p‖ 4.4e−8; core's `panda_unicycle_tracks_lifted_trajectory_1` says the same).
 pub const PANDA_UNICYCLE: UnicycleConfig = UnicycleConfig { epsilon_1: 0.2, epsilon_2: 0.8 };
+
+/// The Panda's car-like transverse function and steering gain: Lemma 2's `(ε, η₁, η₂, η₃) =
+/// (0.176, 12.1, 3.33, 28.2)` and `k = 19.9` instead of the car's defaults (0.152, 21.9, 1.9,
+/// 15.4; 26.6: `examples/arms/panda-car-defaults.toml`). With those, run (a) of lifted
+/// trajectory 1 keeps the car manoeuvring all run long — its curvature swinging to ±3.2 1/m,
+/// its heading turning at up to 2.3 rad/s — and asks the Panda's base joint (1) for up to
+/// 5.4 rad/s and its last (7) for 5.6, beyond their published 2.175 and 2.61 rad/s: in sharp
+/// turns, and where the target passes within centimetres of joint 1's axis as the car
+/// reverses (joint 1's rate grows as the inverse of that distance; 8 mm at the closest). The
+/// joint guard then slows the whole arm, and bursts of `e_p` (up to 1.1e−1) come back until
+/// the end (final ‖e_p‖ 1.3e−5 at 40 s; `scripts/joint_guard.py` gives these figures). These
+/// settings, sample 207 of `docs/explore/panda-car.toml` rounded to three digits, calm the car
+/// (curvature within ±1, turns within 0.36 rad/s after 20 s) and settle it: ‖e_p‖ at most
+/// 3.8e−7 from 20 s to 120 s, the guard idle. Only 2 of that study's 1 000 samples settle,
+/// and 9 of 100 within ±10 % of this one (`docs/explore/panda-car-207.toml`): a narrow
+/// island, not a robust setting (README, "Spatial arms", says what that means).
+pub const PANDA_CAR: CarConfig = CarConfig { epsilon: 0.176, eta_1: 12.1, eta_2: 3.33, eta_3: 28.2, k: 19.9 };
 
 /// The platform law's settings an arm carries (module docs): each, if given, replaces the
 /// runtime's default (the paper's) for its platform unless the run's `--config` has the table.
@@ -114,6 +132,52 @@ pub enum SpatialArmSpec {
     Panda,
     /// An arm read from a file.
     File(Box<ArmDescription>),
+    /// Another arm made faster or larger, for a study of what limits it
+    /// (`companion explore --arm`'s `joint_speed` and `reach`): [`ArmScale`].
+    Scaled(Box<SpatialArmSpec>, ArmScale),
+}
+
+/// Factors on an arm's published figures ([`SpatialArmSpec::Scaled`]); `1` changes nothing,
+/// bit for bit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArmScale {
+    /// Every joint's largest speed (`max_velocity`) times this (> 0).
+    pub joint_speed: f64,
+    /// Every length of the arm times this (> 0): each joint's and the tool's `xyz`, and a
+    /// prismatic joint's limits, home and speed — a geometric copy of the arm, mounted where
+    /// the arm is (`[mount]` unchanged).
+    pub reach: f64,
+}
+
+impl ArmScale {
+    /// No change.
+    pub const ONE: Self = Self { joint_speed: 1.0, reach: 1.0 };
+
+    /// `chain` scaled.
+    ///
+    /// # Errors
+    /// A factor that is not finite and positive (named `joint_speed` or `reach`).
+    pub fn apply<T: Real, const N: usize>(self, chain: &Chain<T, N>) -> Result<Chain<T, N>, ArmError> {
+        for (field, x) in [("joint_speed", self.joint_speed), ("reach", self.reach)] {
+            if !(x.is_finite() && x > 0.0) {
+                return Err(ArmError::Scale { field, value: x });
+            }
+        }
+        let (speed, reach) = (T::of(self.joint_speed), T::of(self.reach));
+        let mut c = *chain;
+        for j in &mut c.joints {
+            j.origin.translation *= reach;
+            j.max_velocity *= speed;
+            if j.kind == JointKind::Prismatic {
+                j.lower *= reach;
+                j.upper *= reach;
+                j.home *= reach;
+                j.max_velocity *= reach;
+            }
+        }
+        c.tool.translation *= reach;
+        Ok(c)
+    }
 }
 
 impl SpatialArmSpec {
@@ -136,16 +200,19 @@ impl SpatialArmSpec {
             Self::Ur5 => "ur5",
             Self::Panda => "panda",
             Self::File(d) => &d.name,
+            Self::Scaled(a, _) => a.name(),
         }
     }
 
-    /// The platform law's settings the arm carries: the Panda's [`PANDA_UNICYCLE`], a file's
-    /// `[unicycle]` and `[car]`; none for the UR5 (the paper's settings track with it).
+    /// The platform law's settings the arm carries: the Panda's [`PANDA_UNICYCLE`] and
+    /// [`PANDA_CAR`], a file's `[unicycle]` and `[car]`; none for the UR5 (the paper's and the
+    /// car's default settings track with it).
     pub fn platform_defaults(&self) -> PlatformDefaults {
         match self {
             Self::Ur5 => PlatformDefaults::default(),
-            Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: None },
+            Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: Some(PANDA_CAR) },
             Self::File(d) => d.platform,
+            Self::Scaled(a, _) => a.platform_defaults(),
         }
     }
 
@@ -155,6 +222,7 @@ impl SpatialArmSpec {
             Self::Ur5 => 6,
             Self::Panda => 7,
             Self::File(d) => d.joints.len(),
+            Self::Scaled(a, _) => a.joints(),
         }
     }
 
@@ -168,6 +236,21 @@ impl SpatialArmSpec {
             Self::Ur5 => resize(Chain::<T, 6>::ur5()).ok_or_else(wrong),
             Self::Panda => resize(Chain::<T, 7>::panda()).ok_or_else(wrong),
             Self::File(d) => d.chain(),
+            Self::Scaled(a, scale) => scale.apply(&a.chain::<T, N>()?),
+        }
+    }
+
+    /// This arm with its joints' speeds and its lengths scaled (`ArmScale::ONE`: itself).
+    pub fn scaled(self, scale: ArmScale) -> Self {
+        if scale == ArmScale::ONE {
+            return self;
+        }
+        match self {
+            Self::Scaled(a, s) => Self::Scaled(
+                a,
+                ArmScale { joint_speed: s.joint_speed * scale.joint_speed, reach: s.reach * scale.reach },
+            ),
+            a => Self::Scaled(Box::new(a), scale),
         }
     }
 }
@@ -229,6 +312,14 @@ pub enum ArmError {
     TwoRotations {
         /// The frame, e.g. `mount`.
         field: String,
+    },
+    /// A scale factor ([`ArmScale`]) is not finite and positive.
+    #[error("arm scale: {field} = {value} must be finite and > 0")]
+    Scale {
+        /// `joint_speed` or `reach`.
+        field: &'static str,
+        /// The factor.
+        value: f64,
     },
     /// A value breaks one of the chain's rules.
     #[error("arm file: {field}: {rule}")]
@@ -492,6 +583,7 @@ mod tests {
         // And it carries the preset's platform settings.
         assert_eq!(d.platform, SpatialArmSpec::Panda.platform_defaults());
         assert_eq!(d.platform.unicycle, Some(PANDA_UNICYCLE));
+        assert_eq!(d.platform.car, Some(PANDA_CAR));
     }
 
     /// The UR5 file carries no platform settings, as the preset; a file's `[car]` and
@@ -516,6 +608,36 @@ mod tests {
         let bad = format!("{}\n[unicycle]\nepsilon_1 = 0.2\nepsilon = 0.8\n", ur5_text());
         let e = ArmDescription::from_toml_str(&bad, "x").unwrap_err().to_string();
         assert!(e.contains("unknown field `epsilon`"), "{e}");
+    }
+
+    /// A scaled arm: its speeds times `joint_speed`, its lengths times `reach` (the end
+    /// effector's offset from the mount at any configuration scales with it, its orientation
+    /// does not), its limits and name the arm's; the factor 1 is the arm bit for bit, and a
+    /// factor that is not positive is refused by name.
+    #[test]
+    fn a_scaled_arm_is_a_faster_or_larger_copy() {
+        let scale = ArmScale { joint_speed: 1.5, reach: 0.8 };
+        let spec = SpatialArmSpec::Panda.scaled(scale);
+        assert_eq!((spec.name(), spec.joints()), ("panda", 7));
+        assert_eq!(spec.platform_defaults(), SpatialArmSpec::Panda.platform_defaults());
+        let (a, b) = (Chain::<f64, 7>::panda(), spec.chain::<f64, 7>().unwrap());
+        assert_eq!(a.limits(), b.limits());
+        assert_eq!(b.max_velocities(), a.max_velocities() * 1.5);
+        for k in 0..10 {
+            let q = SVector::<f64, 7>::from_fn(|i, _| ((k * 3 + i) as f64).sin());
+            let (ea, eb) = (a.end_effector(&q), b.end_effector(&q));
+            let offset = |e: &companion_core::Pose3<f64>| e.translation - a.mount.translation;
+            assert!((offset(&eb) - offset(&ea) * 0.8).norm() < 1e-12, "q = {q}");
+            assert!((eb.rotation - ea.rotation).norm() < 1e-12);
+        }
+        // Scaled twice: the factors multiply.
+        let twice = spec.clone().scaled(ArmScale { joint_speed: 2.0, reach: 1.0 });
+        assert_eq!(twice.chain::<f64, 7>().unwrap().max_velocities(), a.max_velocities() * 3.0);
+        assert_eq!(SpatialArmSpec::Ur5.scaled(ArmScale::ONE), SpatialArmSpec::Ur5);
+        assert_eq!(ArmScale::ONE.apply(&Chain::<f32, 6>::ur5()).unwrap(), Chain::<f32, 6>::ur5());
+        let bad = SpatialArmSpec::Ur5.scaled(ArmScale { joint_speed: 1.0, reach: -1.0 });
+        let e = bad.chain::<f64, 6>().unwrap_err().to_string();
+        assert_eq!(e, "arm scale: reach = -1 must be finite and > 0");
     }
 
     fn ur5_text() -> String {

@@ -5,11 +5,14 @@
 //! A knob's name is the key it sets in a `--config` file: `epsilon`, `eta_1`, `eta_2`, `eta_3`,
 //! `k` in `[car]` (Lemma 2 and eq. 59), `epsilon_1`, `epsilon_2` in `[unicycle]` (Lemma 1),
 //! `stroke` in `[arm]`, and in `[controller]` one entry of `k_bar` (`k_bar_1..3`, eq. 36), all
-//! of `d` (eq. 37) or `gain` (eq. 30), and `lambda` (eq. 53).
+//! of `d` (eq. 37) or `gain` (eq. 30), and `lambda` (eq. 53). Two more scale a spatial arm
+//! (`--arm`, [`ArmScale`]) rather than set a config key: `joint_speed` (every joint's published
+//! speed times it) and `reach` (every length of the arm times it).
 
 use companion_core::PlatformKind;
 use serde::{Deserialize, Serialize};
 
+use crate::domain::arm::ArmScale;
 use crate::domain::controller::{platform_name, ArmConfig};
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 
@@ -46,10 +49,24 @@ pub enum Knob {
     /// The prismatic joint's stroke `q₂⁺` (m); `q₂*`, the margins and `r_*` follow
     /// (`ArmConfig`).
     Stroke,
+    /// A spatial arm's joint speeds: every joint's published `max_velocity` times this.
+    JointSpeed,
+    /// A spatial arm's size: every length of the arm times this ([`ArmScale::reach`]).
+    Reach,
 }
 
-/// Every knob, in the order columns and draws use.
-pub const ALL: [Knob; 14] = [
+/// Which arm a knob belongs to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ArmKind {
+    /// The paper's planar RPR arm (`--arm rpr`).
+    Planar,
+    /// A spatial arm (`--arm ur5|panda|FILE`).
+    Spatial,
+}
+
+/// Every knob, in the order columns and draws use (new knobs go at the end, so that the
+/// draws of the others stay where they were).
+pub const ALL: [Knob; 16] = [
     Knob::Epsilon,
     Knob::Eta1,
     Knob::Eta2,
@@ -64,6 +81,8 @@ pub const ALL: [Knob; 14] = [
     Knob::Gain,
     Knob::Lambda,
     Knob::Stroke,
+    Knob::JointSpeed,
+    Knob::Reach,
 ];
 
 impl Knob {
@@ -84,6 +103,8 @@ impl Knob {
             Self::Gain => "gain",
             Self::Lambda => "lambda",
             Self::Stroke => "stroke",
+            Self::JointSpeed => "joint_speed",
+            Self::Reach => "reach",
         }
     }
 
@@ -92,17 +113,48 @@ impl Knob {
         ALL.into_iter().find(|k| k.name() == name)
     }
 
-    /// The knob named `name`, checked to apply to `platform`.
+    /// The knob named `name`, checked to apply to `platform` and `arm`.
     ///
     /// # Errors
-    /// No knob has that name (the message lists them), or it is another platform's.
-    pub fn parse_for(name: &str, platform: PlatformKind) -> Result<Self, String> {
+    /// No knob has that name (the message lists them), or it is another platform's or
+    /// another arm's.
+    pub fn parse_for(name: &str, platform: PlatformKind, arm: ArmKind) -> Result<Self, String> {
         let k = Self::from_name(name).ok_or_else(|| {
             let known: Vec<&str> = ALL.iter().map(|k| k.name()).collect();
             format!("unknown parameter `{name}` (known: {})", known.join(", "))
         })?;
         k.check_platform(platform)?;
+        k.check_arm(arm)?;
         Ok(k)
+    }
+
+    /// The arm the knob belongs to (`None`: every arm). `gain`, `stroke` set the planar arm's
+    /// task; `lambda` too, in effect: the spatial law takes its weight filter from the run
+    /// (a)–(d) (`Params::for_arm`), not from `[controller]`.
+    pub fn arm(self) -> Option<ArmKind> {
+        match self {
+            Self::Gain | Self::Stroke | Self::Lambda => Some(ArmKind::Planar),
+            Self::JointSpeed | Self::Reach => Some(ArmKind::Spatial),
+            _ => None,
+        }
+    }
+
+    /// Whether the knob applies to `arm`; otherwise the reason, for an error message.
+    ///
+    /// # Errors
+    /// The knob is the other kind of arm's.
+    pub fn check_arm(self, arm: ArmKind) -> Result<(), String> {
+        match (self.arm(), arm) {
+            (Some(ArmKind::Planar), ArmKind::Spatial) => Err(format!(
+                "`{}` is a parameter of the paper's planar arm (--arm rpr), not of a spatial arm",
+                self.name()
+            )),
+            (Some(ArmKind::Spatial), ArmKind::Planar) => Err(format!(
+                "`{}` scales a spatial arm (--arm ur5|panda|FILE), not the paper's planar arm",
+                self.name()
+            )),
+            _ => Ok(()),
+        }
     }
 
     /// The platform the knob belongs to (`None`: every platform).
@@ -153,12 +205,28 @@ impl Knob {
                 _ => f64::NAN,
             },
             Self::Stroke => c.arm.stroke_and_extension().0,
+            // Factors on the arm as given.
+            Self::JointSpeed | Self::Reach => 1.0,
         }
     }
 }
 
+/// The arm's scale the knobs among `values` set ([`ArmScale::ONE`] for the others).
+pub fn arm_scale(values: &[(Knob, f64)]) -> ArmScale {
+    let mut scale = ArmScale::ONE;
+    for &(k, v) in values {
+        match k {
+            Knob::JointSpeed => scale.joint_speed = v,
+            Knob::Reach => scale.reach = v,
+            _ => {}
+        }
+    }
+    scale
+}
+
 /// `builder` with the knobs set to `values`; `base` is the scenario `builder` builds (it gives
-/// the values of the entries a knob does not set, e.g. the other entries of `k_bar`).
+/// the values of the entries a knob does not set, e.g. the other entries of `k_bar`). The
+/// arm's knobs (`joint_speed`, `reach`) set no key: [`arm_scale`] reads them.
 pub fn apply(builder: &ScenarioBuilder, base: &Scenario, values: &[(Knob, f64)]) -> ScenarioBuilder {
     let mut file = builder.current_config().clone();
     let c = &base.controller;
@@ -188,6 +256,7 @@ pub fn apply(builder: &ScenarioBuilder, base: &Scenario, values: &[(Knob, f64)])
                 let arm = file.arm.get_or_insert(ArmConfig::default());
                 arm.stroke = Some(v);
             }
+            Knob::JointSpeed | Knob::Reach => {}
         }
     }
     builder.clone().config(file)
@@ -229,5 +298,17 @@ mod tests {
         assert!(Knob::Epsilon1.check_platform(PlatformKind::Car).is_err());
         assert!(Knob::Epsilon.check_platform(PlatformKind::Car).is_ok());
         assert!(Knob::D.check_platform(PlatformKind::Omni).is_ok());
+        // The arm's knobs: only with a spatial arm, and they set no key of the config.
+        assert!(Knob::JointSpeed.check_arm(ArmKind::Planar).is_err());
+        assert!(Knob::Reach.check_arm(ArmKind::Spatial).is_ok());
+        assert!(Knob::Gain.check_arm(ArmKind::Spatial).is_err());
+        assert!(Knob::Epsilon.check_arm(ArmKind::Spatial).is_ok());
+        let scaled = [(Knob::JointSpeed, 1.5), (Knob::Reach, 0.8), (Knob::Epsilon, 0.2)];
+        assert_eq!(
+            apply(&b, &base, &scaled).current_config(),
+            apply(&b, &base, &scaled[2..]).current_config()
+        );
+        assert_eq!(arm_scale(&scaled), ArmScale { joint_speed: 1.5, reach: 0.8 });
+        assert_eq!(arm_scale(&scaled[2..]), ArmScale::ONE);
     }
 }

@@ -3,16 +3,21 @@
 //! exploration classifies a run by, with a run that diverges stopped early.
 //!
 //! The loop is `sim::run_loop`'s (measure, step, advance — and the same pure delay), with
-//! nothing logged: the summary reads the plant's exact state at every step.
+//! nothing logged: the summary reads the plant's exact state at every step. [`run_spatial`]
+//! does the same for a spatial arm (`sim --arm`'s loop, its [`SpatialSummary`]).
 
+use companion_core::{Manipulator, Spatial, SpatialArm};
 use companion_plant::AdvanceError;
 use serde::{Deserialize, Serialize};
 
-use crate::domain::controller::AnyController;
+use crate::domain::arm::ArmError;
+use crate::domain::controller::{boxed_spatial_controller, AnyController};
 use crate::domain::plant_setup::{self, PlantSetupError};
+use crate::domain::record::spatial::{SpatialAccumulator, SpatialSummary};
 use crate::domain::record::{CommandSource, Row, Summary};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::sim::{summary_sample, DelayLine};
+use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
 
 /// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
 /// step.
@@ -78,13 +83,75 @@ pub struct Trial {
     pub tail: Tail,
 }
 
-impl Trial {
-    /// Whether the run converged: not stopped, no step rejected, and `‖e_p‖` within the
-    /// tolerance over the whole final window.
-    pub fn converged(&self, judge: &Judge) -> bool {
-        self.tail.diverged_at.is_none()
-            && self.summary.rejected_steps == 0
-            && self.tail.window_max_ep < judge.tolerance
+impl Tail {
+    /// Whether the run converged: not stopped, no step rejected (`rejected_steps`), and
+    /// `‖e_p‖` within the tolerance over the whole final window.
+    pub fn converged(&self, rejected_steps: u64, judge: &Judge) -> bool {
+        self.diverged_at.is_none() && rejected_steps == 0 && self.window_max_ep < judge.tolerance
+    }
+}
+
+/// The figures of [`Tail`] as a run goes, step by step.
+struct TailCounter {
+    tail: Tail,
+    judge: Judge,
+    after: f64,
+    window_start: f64,
+    counted: u64,
+    tracked: u64,
+    saturated: u64,
+}
+
+impl TailCounter {
+    /// For a run of `steps` periods of `dt`.
+    fn new(judge: &Judge, steps: u64, dt: f64) -> Self {
+        let end = steps as f64 * dt;
+        Self {
+            tail: Tail {
+                tracked_fraction: 0.0,
+                settling_time_s: 0.0,
+                ep_bound: 0.0,
+                window_max_ep: 0.0,
+                time_saturated_s: 0.0,
+                diverged_at: None,
+            },
+            judge: *judge,
+            after: judge.track_after.unwrap_or(0.5 * end),
+            window_start: end - judge.window,
+            counted: 0,
+            tracked: 0,
+            saturated: 0,
+        }
+    }
+
+    /// Adds the step at `t` with `‖e_p‖ = ep` and the platform's saturation factor; `false`
+    /// when the run has diverged (and is to stop).
+    fn add(&mut self, t: f64, ep: f64, saturation: f64) -> bool {
+        let (tail, judge) = (&mut self.tail, &self.judge);
+        if ep.is_nan() || ep > judge.divergence {
+            tail.diverged_at = Some(t);
+            return false;
+        }
+        if ep >= judge.tolerance {
+            tail.settling_time_s = t;
+        }
+        if t >= self.after {
+            self.counted += 1;
+            self.tracked += u64::from(ep < judge.tolerance);
+            tail.ep_bound = tail.ep_bound.max(ep);
+        }
+        if t >= self.window_start {
+            tail.window_max_ep = tail.window_max_ep.max(ep);
+        }
+        self.saturated += u64::from(saturation > 1.0 + 1e-12);
+        true
+    }
+
+    fn finish(mut self, dt: f64) -> Tail {
+        self.tail.tracked_fraction =
+            if self.counted > 0 { self.tracked as f64 / self.counted as f64 } else { 0.0 };
+        self.tail.time_saturated_s = self.saturated as f64 * dt;
+        self.tail
     }
 }
 
@@ -100,40 +167,15 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     let star = s.controller.params::<f64>().primary.target_in_effector;
     let mut summary = crate::domain::record::recorder::summary_for(s);
     let steps = s.steps();
-    let end = steps as f64 * s.dt;
-    let (half, window_start) = (judge.track_after.unwrap_or(0.5 * end), end - judge.window);
-    let mut tail = Tail {
-        tracked_fraction: 0.0,
-        settling_time_s: 0.0,
-        ep_bound: 0.0,
-        window_max_ep: 0.0,
-        time_saturated_s: 0.0,
-        diverged_at: None,
-    };
-    let (mut second_half, mut tracked, mut saturated) = (0u64, 0u64, 0u64);
+    let mut tail = TailCounter::new(judge, steps, s.dt);
     for n in 0..=steps {
         let meas = plant.measure();
         let report = ctrl.step(&meas, s.dt, told);
         let sample = summary_sample(&plant, &star);
-        let ep = sample.ep_norm;
         summary.add(&Row { plant: sample, report, source: CommandSource::Fresh });
-        let t = sample.t;
-        if ep.is_nan() || ep > judge.divergence {
-            tail.diverged_at = Some(t);
+        if !tail.add(sample.t, sample.ep_norm, report.saturation) {
             break;
         }
-        if ep >= judge.tolerance {
-            tail.settling_time_s = t;
-        }
-        if t >= half {
-            second_half += 1;
-            tracked += u64::from(ep < judge.tolerance);
-            tail.ep_bound = tail.ep_bound.max(ep);
-        }
-        if t >= window_start {
-            tail.window_max_ep = tail.window_max_ep.max(ep);
-        }
-        saturated += u64::from(report.saturation > 1.0 + 1e-12);
         if n < steps {
             match &mut delay {
                 None => plant.try_advance(&report.command, s.dt)?,
@@ -144,9 +186,118 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
             }
         }
     }
-    {
-        tail.tracked_fraction = if second_half > 0 { tracked as f64 / second_half as f64 } else { 0.0 };
-        tail.time_saturated_s = saturated as f64 * s.dt;
+    Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(s.dt) })
+}
+
+/// Why a spatial trial could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SpatialTrialError {
+    /// The arm, the law, the target or the plant cannot be built.
+    #[error(transparent)]
+    Setup(#[from] SpatialRunError),
+    /// The plant refused a step.
+    #[error(transparent)]
+    Advance(#[from] AdvanceError),
+}
+
+/// The outcome of one spatial trial (`companion explore --arm`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpatialTrial {
+    /// The run's summary (as `summary.json` would have it, without the wall time).
+    pub summary: SpatialSummary,
+    /// The exploration's figures.
+    pub tail: Tail,
+}
+
+/// Runs the spatial scenario `s` in process, without files: `companion sim --arm`'s loop
+/// (`run::spatial::execute`: measure, step, advance) with nothing logged.
+///
+/// # Errors
+/// A bad arm, law, target or plant, or a plant step refused.
+pub fn run_spatial(s: &SpatialScenario, judge: &Judge) -> Result<SpatialTrial, SpatialTrialError> {
+    match s.arm.joints() {
+        6 => run_spatial_n::<6>(s, judge),
+        7 => run_spatial_n::<7>(s, judge),
+        8 => run_spatial_n::<8>(s, judge),
+        n => Err(SpatialRunError::from(ArmError::JointCount { found: n }).into()),
     }
-    Ok(Trial { summary: summary.finish(0.0), tail })
+}
+
+fn run_spatial_n<const N: usize>(
+    s: &SpatialScenario,
+    judge: &Judge,
+) -> Result<SpatialTrial, SpatialTrialError>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    let chain = s.arm.chain::<f64, N>().map_err(SpatialRunError::from)?;
+    let mut ctrl =
+        boxed_spatial_controller::<N>(&s.base.controller, &s.arm).map_err(SpatialRunError::from)?;
+    let star = ctrl.target_in_effector();
+    let mut plant = spatial::build_plant(s, &chain, &star)?;
+    let (lower, upper) = spatial::limits(&chain);
+    let mut summary = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
+    let (steps, dt) = (s.steps(), s.base.dt);
+    let mut tail = TailCounter::new(judge, steps, dt);
+    for n in 0..=steps {
+        let meas = plant.measure();
+        let report = ctrl.step(&meas, dt, 0.0);
+        let rec = spatial::record_of(&plant, &star, &report, CommandSource::Fresh, false);
+        summary.add(&rec);
+        if !tail.add(rec.t, rec.ep_norm, report.saturation) {
+            break;
+        }
+        if n < steps {
+            plant.try_advance(&report.command, dt)?;
+        }
+    }
+    Ok(SpatialTrial { summary: summary.finish(0.0, false, 1.0), tail: tail.finish(dt) })
+}
+
+/// What an exploration's line reads from a run, planar or spatial.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Figures {
+    /// `‖e_p‖` at the last step.
+    pub final_ep_norm: f64,
+    /// The smallest distance of any joint to its nearer limit (rad or m).
+    pub min_joint_margin: f64,
+    /// The largest `|v|` commanded (m/s).
+    pub max_abs_v: f64,
+    /// Steps the law rejected.
+    pub rejected_steps: u64,
+    /// The platform's reversals (planar runs' `maneuvers`; `None`: not counted, spatial runs).
+    pub maneuvers: Option<u64>,
+    /// Steps run.
+    pub steps: u64,
+}
+
+impl Trial {
+    /// The figures an exploration writes.
+    pub fn figures(&self) -> Figures {
+        let m = &self.summary;
+        Figures {
+            final_ep_norm: m.final_ep_norm,
+            min_joint_margin: m.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min),
+            max_abs_v: m.max_abs_v,
+            rejected_steps: m.rejected_steps,
+            maneuvers: Some(m.maneuvers),
+            steps: m.steps,
+        }
+    }
+}
+
+impl SpatialTrial {
+    /// The figures an exploration writes.
+    pub fn figures(&self) -> Figures {
+        let m = &self.summary;
+        Figures {
+            final_ep_norm: m.final_ep_norm,
+            min_joint_margin: m.smallest_joint_margin,
+            max_abs_v: m.max_abs_v,
+            rejected_steps: m.rejected_steps,
+            maneuvers: None,
+            steps: m.steps,
+        }
+    }
 }

@@ -60,13 +60,13 @@ pub use self::error::{BadShard, ExploreError};
 pub use self::lock::Busy;
 use self::lock::Lock;
 pub use self::results::{Class, Record};
-pub use self::space::{Space, SpaceFile, Value};
+pub use self::space::{Space, SpaceFile, SpatialSetup, Value};
 pub use self::summary::ExploreSummary;
 use crate::domain::observe::Observer;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 use crate::study::knobs::Knob;
 use crate::study::shared;
-use crate::study::trial::{self, TrialError};
+use crate::study::trial::{self, Figures, Tail, TrialError};
 
 /// The result of an exploration's steps.
 type Result<T, E = ExploreError> = std::result::Result<T, E>;
@@ -123,6 +123,8 @@ pub struct Exploration {
     pub samples: u64,
     /// The seed.
     pub seed: u64,
+    /// The spatial arm and target (`--arm`); `None`: the paper's planar arm.
+    pub spatial: Option<SpatialSetup>,
 }
 
 /// What `explore.json` records: everything the samples depend on.
@@ -132,8 +134,20 @@ struct Identity<'a> {
     samples: u64,
     seed: u64,
     scenario: &'a Scenario,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    arm: Option<ArmIdentity>,
     space: &'a Space,
     columns: String,
+}
+
+/// A spatial exploration's arm and target in `explore.json`: the arm's name, joints and hash
+/// (companion-core's chain, as the HIL handshake hashes it), the target.
+#[derive(Serialize)]
+struct ArmIdentity {
+    name: String,
+    joints: usize,
+    hash: String,
+    target: String,
 }
 
 /// `explore.json`: the identity and its hash (the same for every shard of an exploration;
@@ -179,12 +193,62 @@ impl Exploration {
     /// # Errors
     /// The scenario or the space is invalid (see [`Space::check`]), or `samples` is 0.
     pub fn new(builder: ScenarioBuilder, file: &SpaceFile, samples: u64, seed: u64) -> Result<Self> {
+        Self::with_arm(builder, None, file, samples, seed)
+    }
+
+    /// An exploration of `space` around the scenario `builder` makes, with the spatial arm
+    /// and target of `spatial` if given (`builder` then carries the platform settings and
+    /// flags of the run, as for `sim --arm`).
+    ///
+    /// # Errors
+    /// As [`new`](Self::new); with an arm, a space or a run that spatial runs do not allow.
+    pub fn with_arm(
+        builder: ScenarioBuilder,
+        spatial: Option<SpatialSetup>,
+        file: &SpaceFile,
+        samples: u64,
+        seed: u64,
+    ) -> Result<Self> {
         if samples == 0 {
             return Err(ExploreError::NoSamples);
         }
         let base = builder.clone().build().map_err(ExploreError::Scenario)?;
-        let space = Space::check(file, &builder)?;
-        Ok(Self { builder, base, space, samples, seed })
+        let space = Space::check_for(file, &builder, spatial.as_ref())?;
+        Ok(Self { builder, base, space, samples, seed, spatial })
+    }
+
+    /// The name of the runs explored (`traj1-a-car`, `ur5-traj2-a-unicycle`).
+    fn name(&self) -> String {
+        match &self.spatial {
+            None => self.base.name.clone(),
+            Some(setup) => crate::run::spatial::SpatialScenario::new(
+                self.base.clone(),
+                setup.arm.clone(),
+                setup.target.clone(),
+            )
+            .map_or_else(|_| self.base.name.clone(), |s| s.name),
+        }
+    }
+
+    fn arm_identity(&self) -> Option<ArmIdentity> {
+        let setup = self.spatial.as_ref()?;
+        let arm = &setup.arm;
+        let hash = match arm.joints() {
+            6 => arm.chain::<f64, 6>().map(|c| crate::transport::wire::canonical::arm_hash(&c)),
+            7 => arm.chain::<f64, 7>().map(|c| crate::transport::wire::canonical::arm_hash(&c)),
+            _ => arm.chain::<f64, 8>().map(|c| crate::transport::wire::canonical::arm_hash(&c)),
+        };
+        Some(ArmIdentity {
+            name: arm.name().to_string(),
+            joints: arm.joints(),
+            hash: hash.map_or_else(|e| e.to_string(), |h| format!("{h:016x}")),
+            target: match &setup.target {
+                crate::run::spatial::SpatialTargetChoice::Lifted(t) => {
+                    format!("lifted trajectory {}", crate::domain::scenario::trajectory_number(*t))
+                }
+                crate::run::spatial::SpatialTargetChoice::File(p) => p.display().to_string(),
+            },
+        })
     }
 
     fn knobs(&self) -> Vec<Knob> {
@@ -201,6 +265,7 @@ impl Exploration {
             samples: self.samples,
             seed: self.seed,
             scenario: &self.base,
+            arm: self.arm_identity(),
             space: &self.space,
             columns: self.header(),
         }
@@ -219,7 +284,7 @@ impl Exploration {
     /// What writing the files needs.
     pub fn layout(&self) -> Layout {
         Layout {
-            scenario: self.base.name.clone(),
+            scenario: self.name(),
             seed: self.seed,
             samples: self.samples,
             space: self.space.clone(),
@@ -252,14 +317,26 @@ impl Exploration {
             inputs.push(v.unwrap_or_else(|| k.value(&self.base)));
         }
         let judge = self.space.judge;
-        let result = self
-            .space
-            .scenario(&self.builder, &self.base, &point)
-            .map_err(TrialError::from)
-            .and_then(|s| trial::run(&s, &judge));
-        match result {
-            Ok(t) => (results::line(i, &inputs, Class::of(&t, &judge), Some(&t)), t.summary.steps),
-            Err(_) => (results::line(i, &inputs, Class::Invalid, None), 0),
+        let ran: Option<(Figures, Tail)> = match &self.spatial {
+            None => self
+                .space
+                .scenario(&self.builder, &self.base, &point)
+                .map_err(TrialError::from)
+                .and_then(|s| trial::run(&s, &judge))
+                .ok()
+                .map(|t| (t.figures(), t.tail)),
+            Some(setup) => self
+                .space
+                .spatial_scenario(&self.builder, &self.base, setup, &point)
+                .ok()
+                .and_then(|s| trial::run_spatial(&s, &judge).ok())
+                .map(|t| (t.figures(), t.tail)),
+        };
+        match ran {
+            Some((f, tail)) => {
+                (results::line(i, &inputs, Class::of(&f, &tail, &judge), Some((&f, &tail))), f.steps)
+            }
+            None => (results::line(i, &inputs, Class::Invalid, None), 0),
         }
     }
 

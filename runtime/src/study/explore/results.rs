@@ -17,7 +17,7 @@ use serde::Serialize;
 
 use super::space::{Space, INITIAL};
 use crate::study::knobs::Knob;
-use crate::study::trial::{Judge, Trial};
+use crate::study::trial::{Figures, Judge, Tail};
 
 /// Why a line of a results file is not one.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
@@ -115,13 +115,13 @@ impl Class {
         CLASSES.into_iter().find(|c| c.name() == s)
     }
 
-    /// The class of a trial.
-    pub fn of(trial: &Trial, judge: &Judge) -> Self {
-        if trial.summary.rejected_steps > 0 {
+    /// The class of a trial, from its figures and tail.
+    pub fn of(figures: &Figures, tail: &Tail, judge: &Judge) -> Self {
+        if figures.rejected_steps > 0 {
             Self::Rejected
-        } else if trial.tail.diverged_at.is_some() {
+        } else if tail.diverged_at.is_some() {
             Self::Diverged
-        } else if trial.converged(judge) {
+        } else if tail.converged(figures.rejected_steps, judge) {
             Self::Converged
         } else {
             Self::NotConverged
@@ -189,30 +189,34 @@ pub fn header(knobs: &[Knob]) -> String {
 /// FNV-1a, 64 bits (the wire's: one implementation for every hash of the runtime).
 pub use crate::transport::wire::fnv1a;
 
-/// The line of a sample (without a line break).
-pub fn line(sample: u64, inputs: &[f64], class: Class, trial: Option<&Trial>) -> String {
+/// The line of a sample (without a line break), from its run's figures and tail. Manoeuvres
+/// a run does not count (spatial runs) are written `NaN`.
+pub fn line(sample: u64, inputs: &[f64], class: Class, ran: Option<(&Figures, &Tail)>) -> String {
     let mut s = format!("{sample}");
     for v in inputs {
         let _ = write!(s, ",{v}");
     }
     let _ = write!(s, ",{}", class.name());
-    match trial {
-        Some(t) => {
-            let m = &t.summary;
-            let margin = m.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);
+    match ran {
+        Some((m, tail)) => {
             let _ = write!(
                 s,
-                ",{},{},{},{},{},{},{},{},{}",
-                t.tail.tracked_fraction,
-                t.tail.settling_time_s,
+                ",{},{},{},{},{},{},{},{},",
+                tail.tracked_fraction,
+                tail.settling_time_s,
                 m.final_ep_norm,
-                t.tail.ep_bound,
-                margin,
+                tail.ep_bound,
+                m.min_joint_margin,
                 m.max_abs_v,
-                t.tail.time_saturated_s,
+                tail.time_saturated_s,
                 m.rejected_steps,
-                m.maneuvers
             );
+            match m.maneuvers {
+                Some(n) => {
+                    let _ = write!(s, "{n}");
+                }
+                None => s.push_str("NaN"),
+            }
         }
         None => s.push_str(",NaN,NaN,NaN,NaN,NaN,NaN,NaN,0,0"),
     }

@@ -32,6 +32,12 @@
 //!
 //! An initial value the file does not give is the scenario's own (the trajectory's
 //! `r_bd(0)`, `q(0)`; `α(0) = 0`); a parameter it does not give is the scenario's.
+//!
+//! With a spatial arm (`companion explore --arm`) the start is `sim --arm`'s (the platform
+//! at the origin, the arm at home, the lifted target where the arm holds it): of `[initial]`
+//! only `alpha_1` and `alpha_2` may be given, and the other columns are `NaN`. The knobs
+//! `joint_speed` and `reach` scale the arm; `gain`, `stroke` and `lambda` are the planar
+//! arm's and refused.
 //! Unknown keys, empty or reversed ranges, joints outside their limits and parameters the
 //! law rejects are errors. Parameters are checked at every corner of their box: each rule is
 //! monotone in each parameter or, like Lemma 2's `6η₂η₃ − 8η₃ − η₁η₂ > 0`, multilinear in
@@ -43,9 +49,11 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::domain::arm::SpatialArmSpec;
 use crate::domain::plant_setup::PlantSetupError;
 use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
-use crate::study::knobs::{self, Knob};
+use crate::run::spatial::{self, SpatialRunError, SpatialScenario, SpatialTargetChoice};
+use crate::study::knobs::{self, ArmKind, Knob};
 use crate::study::trial::Judge;
 
 /// Why a space file cannot be read, or the space it describes cannot be explored; every text
@@ -120,6 +128,20 @@ pub enum SpaceError {
         at: String,
         /// The law's reason.
         why: ScenarioError,
+    },
+    /// An `[initial]` variable a spatial run's start does not have.
+    #[error(
+        "[initial]: `{0}` is not available with a spatial arm (--arm): its start is the platform at the \
+         origin with the arm at home; only alpha_1 and alpha_2 may be drawn"
+    )]
+    SpatialInitial(&'static str),
+    /// The spatial run at a corner of the box cannot run (its arm, law, target or plant).
+    #[error("the spatial run at a corner of the space ({at}): {why}")]
+    SpatialCorner {
+        /// The corner, `knob = value` joined by commas.
+        at: String,
+        /// Why.
+        why: Box<PointError>,
     },
     /// A joint's range reaches its limits.
     #[error("`q{joint}` = {value:?} must lie strictly inside the joint's limits ({lower}, {upper})")]
@@ -365,18 +387,42 @@ impl Space {
     /// parameter of another platform, a corner of the box the law rejects (named, with the
     /// rule), map axes that are not ranges, or a bad judge.
     pub fn check(file: &SpaceFile, builder: &ScenarioBuilder) -> Result<Self, SpaceError> {
+        Self::check_for(file, builder, None)
+    }
+
+    /// [`check`](Self::check), for the spatial arm `arm` if given: its start, its knobs, the
+    /// spatial run at every corner of the box.
+    ///
+    /// # Errors
+    /// As [`check`](Self::check); with an arm, an `[initial]` variable other than α, a planar
+    /// arm's knob, or a corner whose spatial run cannot be built.
+    pub fn check_for(
+        file: &SpaceFile,
+        builder: &ScenarioBuilder,
+        arm: Option<&SpatialSetup>,
+    ) -> Result<Self, SpaceError> {
         let base = builder.clone().build().map_err(SpaceError::Scenario)?;
         let platform = base.controller.platform;
-        let start = base_start(&base)?;
+        let start = match arm {
+            None => base_start(&base)?,
+            Some(_) => {
+                let a = base.controller.initial_alpha;
+                [f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN, f64::NAN, a[0], a[1], f64::NAN]
+            }
+        };
         let mut initial = [None; 9];
         for (i, name) in INITIAL.iter().enumerate() {
             let v = file.initial.get(i);
             if let Some(v) = v {
+                if arm.is_some() && !matches!(*name, "alpha_1" | "alpha_2") {
+                    return Err(SpaceError::SpatialInitial(name));
+                }
                 v.check(name)?;
             }
             initial[i] = match (i, v) {
                 (8, v) => v,
                 (_, Some(v)) => Some(v),
+                (_, None) if start[i].is_nan() => None,
                 (_, None) => Some(Value::Fixed(start[i])),
             };
         }
@@ -386,14 +432,17 @@ impl Space {
             }
         }
         let mut parameters = Vec::new();
+        let kind = if arm.is_some() { ArmKind::Spatial } else { ArmKind::Planar };
         for (name, v) in &file.parameters {
-            let knob = Knob::parse_for(name, platform).map_err(SpaceError::Knob)?;
+            let knob = Knob::parse_for(name, platform, kind).map_err(SpaceError::Knob)?;
             v.check(name)?;
             parameters.push((knob, *v));
         }
         parameters.sort_by_key(|(k, _)| *k);
-        check_corners(builder, &base, &parameters)?;
-        check_joints(builder, &base, &parameters, &initial)?;
+        check_corners(builder, &base, &parameters, arm)?;
+        if arm.is_none() {
+            check_joints(builder, &base, &parameters, &initial)?;
+        }
         // The drawn variables: distance and heading first, then the others in column order.
         let mut drawn: Vec<&str> = ["distance", "heading"]
             .into_iter()
@@ -491,6 +540,55 @@ impl Space {
         };
         knobs::apply(builder, base, &p.parameters).start(start).initial_alpha([a1, a2]).build()
     }
+
+    /// The spatial run of a point: `builder`'s scenario with the point's `α(0)` and platform
+    /// knobs, `setup`'s arm scaled by its arm knobs, `setup`'s target.
+    ///
+    /// # Errors
+    /// The point's scenario is invalid (the corner check makes this a bug).
+    pub fn spatial_scenario(
+        &self,
+        builder: &ScenarioBuilder,
+        base: &Scenario,
+        setup: &SpatialSetup,
+        p: &Point,
+    ) -> Result<SpatialScenario, PointError> {
+        let [.., a1, a2, _] = p.initial;
+        spatial_at(builder, base, setup, &p.parameters, [a1, a2])
+    }
+}
+
+/// The spatial arm and target of an exploration with `--arm`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpatialSetup {
+    /// The arm as given (the knobs `joint_speed` and `reach` scale it per sample).
+    pub arm: SpatialArmSpec,
+    /// The target.
+    pub target: SpatialTargetChoice,
+}
+
+/// Why the spatial run of a point cannot be built.
+#[derive(Debug, thiserror::Error)]
+pub enum PointError {
+    /// The planar scenario it is made from (the platform law's parameters).
+    #[error(transparent)]
+    Scenario(#[from] ScenarioError),
+    /// The spatial run: its arm, law, target or plant.
+    #[error(transparent)]
+    Spatial(#[from] SpatialRunError),
+}
+
+/// The spatial run of `builder` with the knobs `values` and `α(0)` = `alpha`.
+fn spatial_at(
+    builder: &ScenarioBuilder,
+    base: &Scenario,
+    setup: &SpatialSetup,
+    values: &[(Knob, f64)],
+    alpha: [f64; 2],
+) -> Result<SpatialScenario, PointError> {
+    let s = knobs::apply(builder, base, values).initial_alpha(alpha).build()?;
+    let arm = setup.arm.clone().scaled(knobs::arm_scale(values));
+    SpatialScenario::new(s, arm, setup.target.clone()).map_err(|e| PointError::Spatial(e.into()))
 }
 
 /// How many uniform draws a point takes: one per initial variable and one per knob, whether
@@ -516,11 +614,13 @@ fn base_start(s: &Scenario) -> Result<[f64; 9], PlantSetupError> {
     ])
 }
 
-/// Builds the scenario at every corner of the parameter box (at most 2¹⁴).
+/// Builds the scenario at every corner of the parameter box (at most 2¹⁶); with a spatial arm,
+/// checks the spatial run there too (arm, law, the target's height against the arm's reach).
 fn check_corners(
     builder: &ScenarioBuilder,
     base: &Scenario,
     parameters: &[(Knob, Value)],
+    arm: Option<&SpatialSetup>,
 ) -> Result<(), SpaceError> {
     let ranged: Vec<usize> = (0..parameters.len()).filter(|&i| parameters[i].1.is_range()).collect();
     for corner in 0u32..(1 << ranged.len()) {
@@ -533,9 +633,17 @@ fn check_corners(
                 (*k, if high { hi } else { lo })
             })
             .collect();
+        let at = || values.iter().map(|(k, v)| format!("{} = {v}", k.name())).collect::<Vec<_>>().join(", ");
         if let Err(why) = knobs::apply(builder, base, &values).build() {
-            let at: Vec<String> = values.iter().map(|(k, v)| format!("{} = {v}", k.name())).collect();
-            return Err(SpaceError::Corner { at: at.join(", "), why });
+            return Err(SpaceError::Corner { at: at(), why });
+        }
+        if let Some(setup) = arm {
+            let alpha = base.controller.initial_alpha;
+            let checked = spatial_at(builder, base, setup, &values, alpha)
+                .and_then(|s| spatial::check(&s).map_err(PointError::from));
+            if let Err(why) = checked {
+                return Err(SpaceError::SpatialCorner { at: at(), why: Box::new(why) });
+            }
         }
     }
     Ok(())

@@ -251,14 +251,118 @@ fn a_sample_with_a_rejected_step_is_rejected_never_converged() {
         .build()
         .unwrap();
     let judge = crate::study::trial::Judge { window: 0.5, ..Default::default() };
-    let mut t = crate::study::trial::run(&s, &judge).unwrap();
-    t.tail.window_max_ep = 0.0;
-    assert_eq!(Class::of(&t, &judge), Class::Converged);
-    t.summary.rejected_steps = 1;
-    assert!(!t.converged(&judge));
-    assert_eq!(Class::of(&t, &judge), Class::Rejected);
-    t.tail.diverged_at = Some(0.5);
-    assert_eq!(Class::of(&t, &judge), Class::Rejected);
-    t.summary.rejected_steps = 0;
-    assert_eq!(Class::of(&t, &judge), Class::Diverged);
+    let t = crate::study::trial::run(&s, &judge).unwrap();
+    let (mut f, mut tail) = (t.figures(), t.tail);
+    tail.window_max_ep = 0.0;
+    assert_eq!(Class::of(&f, &tail, &judge), Class::Converged);
+    f.rejected_steps = 1;
+    assert!(!tail.converged(f.rejected_steps, &judge));
+    assert_eq!(Class::of(&f, &tail, &judge), Class::Rejected);
+    tail.diverged_at = Some(0.5);
+    assert_eq!(Class::of(&f, &tail, &judge), Class::Rejected);
+    f.rejected_steps = 0;
+    assert_eq!(Class::of(&f, &tail, &judge), Class::Diverged);
+}
+
+/// A spatial exploration (`--arm`): the UR5 on the unicycle, 2 s, α(0) and the joint speeds
+/// drawn.
+fn spatial(samples: u64, file: &SpaceFile) -> Result<Exploration> {
+    use crate::domain::arm::SpatialArmSpec;
+    use crate::run::spatial::SpatialTargetChoice;
+    let b = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle).duration(2.0);
+    let setup =
+        SpatialSetup { arm: SpatialArmSpec::Ur5, target: SpatialTargetChoice::Lifted(PaperTrajectory::One) };
+    Exploration::with_arm(b, Some(setup), file, samples, 3)
+}
+
+fn spatial_space(text: &str) -> SpaceFile {
+    toml::from_str(text).unwrap()
+}
+
+/// With a spatial arm each sample is `sim --arm`'s run: at the arm's own speeds and size the
+/// trial's figures are the spatial run's summary (same final ‖e_p‖, margin, steps); the
+/// files are the same bytes for any thread count and shard split; the joint speeds change
+/// the run (a slower arm is held back by its guard).
+#[test]
+fn a_spatial_exploration_runs_sim_arms_runs_deterministically() {
+    let file = spatial_space(
+        "[initial]\nalpha_1 = [0.0, 0.5]\n[parameters]\njoint_speed = [0.2, 1.0]\nreach = 1.0\n[judge]\nwindow = 0.5",
+    );
+    let e = spatial(4, &file).unwrap();
+    let (one, two) = (dir("sp1"), dir("sp2"));
+    let s = run_with_threads(&e, &one, Shard::WHOLE, 1).summary.unwrap();
+    assert_eq!(s.scenario, "ur5-traj1-a-unicycle");
+    run_with_threads(&e, &two, Shard::WHOLE, 2);
+    for f in FILES {
+        assert!(read(&one, f) == read(&two, f), "{f} differs between 1 and 2 threads");
+    }
+    let text = String::from_utf8(read(&one, "results.csv")).unwrap();
+    let header = text.lines().next().unwrap();
+    assert!(header.contains(",joint_speed,reach,class,"), "{header}");
+    let lines: Vec<Record> =
+        text.lines().skip(1).map(|l| results::parse(l, header.split(',').count()).unwrap()).collect();
+    assert_eq!(lines.len(), 4);
+    for r in &lines {
+        assert!(r.inputs[0].is_nan(), "no planar start: distance is NaN");
+        assert!(r.outcome("maneuvers").is_nan(), "not counted for spatial runs");
+        assert_ne!(r.class, Class::Invalid);
+    }
+    let manifest = String::from_utf8(read(&one, "explore.json")).unwrap();
+    assert!(manifest.contains("\"arm\": {") && manifest.contains("\"name\": \"ur5\""), "{manifest}");
+    // The same point as `sim --arm` runs it: the trial's figures are its summary's.
+    use crate::domain::observe::Silent as Quiet;
+    use crate::run::spatial::run_spatial;
+    let point = e.space.point(&e.draws(0));
+    let setup = e.spatial.as_ref().unwrap();
+    let sc = e.space.spatial_scenario(&e.builder, &e.base, setup, &point).unwrap();
+    let t = crate::study::trial::run_spatial(&sc, &e.space.judge).unwrap();
+    let d = dir("sp-sim");
+    let o = run_spatial(&sc, &d, &Quiet, 0.01).unwrap();
+    assert_eq!(t.summary.final_ep_norm, o.summary.final_ep_norm);
+    assert_eq!(t.summary.min_joint_margin, o.summary.min_joint_margin);
+    assert_eq!(t.summary.trajectory_digest, o.summary.trajectory_digest);
+    assert_eq!(t.summary.steps, 2001);
+    // The knob reaches the arm: at the published speeds the run is the preset's, bit for bit;
+    // at a fifth of them the guard holds the arm back and the run differs.
+    let at = |speed: f64| {
+        let mut p = point.clone();
+        p.parameters = vec![(Knob::JointSpeed, speed), (Knob::Reach, 1.0)];
+        let sc = e.space.spatial_scenario(&e.builder, &e.base, setup, &p).unwrap();
+        crate::study::trial::run_spatial(&sc, &e.space.judge).unwrap().summary
+    };
+    let (published, slow) = (at(1.0), at(0.2));
+    let mut own = sc.clone();
+    own.arm = crate::domain::arm::SpatialArmSpec::Ur5;
+    let preset = crate::study::trial::run_spatial(&own, &e.space.judge).unwrap().summary;
+    assert_eq!(published.trajectory_digest, preset.trajectory_digest);
+    assert_ne!(slow.trajectory_digest, published.trajectory_digest);
+    assert!(slow.max_joint_scale > 1.0, "{slow:?}");
+    for d in [one, two, d] {
+        let _ = std::fs::remove_dir_all(d);
+    }
+}
+
+/// With a spatial arm: no planar start, no planar arm's knob, no arm scale the chain refuses,
+/// and the arm's knobs not without one.
+#[test]
+fn bad_spatial_spaces_are_refused_before_anything_runs() {
+    let check = |text: &str| {
+        spatial(2, &spatial_space(text)).map_or_else(|e| format!("{e:#}"), |_| "accepted".into())
+    };
+    assert_eq!(check("[parameters]\njoint_speed = [0.5, 2.0]\nreach = [0.8, 1.2]"), "accepted");
+    assert_eq!(check("[initial]\nalpha_2 = [0.0, 1.0]"), "accepted");
+    let e = check("[initial]\ndistance = [1.0, 2.0]");
+    assert!(e.contains("`distance` is not available with a spatial arm"), "{e}");
+    let e = check("[parameters]\ngain = [1.0, 2.0]");
+    assert!(e.contains("`gain` is a parameter of the paper's planar arm"), "{e}");
+    let e = check("[parameters]\nlambda = [1.0, 2.0]");
+    assert!(e.contains("`lambda` is a parameter of the paper's planar arm"), "{e}");
+    let e = check("[parameters]\njoint_speed = [0.0, 2.0]");
+    let says = ["corner", "joint_speed = 0", "must be finite and > 0"];
+    assert!(says.iter().all(|w| e.contains(w)), "{e}");
+    let e = check("[parameters]\nepsilon = [0.1, 0.2]");
+    assert!(e.contains("car"), "{e}");
+    let planar = spatial_space("[parameters]\nreach = [0.5, 1.0]");
+    let e = Exploration::new(builder(PlatformKind::Unicycle), &planar, 2, 1).unwrap_err().to_string();
+    assert!(e.contains("`reach` scales a spatial arm"), "{e}");
 }

@@ -52,7 +52,7 @@ use serde::{Deserialize, Serialize};
 use crate::domain::observe::Observer;
 use crate::domain::record::Summary;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
-use crate::study::knobs::{self, Knob};
+use crate::study::knobs::{self, ArmKind, Knob};
 use crate::study::shared::{into_inner, lock, Poisoned};
 use crate::study::trial::{self, Judge, TrialError};
 
@@ -260,7 +260,7 @@ impl Tuning {
             Some(f) => {
                 let mut v = Vec::new();
                 for (name, r) in &f.parameters {
-                    let k = Knob::parse_for(name, platform).map_err(TuneError::Knob)?;
+                    let k = Knob::parse_for(name, platform, ArmKind::Planar).map_err(TuneError::Knob)?;
                     v.push((k, *r));
                 }
                 v.sort_by_key(|(k, _)| *k);
