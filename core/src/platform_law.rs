@@ -359,16 +359,19 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
     /// (one or two unknowns). Without it the loop `α → H̄(α)⁻¹ → α̇` (gain `~|ū|/det H`)
     /// rings at the Nyquist frequency at long periods.
     ///
-    /// The weight is first order: for one `α` the mean rate of the linearised equation
-    /// `α̇ = w_e + c (α − α_e)` over the hold needs `θ(x) = 1/(1 − e^{−x}) − 1/x = ½ + x/12 −
-    /// x³/720 + …` (`x = −hc`), and `θ − ½ = z/(2(1 + z))` instead biases the held `α̇` by
-    /// `O(h²)` with one sign wherever the mode decays. `α`'s phase is not restored by any
-    /// feedback, so that bias accumulates: it is T2 (a)'s largest distance from the
-    /// continuous law (5.3·10⁻³ in `q₁` at 7.52 s is the phase difference 4.3·10⁻³ rad of
-    /// `α`, times `q̇₁/α̇`; 4.1·10⁻³ with the exact weight). The weight stays because its
-    /// extra damping keeps the stiff cases calm: with the exact weight the Ψ̇-term variant of
-    /// T2 (d) chatters at 36 m/s (9.7 now) and the car tracks less at 100 Hz (the root
-    /// README's precision section has the figures).
+    /// The weight is first order. For one `α` the linearised equation `α̇ = w_e + c (α − α_e)`
+    /// gives over the hold a mean rate (the held `α̇`) and a mean `α` (where `v`, `ω` are
+    /// evaluated, through `θh α̇ − h/2 α̇_g`), and both need the same weight `θ(x) = 1/(1 −
+    /// e^{−x}) − 1/x = ½ + x/12 − x³/720 + …` (`x = −hc`); `θ − ½ = z/(2(1 + z))` biases them
+    /// by `O(h²)` with one sign wherever the mode decays, and no feedback restores `α`'s
+    /// phase: that is T2 (a)'s largest distance from the continuous law, 5.3·10⁻³ (4.1·10⁻³
+    /// with `θ(x)`; `θ(x)` in `v`, `ω` alone gives all of that gain but 4·10⁻⁵, in the held
+    /// `α̇` alone hardly any). `θ(x)` is not taken: with it the car's two `α`, whose `c` has
+    /// complex modes that no scalar weight follows, track less at 100 Hz; and for the
+    /// unicycle's one `α` it cannot meet issue 25's comparisons of single runs of chaotic
+    /// runs, which no change of this arithmetic can (today's weight with its operations
+    /// reordered fails them too; the root README's precision section and
+    /// `docs/explore/alpha-step`).
     #[inline(always)]
     fn implicit_alpha(&self, frame: &CompanionFrame<T>, w_e: Vector3<T>, hold: &Hold<T>) -> Vector3<T> {
         let (h, half) = (hold.period, hold.half);
