@@ -321,15 +321,7 @@ impl HilArgs {
         let more = |b: ScenarioBuilder| b.delay(self.delay).delay_compensation(!self.no_delay_compensation);
         let hs = match SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm))? {
             None => HilScenario::Planar(self.scenario.scenario_with(DEFAULT_DURATION, more)?),
-            Some(arm) => {
-                if self.chaos.is_some() {
-                    bail!(
-                        "--chaos runs the paper's planar arm; it cannot be combined with --arm {}",
-                        self.arm
-                    );
-                }
-                HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?)
-            }
+            Some(arm) => HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?),
         };
         let s = hs.base();
         let timing = self.timing(s)?;
@@ -1089,12 +1081,14 @@ mod tests {
         assert_eq!(s.base().controller.platform, companion_core::PlatformKind::Car);
         let (_, s) = T::parse_from(["x", "--arm", "rpr"]).a.resolve().unwrap();
         assert!(s.spatial().is_none(), "rpr is the paper's planar arm");
+        // `--chaos` and `--delay` as with the paper's arm.
+        let (cfg, s) = T::parse_from(["x", "--arm", "ur5", "--chaos", "3"]).a.resolve().unwrap();
+        assert_eq!((cfg.chaos.map(|c| c.seed), s.spatial().map(|ss| ss.arm.joints())), (Some(3), Some(6)));
+        let (_, s) = T::parse_from(["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"]).a.resolve().unwrap();
+        assert_eq!((s.base().delay, s.spatial().map(|ss| ss.arm.joints())), (0.002, Some(6)));
         for (args, why) in [
-            (&["x", "--arm", "ur5", "--chaos", "3"][..], "--chaos runs the paper's planar arm"),
-            (
-                &["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"][..],
-                "--delay is not available with a spatial arm",
-            ),
+            (&["x", "--arm", "ur5", "--chaos", "3", "--lockstep"][..], "--chaos needs real time"),
+            (&["x", "--arm", "ur5", "--delay", "0.002"][..], "--delay simulates a pure delay in lockstep"),
             (&["x", "--arm", "nosuch"][..], "nosuch"),
         ] {
             let e = format!("{:#}", T::parse_from(args).a.resolve().unwrap_err());

@@ -122,8 +122,8 @@ impl Exchange for InProcess {
 /// its first `r` seconds and command `n − m` for the rest. Before the first command the
 /// robot is at rest. A fixed ring: nothing allocates in the loop.
 #[derive(Clone, Debug)]
-pub struct DelayLine {
-    ring: [Command<f64, JOINTS>; DELAY_RING],
+pub struct DelayLine<const N: usize = JOINTS> {
+    ring: [Command<f64, N>; DELAY_RING],
     whole: usize,
     rest: f64,
 }
@@ -131,7 +131,7 @@ pub struct DelayLine {
 /// Commands the delay line remembers: a delay spans at most `HISTORY` periods.
 const DELAY_RING: usize = companion_core::HISTORY + 2;
 
-impl DelayLine {
+impl<const N: usize> DelayLine<N> {
     /// A delay of `delay` seconds at period `dt` (`0 ≤ delay ≤ HISTORY·dt`, checked by the
     /// scenario).
     pub fn new(delay: f64, dt: f64) -> Self {
@@ -146,11 +146,7 @@ impl DelayLine {
     /// Remembers command `n` and returns `(previous, current, delay within the period)` for
     /// period `n`.
     #[inline]
-    pub fn push(
-        &mut self,
-        n: u64,
-        command: &Command<f64, JOINTS>,
-    ) -> (Command<f64, JOINTS>, Command<f64, JOINTS>, f64) {
+    pub fn push(&mut self, n: u64, command: &Command<f64, N>) -> (Command<f64, N>, Command<f64, N>, f64) {
         let slot = |k: u64| (k % DELAY_RING as u64) as usize;
         self.ring[slot(n)] = *command;
         let at = |back: usize| {

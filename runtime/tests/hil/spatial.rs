@@ -1,6 +1,7 @@
 //! The HIL demo with a spatial arm (`--arm ur5|panda|FILE`, §5): lockstep runs byte-identical
-//! to `companion sim --arm`, a real-time run that tracks, and arms that do not match refused
-//! by both sides with the reason.
+//! to `companion sim --arm` (with `--delay` too), a real-time run that tracks, a chaos soak
+//! whose counts match what was injected, and arms that do not match refused by both sides
+//! with the reason.
 
 use super::*;
 
@@ -13,10 +14,14 @@ fn arm_file(name: &str) -> String {
 fn a_spatial_arm_in_lockstep_is_byte_identical_to_sim() {
     let _g = serial();
     let panda = arm_file("panda.toml");
-    let runs: [&[&str]; 3] = [
+    // With a simulated delay the plant announces it and the controller predicts over it (or,
+    // with --no-delay-compensation, over 0), as `companion sim --arm … --delay` does.
+    let runs: [&[&str]; 5] = [
         &["--arm", "ur5"],
         &["--arm", "ur5", "--platform", "omni", "--trajectory", "2"],
         &["--arm", &panda, "--platform", "car", "--scalar", "f32", "--choice", "c"],
+        &["--arm", "ur5", "--delay", "0.0025"],
+        &["--arm", "panda", "--delay", "0.0025", "--no-delay-compensation"],
     ];
     for extra in runs {
         let d = dir("spatial-lockstep");
@@ -199,4 +204,30 @@ fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
     let fault = json(&d.join("fault.json"));
     assert_eq!(fault["plant_exit"], "killed by signal 9");
     assert_eq!(fault["rows_on_disk"].as_u64(), Some(rows.len() as u64));
+}
+
+/// `--chaos` with a spatial arm, as with the paper's (the CI's soak): seeded stops of either
+/// process, corrupted and held-back commands; the plant counts them, and the check in
+/// `chaos.json` finds every count matching what was injected and every row on disk.
+#[test]
+fn a_spatial_chaos_soak_counts_what_was_injected() {
+    let _g = serial();
+    let d = dir("spatial-chaos");
+    let n = name("spatial-chaos");
+    let args =
+        ["hil", "--arm", "ur5", "--chaos", "1", "--duration", "6", "--no-plots", "--quiet", "--name", &n];
+    let mut all = args.to_vec();
+    all.extend(["--out", d.to_str().unwrap()]);
+    let (st, out, err) = run(&all);
+    let chaos = json(&d.join("chaos.json"));
+    assert!(st.success(), "{out}\n{err}\n{chaos:#}");
+    assert_eq!(chaos["mismatches"], serde_json::json!([]), "{chaos:#}");
+    let injected = &chaos["injected"];
+    let corrupted: u64 =
+        ["version", "session", "future_seq", "non_finite"].iter().map(|k| injected[k].as_u64().unwrap()).sum();
+    assert!(corrupted > 0 && injected["delayed"].as_u64().unwrap() > 0, "{chaos:#}");
+    assert_eq!(chaos["rows"][0], chaos["rows"][1], "every row on disk: {chaos:#}");
+    assert_eq!(json(&d.join("summary.json"))["arm"], "ur5");
+    let lat = json(&d.join("latency.json"));
+    assert_eq!(lat["invalid_total"].as_u64(), Some(corrupted), "{lat:#}");
 }

@@ -26,7 +26,7 @@
 //! joints). Both roles announce the arm's joint count, target space and hash; a plant and a
 //! controller with different arms refuse each other by name. Lockstep runs of a spatial arm
 //! go through `companion sim --arm`'s own loop ([`crate::run::spatial::execute`]) and are
-//! byte-identical to it. `--chaos` and `--delay` are for the planar arm.
+//! byte-identical to it. `--chaos` and `--delay` work with every arm.
 //!
 //! ## Modes
 //!

@@ -63,9 +63,6 @@ pub enum PlantRunError {
         /// The parent's pid.
         parent: i32,
     },
-    /// `--chaos` with a spatial arm.
-    #[error("--chaos runs the paper's planar arm; it cannot be combined with a spatial --arm")]
-    ChaosSpatial,
     /// The chaos plan or its thread.
     #[error(transparent)]
     Chaos(#[from] ChaosError),
@@ -356,6 +353,17 @@ impl RunContext<'_> {
     }
 }
 
+/// `--chaos`: the thread by which this process stops the controller (its parent) on the
+/// plan's schedule, started before the loop takes a real-time priority.
+fn chaos_agent(plan: Option<Plan>, cfg: &HilConfig) -> Result<Option<Agent>, ChaosError> {
+    match (plan, cfg.chaos) {
+        (Some(p), Some(c)) => {
+            Agent::spawn(p.stops_by(Role::Plant), crate::sys::process::parent_pid(), c.epoch_ns).map(Some)
+        }
+        _ => Ok(None),
+    }
+}
+
 /// The real-time setup of the plant's loop thread, if asked for (its warning to `observer`).
 fn apply_rt(cfg: &HilConfig, observer: &dyn Observer) -> Option<crate::sys::rt::RtReport> {
     let rt = cfg.rt_config(Role::Plant)?;
@@ -407,14 +415,7 @@ fn run_planar(
     let dir = out.path();
     let mut recorder = Recorder::for_scenario(s, dir)?;
     recorder.log = recorder.log.with_replay(replay);
-    // `--chaos`: this process stops the controller (its parent) on the plan's schedule; the
-    // thread starts before the loop takes a real-time priority.
-    let agent = match (plan, cfg.chaos) {
-        (Some(p), Some(c)) => {
-            Some(Agent::spawn(p.stops_by(Role::Plant), crate::sys::process::parent_pid(), c.epoch_ns)?)
-        }
-        _ => None,
-    };
+    let agent = chaos_agent(plan, cfg)?;
     let clock = MonotonicClock;
     let mut stats = PlantStats::default();
     let wall = Instant::now();
@@ -509,9 +510,7 @@ where
 {
     let s = &ss.base;
     let timing = cfg.timing;
-    if cfg.chaos.is_some() {
-        return Err(PlantRunError::ChaosSpatial);
-    }
+    let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
     let chain = ss.arm.chain::<f64, N>()?;
     let star = spatial::target_in_effector::<N>(ss)?;
     let mut plant = spatial::build_plant(ss, &chain, &star)?;
@@ -521,6 +520,7 @@ where
         opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
+    let agent = chaos_agent(plan, cfg)?;
     let steps = s.steps();
     let max_rejected = cfg.acceptance.max_rejected;
     let clock = MonotonicClock;
@@ -538,7 +538,7 @@ where
             live,
             last_sent: None,
         };
-        let mut ex = Lockstep { side, steps, delay: 0.0 };
+        let mut ex = Lockstep { side, steps, delay: s.delay };
         let (outcome, failed) =
             spatial::execute(ss, &mut plant, &star, &mut ex, dir, observer, max_rejected)?;
         let end = match failed {
@@ -585,6 +585,7 @@ where
         };
         (outcome, end)
     };
+    let chaos_stops = agent.map(Agent::finish).unwrap_or_default();
     live.finish();
     after_loop(&ep, &stats, &end, observer);
     let wall_s = wall.elapsed().as_secs_f64();
@@ -601,7 +602,7 @@ where
         let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
         observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
     }
-    let latency = ctx.write_latency(&outcome.summary.failures, Vec::new(), ep.link_counts())?;
+    let latency = ctx.write_latency(&outcome.summary.failures, chaos_stops, ep.link_counts())?;
     if !cfg.no_plots {
         if let Err(e) = crate::domain::plots::spatial::render(dir, &outcome.figures()) {
             observer.warn(&format!("plots: {}", Causes(&e)));

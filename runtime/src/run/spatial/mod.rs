@@ -39,7 +39,7 @@ use crate::domain::plots::spatial::SpatialFigures;
 use crate::domain::record::spatial::{write_csv, SpatialAccumulator, SpatialRecord, SpatialSummary};
 use crate::domain::record::CommandSource;
 use crate::domain::scenario::Scenario;
-use crate::run::sim::LoopError;
+use crate::run::sim::{DelayLine, LoopError};
 use crate::transport::link::LinkError;
 
 /// The target of a spatial run.
@@ -174,8 +174,8 @@ pub enum SpatialRunError {
 }
 
 impl SpatialScenario {
-    /// A spatial scenario, checked for what spatial runs do not support: a delay, measurement
-    /// noise, `[controller]` keys of the planar arm.
+    /// A spatial scenario, checked for what spatial runs do not support: measurement noise, a
+    /// scenario's own start, `[controller]` keys of the planar arm.
     ///
     /// # Errors
     /// [`SpatialError`] naming the flag or key.
@@ -184,9 +184,6 @@ impl SpatialScenario {
         arm: SpatialArmSpec,
         target: SpatialTargetChoice,
     ) -> Result<Self, SpatialError> {
-        if base.delay != 0.0 {
-            return Err(SpatialError::Unsupported("--delay"));
-        }
         if base.plant.noise.is_some() {
             return Err(SpatialError::Unsupported("measurement noise (--noise, [plant].noise)"));
         }
@@ -273,7 +270,8 @@ where
     let chain = s.arm.chain::<f64, N>()?;
     let mut controller = boxed_spatial_controller::<N>(&s.base.controller, &s.arm)?;
     let star = controller.target_in_effector();
-    let mut exchange = InProcess { controller: controller.as_mut(), dt: s.base.dt };
+    let delay = if s.base.delay_compensation { s.base.delay } else { 0.0 };
+    let mut exchange = InProcess { controller: controller.as_mut(), dt: s.base.dt, delay };
     let mut plant = build_plant(s, &chain, &star)?;
     let (outcome, failed) = execute(s, &mut plant, &star, &mut exchange, dir, observer, max_rejected)?;
     match failed {
@@ -342,6 +340,8 @@ pub type Executed<X> = (SpatialOutcome, Option<Halt<X>>);
 struct InProcess<'c, const N: usize> {
     controller: &'c mut (dyn SpatialStep<N> + Send),
     dt: f64,
+    /// The delay the controller is told (s): the scenario's, or 0 without compensation.
+    delay: f64,
 }
 
 impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
@@ -353,7 +353,7 @@ impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
         _n: u64,
         meas: &Measurement<f64, N, Spatial>,
     ) -> Result<ControlFlow<Infallible, StepReport<N>>, LinkError> {
-        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, 0.0)))
+        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, self.delay)))
     }
 }
 
@@ -479,7 +479,7 @@ pub(crate) fn record_of<const N: usize>(
 }
 
 /// Runs steps `0..=steps` of `plant` (built by [`build_plant`] for `r*_ed` = `star`):
-/// measure, exchange, record, advance (the planar loop's order), and writes the run's files
+/// measure, exchange, record, advance (the planar loop's order, with its `--delay`), and writes the run's files
 /// into `dir`. The loop of `companion sim --arm` and of the lockstep HIL plant.
 ///
 /// A failed exchange (the HIL controller lost) or a step the plant refused ends the loop
@@ -505,6 +505,8 @@ pub fn execute<const N: usize, X: SpatialExchange<N>>(
     let start = Instant::now();
     let mut ended_early = false;
     let mut failed = None;
+    // `--delay`: the commands take effect late, as in the planar loop.
+    let mut delay = (s.base.delay > 0.0).then(|| DelayLine::<N>::new(s.base.delay, s.base.dt));
     for n in 0..=steps {
         let meas = plant.measure();
         let report = match exchange.exchange(n, &meas) {
@@ -532,7 +534,14 @@ pub fn execute<const N: usize, X: SpatialExchange<N>>(
             break;
         }
         if n < steps {
-            if let Err(e) = plant.try_advance(&report.command, s.base.dt) {
+            let advanced = match &mut delay {
+                None => plant.try_advance(&report.command, s.base.dt),
+                Some(line) => {
+                    let (previous, current, within) = line.push(n, &report.command);
+                    plant.try_advance_delayed(&previous, &current, within, s.base.dt)
+                }
+            };
+            if let Err(e) = advanced {
                 failed = Some(Halt::Failed(e.into()));
                 break;
             }
