@@ -1,7 +1,9 @@
 //! The Python reference bridge (`bridges/python/companion_bridge.py`, written from
 //! `docs/protocol.md`) against `companion control`: lockstep equal to `companion sim`, real
 //! time, malformed messages both ways, kills, a stall, a pause, a bridge that creates the
-//! services with iceoryx2's defaults, and every mismatch named on both sides.
+//! services with iceoryx2's defaults, and every mismatch named on both sides — with the
+//! paper's RPR arm, and with a spatial arm of 6 or 7 joints read from an arm file
+//! (`--arm examples/arms/ur5.toml`) against `companion control --arm ur5|panda`.
 //!
 //! Needs `python3` with `iceoryx2==0.10.0` (`scripts/setup` installs it). Without them each
 //! test says so and passes — unless `COMPANION_REQUIRE_BRIDGE` is set (CI sets it), when their
@@ -233,11 +235,35 @@ fn printed(s: &serde_json::Value) -> String {
     )
 }
 
+/// The figures `companion sim --arm` prints, as it prints them, from a spatial summary (Rust's or
+/// the bridge's JSON, which share these keys).
+fn printed_spatial(s: &serde_json::Value) -> String {
+    let f = |k: &str| s[k].as_f64().unwrap_or_else(|| panic!("{k} in {s}"));
+    format!(
+        "final|ep| {:.2e} min margin {:.4} ({}) rejected {}",
+        f("final_ep_norm"),
+        f("smallest_joint_margin"),
+        s["smallest_margin_joint"],
+        s["rejected_steps"]
+    )
+}
+
+/// The workspace's `examples/arms/NAME`: the bridge's form of the presets.
+fn arm_file(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/arms").join(name).display().to_string()
+}
+
 /// `companion sim` for `seconds`: its summary and the path of its scenario.json.
 fn sim(d: &Path, seconds: &str) -> (serde_json::Value, PathBuf) {
+    sim_with(d, seconds, &[])
+}
+
+/// `companion sim ARGS` for `seconds`: its summary and the path of its scenario.json.
+fn sim_with(d: &Path, seconds: &str, args: &[&str]) -> (serde_json::Value, PathBuf) {
     let out = d.join("sim");
     let o = Command::new(BIN)
         .args(["sim", "--duration", seconds, "--no-plots", "--out", out.to_str().unwrap()])
+        .args(args)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -392,18 +418,23 @@ fn a_killed_bridge_and_a_killed_controller_are_noticed_by_the_other_side() {
 /// `bridge`) is SIGKILLed once the bridge has run 500 periods — a counted state: on a loaded
 /// machine a fixed sleep may end before the loop has started. `((controller), (bridge))`.
 fn kill_one_side(tag: &str, bridge_dies: bool) -> ((ExitStatus, String), (ExitStatus, String)) {
+    kill_one_side_of(tag, bridge_dies, &[], &[])
+}
+
+/// [`kill_one_side`], the controller given `control_arm` and the bridge `bridge_arm` (an arm).
+fn kill_one_side_of(
+    tag: &str,
+    bridge_dies: bool,
+    control_arm: &[&str],
+    bridge_arm: &[&str],
+) -> ((ExitStatus, String), (ExitStatus, String)) {
     let n = name(tag);
-    let c = control(&["--name", &n, "--wait", "hybrid"]);
-    let mut b = Watched::new(bridge(&[
-        "--name",
-        &n,
-        "--duration",
-        "20",
-        "--hold-periods",
-        "200",
-        "--progress",
-        "500",
-    ]));
+    let mut ca = vec!["--name", n.as_str(), "--wait", "hybrid"];
+    ca.extend(control_arm);
+    let c = control(&ca);
+    let mut ba = vec!["--name", n.as_str(), "--duration", "20", "--hold-periods", "200", "--progress", "500"];
+    ba.extend(bridge_arm);
+    let mut b = Watched::new(bridge(&ba));
     b.wait_line("bridge: period 500");
     signal(if bridge_dies { b.child.id() } else { c.id() }, "KILL");
     let controller = finish(c, LIMIT, "controller");
@@ -501,7 +532,8 @@ fn every_mismatch_is_named_on_both_sides() {
     }
     let _g = serial();
     // (bridge flags, what the controller says, what the bridge says)
-    let cases: [(&[&str], &str, &str); 7] = [
+    let ur5 = arm_file("ur5.toml");
+    let cases: [(&[&str], &str, &str); 8] = [
         (
             &["--joint-count", "4"],
             "joint count mismatch: the plant has 4 joints, the controller is built for 3",
@@ -521,6 +553,12 @@ fn every_mismatch_is_named_on_both_sides() {
             &["--arm-hash", "0x1234"],
             "arm mismatch: the plant's arm is 0x0000000000001234, the controller is built for rpr (0x",
             "(arm mismatch): this bridge's arm hash is 0x0000000000001234",
+        ),
+        // A spatial arm (the UR5 from its file) against the controller of the paper's arm.
+        (
+            &["--arm", &ur5],
+            "joint count mismatch: the plant has 6 joints, the controller is built for 3",
+            "this bridge has 6 joints, the controller is built for 3",
         ),
         (
             &["--space", "2"],
@@ -572,4 +610,156 @@ fn event_waiting_against_a_bridge_that_does_not_notify_falls_back_and_says_so() 
     let fresh = got["counts"]["fresh"].as_u64().unwrap();
     // (Before the fix the controller slept 10 ms per wait and applied 64 of 3001 in time.)
     assert!(fresh > 1500, "{fresh} of 3001 fresh: {got}");
+}
+
+/// A spatial arm from its file (the UR5, 6 joints; the Panda, 7) in lockstep: the bridge's
+/// chain, lifted target and true error (docs/protocol.md §8) end where `companion sim --arm`
+/// ends, to the printed digits; its arm hash, computed from the file, is the preset's.
+#[test]
+fn lockstep_through_the_python_bridge_with_a_spatial_arm_equals_the_simulation_to_the_printed_digits() {
+    if !available() {
+        return;
+    }
+    let _g = serial();
+    for (preset, file, joints) in [("ur5", "ur5.toml", 6), ("panda", "panda.toml", 7)] {
+        let d = dir(&format!("spatial-lockstep-{preset}"));
+        let n = name(&format!("sl-{preset}"));
+        let (reference, scenario) = sim_with(&d, "5", &["--arm", preset]);
+        let out = d.join("bridge.json");
+        let (scenario, out_s, arm) = (scenario.to_str().unwrap(), out.to_str().unwrap(), arm_file(file));
+        let ((bs, bt), (cs, ct)) = pair(
+            &["--name", &n, "--arm", preset],
+            &[
+                "--name",
+                &n,
+                "--duration",
+                "5",
+                "--lockstep",
+                "--arm",
+                &arm,
+                "--scenario-json",
+                scenario,
+                "--out",
+                out_s,
+            ],
+        );
+        assert!(bs.success() && cs.success(), "{preset}\nbridge:\n{bt}\ncontroller:\n{ct}");
+        let got = json(&out);
+        println!("{preset}\n  sim:    {}\n  bridge: {}", printed_spatial(&reference), printed_spatial(&got));
+        assert_eq!(printed_spatial(&got), printed_spatial(&reference), "{preset}");
+        assert_eq!((got["steps"].as_u64(), got["joints"].as_u64()), (Some(5001), Some(joints)), "{got}");
+        assert!(ct.contains(&format!("arm {preset} (0x")), "{ct}");
+        assert!(ct.contains("answered 5001 measurements (0 skipped as superseded, 0 dropped"), "{ct}");
+        assert_eq!(got["joint_scale_invalid"], 0, "{got}");
+        // The joint guard's factor came back on every command; the bridge's plant is the
+        // simulation's to about 1e−15, not bit for bit, and so is the largest factor.
+        let (a, b) =
+            (got["max_joint_scale"].as_f64().unwrap(), reference["max_joint_scale"].as_f64().unwrap());
+        assert!((a - b).abs() <= 1e-9 * b, "{preset}: {a} against {b}");
+    }
+}
+
+/// A spatial arm in real time through the Python bridge: the bridge measures and announces
+/// the delay, the spatial law predicts over it, and the UR5 tracks (`companion sim --arm ur5`
+/// is at 1.5e−6 after 12 s; under load, with a tenth of the commands held, the bridge ended at
+/// 2.5e−5).
+#[test]
+fn real_time_through_the_python_bridge_with_a_spatial_arm_tracks_with_the_measured_delay() {
+    if !available() {
+        return;
+    }
+    let _g = serial();
+    let d = dir("spatial-rt");
+    let n = name("spatial-rt");
+    let (out, rows, arm) = (d.join("bridge.json"), d.join("rows.csv"), arm_file("ur5.toml"));
+    let ((bs, bt), (cs, ct)) = pair(
+        &["--name", &n, "--arm", "ur5", "--wait", "hybrid"],
+        &[
+            "--name",
+            &n,
+            "--arm",
+            &arm,
+            "--duration",
+            "12",
+            "--hold-periods",
+            "200",
+            "--out",
+            out.to_str().unwrap(),
+            "--rows",
+            rows.to_str().unwrap(),
+        ],
+    );
+    assert!(bs.success() && cs.success(), "bridge:\n{bt}\ncontroller:\n{ct}");
+    let got = json(&out);
+    let text = std::fs::read_to_string(&rows).unwrap();
+    let per_second: Vec<String> =
+        text.lines().skip(1).step_by(1000).map(|l| l.split(',').nth(2).unwrap().to_owned()).collect();
+    println!("{}\n{}\n|e_p| each second: {}", printed_spatial(&got), got["counts"], per_second.join(" "));
+    assert_eq!(text.lines().count(), 1 + 12_001, "one row per period");
+    let fresh = got["counts"]["fresh"].as_u64().unwrap();
+    assert!(fresh > 6000, "{fresh} of 12001 commands applied fresh: {got}");
+    assert_eq!(got["counts"]["stopped"], 0, "{got}");
+    assert_eq!(got["rejected_steps"], 0, "{got}");
+    assert!(got["smallest_joint_margin"].as_f64().unwrap() > 0.1, "{got}");
+    assert!(
+        got["final_ep_norm"].as_f64().unwrap() < 1e-2,
+        "{got}\n|e_p| each second: {}",
+        per_second.join(" ")
+    );
+    let mean = got["delay_mean_s"].as_f64().unwrap();
+    assert!(mean > 0.0 && mean < 1e-3, "{got}");
+    assert!(!ct.contains("delay predicted over p50 0 ns"), "{ct}");
+}
+
+/// Faults with a spatial arm, as with the paper's: malformed messages both ways are dropped
+/// and the lockstep run stays the simulation's; a killed controller is noticed by the bridge,
+/// which stops its robot, and a killed bridge by the controller.
+#[test]
+fn faults_with_a_spatial_arm_are_dropped_or_noticed() {
+    if !available() {
+        return;
+    }
+    let _g = serial();
+    let d = dir("spatial-malformed");
+    let n = name("spatial-malformed");
+    let arm = arm_file("ur5.toml");
+    let (reference, _) = sim_with(&d, "1", &["--arm", "ur5"]);
+    let out = d.join("bridge.json");
+    let ((bs, bt), (cs, ct)) = pair(
+        &["--name", &n, "--arm", "ur5", "--inject", "version@150,nan@250,seq@350,session@450"],
+        &[
+            "--name",
+            &n,
+            "--arm",
+            &arm,
+            "--duration",
+            "1",
+            "--lockstep",
+            "--inject",
+            "stale@100,session@200,version@300,changed@400,joints@500",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(bs.success() && cs.success(), "bridge:\n{bt}\ncontroller:\n{ct}");
+    let got = json(&out);
+    assert_eq!(printed_spatial(&got), printed_spatial(&reference));
+    let inv = &got["invalid"];
+    assert_eq!(
+        (
+            inv["version"].as_u64(),
+            inv["non_finite"].as_u64(),
+            inv["future_seq"].as_u64(),
+            inv["session"].as_u64()
+        ),
+        (Some(1), Some(1), Some(1), Some(1)),
+        "{got}"
+    );
+    assert!(ct.contains("5 dropped as malformed"), "{ct}");
+    let (_, (bs, bt)) = kill_one_side_of("spatial-killc", false, &["--arm", "ur5"], &["--arm", &arm]);
+    assert_eq!(bs.code(), Some(3), "{bt}");
+    assert!(bt.contains("the controller died") && bt.contains("robot stopped"), "{bt}");
+    let ((cs, ct), _) = kill_one_side_of("spatial-killb", true, &["--arm", "ur5"], &["--arm", &arm]);
+    assert_eq!(cs.code(), Some(3), "{ct}");
+    assert!(ct.contains("the plant (pid") && ct.contains("died"), "{ct}");
 }

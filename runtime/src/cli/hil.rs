@@ -1084,7 +1084,8 @@ mod tests {
         // `--chaos` and `--delay` as with the paper's arm.
         let (cfg, s) = T::parse_from(["x", "--arm", "ur5", "--chaos", "3"]).a.resolve().unwrap();
         assert_eq!((cfg.chaos.map(|c| c.seed), s.spatial().map(|ss| ss.arm.joints())), (Some(3), Some(6)));
-        let (_, s) = T::parse_from(["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"]).a.resolve().unwrap();
+        let (_, s) =
+            T::parse_from(["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"]).a.resolve().unwrap();
         assert_eq!((s.base().delay, s.spatial().map(|ss| ss.arm.joints())), (0.002, Some(6)));
         for (args, why) in [
             (&["x", "--arm", "ur5", "--chaos", "3", "--lockstep"][..], "--chaos needs real time"),

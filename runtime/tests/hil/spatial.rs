@@ -223,8 +223,10 @@ fn a_spatial_chaos_soak_counts_what_was_injected() {
     assert!(st.success(), "{out}\n{err}\n{chaos:#}");
     assert_eq!(chaos["mismatches"], serde_json::json!([]), "{chaos:#}");
     let injected = &chaos["injected"];
-    let corrupted: u64 =
-        ["version", "session", "future_seq", "non_finite"].iter().map(|k| injected[k].as_u64().unwrap()).sum();
+    let corrupted: u64 = ["version", "session", "future_seq", "non_finite"]
+        .iter()
+        .map(|k| injected[k].as_u64().unwrap())
+        .sum();
     assert!(corrupted > 0 && injected["delayed"].as_u64().unwrap() > 0, "{chaos:#}");
     assert_eq!(chaos["rows"][0], chaos["rows"][1], "every row on disk: {chaos:#}");
     assert_eq!(json(&d.join("summary.json"))["arm"], "ur5");
