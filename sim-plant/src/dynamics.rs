@@ -122,6 +122,20 @@ pub(crate) struct Model<'a> {
     pub trajectory: &'a Trajectory,
 }
 
+impl<'a> Model<'a> {
+    /// The equations of motion of a plant configured by `config` whose target (planar, or
+    /// a spatial target's planar part) follows `trajectory`.
+    pub fn new(config: &crate::plant::PlantConfig, trajectory: &'a Trajectory) -> Self {
+        Self {
+            kind: config.platform,
+            wheel_scale: 1.0 + config.imperfections.wheel_scale_error,
+            lag: config.imperfections.actuator_lag,
+            steering_limit: config.steering_limit,
+            trajectory,
+        }
+    }
+}
+
 impl Model<'_> {
     /// The platform's actual body velocity `u_b` and steering rate `ξ̇` for velocities
     /// `p = (v, v_lat, ω, v_ξ)` delivered by the actuators, at steering `ξ`.

@@ -1,7 +1,7 @@
 //! The simulated robot: configuration, state, and the [`Plant`] that owns them.
 
 use companion_core::nalgebra::{SVector, Vector3};
-use companion_core::{Arm, Command, Measurement, PlatformKind, Pose};
+use companion_core::{Arm, Command, Measurement, Planar, PlatformKind, Pose, Space};
 use rand::distr::{OpenClosed01, StandardUniform};
 use rand::rngs::ChaCha12Rng;
 use rand::{RngExt, SeedableRng};
@@ -62,9 +62,10 @@ impl PlantConfig {
     }
 }
 
-/// The true state of the simulated robot at one step.
+/// The true state of the simulated robot at one step: `N` joints, a target in `S` (the
+/// plane of the paper's arm, §4, or space, §5 — [`crate::SpatialPlant`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlantState<const N: usize> {
+pub struct PlantState<const N: usize, S: Space<f64> = Planar> {
     /// Time `t = step · dt` (s).
     pub t: f64,
     /// Step index `n` (0 before the first step).
@@ -75,11 +76,13 @@ pub struct PlantState<const N: usize> {
     pub steering: f64,
     /// Joint positions `q` (rad or m).
     pub joints: SVector<f64, N>,
-    /// Target pose `r_d` (m, m, rad); `θ` continuous, never wrapped.
-    pub target: Pose<f64>,
-    /// Target body velocity `u_d(t)` (m/s, m/s, rad/s). At a jump of `u_d` this is the
-    /// value after the jump, the one the target follows over the next step.
-    pub target_velocity: Vector3<f64>,
+    /// Target pose `r_d` in the world: in the plane (m, m, rad; `θ` continuous, never
+    /// wrapped) or in space.
+    pub target: S::Pose,
+    /// Target body velocity `u_d(t)`: `(v₁, v₂, ω)` in the plane, the twist `(v, ω)` in space
+    /// (m/s, rad/s). At a jump of `u_d` this is the value after the jump, the one the target
+    /// follows over the next step.
+    pub target_velocity: S::Vector,
     /// The velocities the robot actually has at `t`, after lag and scale error: the
     /// platform's body velocity `(v, v_lat, ω)` (for the car `ω = v ξ`), the steering rate
     /// `v_ξ` (car) and `u_q`. Fields a platform does not have are zero. Zero before the
@@ -272,7 +275,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     ) -> Result<(), AdvanceError> {
         AdvanceError::check(self.dt, previous, command, delay, dt)?;
         self.dt = Some(dt);
-        let model = Self::model(&self.config, &self.trajectory);
+        let model = Model::new(&self.config, &self.trajectory);
         let n = self.state.step;
         let t0 = n as f64 * dt;
         let t1 = (n + 1) as f64 * dt;
@@ -295,18 +298,6 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
             command: *command,
         };
         Ok(())
-    }
-
-    /// The equations of motion (an associated function, so that it borrows only these two
-    /// fields and the sin/cos cache can be borrowed beside it).
-    fn model<'a>(config: &PlantConfig, trajectory: &'a Trajectory) -> Model<'a> {
-        Model {
-            kind: config.platform,
-            wheel_scale: 1.0 + config.imperfections.wheel_scale_error,
-            lag: config.imperfections.actuator_lag,
-            steering_limit: config.steering_limit,
-            trajectory,
-        }
     }
 }
 
@@ -343,5 +334,78 @@ impl Gaussian {
         let (s, c) = libm::sincos(core::f64::consts::TAU * u2);
         self.spare = Some(r * s);
         r * c
+    }
+}
+
+/// A simulated robot as its user drives it, whatever its arm: the paper's planar arm
+/// ([`Plant`], targets in the plane) or a chain in space ([`crate::SpatialPlant`]) — one
+/// interface, so that a loop that measures, records and advances is written once.
+pub trait Simulated<const N: usize> {
+    /// Where the target lives: [`Planar`] or [`companion_core::Spatial`].
+    type Space: Space<f64>;
+
+    /// What the controller sees at the current step.
+    fn measure(&self) -> Measurement<f64, N, Self::Space>;
+
+    /// The exact state.
+    fn truth(&self) -> &PlantState<N, Self::Space>;
+
+    /// The end effector's pose in the world.
+    fn end_effector(&self) -> <Self::Space as Space<f64>>::Pose;
+
+    /// The true tracking error `e_p` for the desired pose `r*_ed` of the target seen from the
+    /// end effector (three components in the plane, six in space).
+    fn tracking_error(
+        &self,
+        target_in_effector: &<Self::Space as Space<f64>>::Pose,
+    ) -> <Self::Space as Space<f64>>::Vector;
+
+    /// One step of `dt` seconds: `previous` for the first `delay` seconds, `command` for the
+    /// rest (`delay = 0`: `command` throughout).
+    ///
+    /// # Errors
+    /// A time step that is not finite and `> 0` or differs from the first, a non-finite
+    /// command, a delay outside `[0, dt)`; the state is left as it was.
+    fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError>;
+}
+
+impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
+    type Space = Planar;
+
+    #[inline]
+    fn measure(&self) -> Measurement<f64, N> {
+        Plant::measure(self)
+    }
+
+    #[inline]
+    fn truth(&self) -> &PlantState<N> {
+        Plant::truth(self)
+    }
+
+    #[inline]
+    fn end_effector(&self) -> Pose<f64> {
+        Plant::end_effector(self)
+    }
+
+    #[inline]
+    fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
+        Plant::tracking_error(self, target_in_effector)
+    }
+
+    #[inline]
+    fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
+        Plant::try_advance_delayed(self, previous, command, delay, dt)
     }
 }

@@ -20,7 +20,7 @@ use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose, Pose3
 
 use crate::dynamics::{Continuous, Model, Trig};
 use crate::error::{AdvanceError, PlantError, Rule};
-use crate::plant::PlantConfig;
+use crate::plant::{PlantConfig, PlantState, Simulated};
 use crate::spatial_target::SpatialTarget;
 use crate::trajectory::{PiecewiseTrajectory, Trajectory};
 
@@ -37,26 +37,6 @@ pub struct SpatialInitial<const N: usize> {
     pub r_bd: Pose3<f64>,
 }
 
-/// The true state of a spatial plant at one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialState<const N: usize> {
-    /// Time `t = step · dt` (s).
-    pub t: f64,
-    /// Step index.
-    pub step: u64,
-    /// Platform pose `r_b` (m, m, rad), `θ` never wrapped.
-    pub base: Pose<f64>,
-    /// Steering `ξ` (1/m).
-    pub steering: f64,
-    /// Joints `q`.
-    pub joints: SVector<f64, N>,
-    /// The target's pose in the world `r_d`.
-    pub target: Pose3<f64>,
-    /// The target's body twist `u_d(t)` (m/s, rad/s); after a jump, the value that applies
-    /// over the next step.
-    pub target_velocity: Vector6<f64>,
-}
-
 /// The simulated spatial mobile manipulator and its target (module docs).
 #[derive(Clone, Debug)]
 pub struct SpatialPlant<const N: usize> {
@@ -68,7 +48,7 @@ pub struct SpatialPlant<const N: usize> {
     /// A file target's pose at the start of each segment (and the final pose).
     starts: Vec<Pose3<f64>>,
     x: Continuous<N>,
-    state: SpatialState<N>,
+    state: PlantState<N, Spatial>,
     dt: Option<f64>,
     trig: Trig,
 }
@@ -134,7 +114,7 @@ impl<const N: usize> SpatialPlant<N> {
             planar,
             starts,
             x,
-            state: SpatialState {
+            state: PlantState {
                 t: 0.0,
                 step: 0,
                 base: initial.base,
@@ -142,6 +122,8 @@ impl<const N: usize> SpatialPlant<N> {
                 joints: initial.joints,
                 target: r_d0,
                 target_velocity: Vector6::zeros(),
+                applied: Command::zero(),
+                command: Command::zero(),
             },
             dt: None,
             trig: Trig::default(),
@@ -161,7 +143,7 @@ impl<const N: usize> SpatialPlant<N> {
     }
 
     /// The true state.
-    pub fn truth(&self) -> &SpatialState<N> {
+    pub fn truth(&self) -> &PlantState<N, Spatial> {
         &self.state
     }
 
@@ -196,6 +178,12 @@ impl<const N: usize> SpatialPlant<N> {
         (links, world.compose(&f.compose(&self.chain.tool)))
     }
 
+    /// The end effector in the world: `r_b · r_be(q)` (the last of [`frames`](Self::frames),
+    /// to the bit).
+    pub fn end_effector(&self) -> Pose3<f64> {
+        Pose3::from_planar(&self.state.base).compose(&self.chain.end_effector(&self.state.joints))
+    }
+
     /// The true tracking error `e_p = (p̃, log R̃)` of `r̃ = (r*_ed)⁻¹ r_ed`,
     /// `r_ed = r_be(q)⁻¹ r_bd`, from the exact state (core's `spatial` module docs).
     pub fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
@@ -225,7 +213,7 @@ impl<const N: usize> SpatialPlant<N> {
                 let u = self.planar.piece(t_piece).velocity(t);
                 Vector6::new(u[0], u[1], l.z_rate(t), 0.0, 0.0, u[2])
             }
-            SpatialTarget::Piecewise(p) => p.twist(t_piece),
+            SpatialTarget::Piecewise(p) => p.velocity(t_piece),
         }
     }
 
@@ -254,19 +242,14 @@ impl<const N: usize> SpatialPlant<N> {
     ) -> Result<(), AdvanceError> {
         AdvanceError::check(self.dt, previous, command, delay, dt)?;
         self.dt = Some(dt);
-        let model = Model {
-            kind: self.config.platform,
-            wheel_scale: 1.0 + self.config.imperfections.wheel_scale_error,
-            lag: self.config.imperfections.actuator_lag,
-            steering_limit: self.config.steering_limit,
-            trajectory: &self.planar,
-        };
+        let model = Model::new(&self.config, &self.planar);
         let n = self.state.step;
         let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
         self.x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, &mut self.trig);
+        let applied = model.applied(&self.x, command);
         let target = self.target_pose(t1, &self.x.target);
         let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
-        self.state = SpatialState {
+        self.state = PlantState {
             t: t1,
             step: n + 1,
             base: Pose::from_vector(&self.x.base),
@@ -274,6 +257,8 @@ impl<const N: usize> SpatialPlant<N> {
             joints: self.x.joints,
             target,
             target_velocity,
+            applied,
+            command: *command,
         };
         Ok(())
     }
@@ -281,6 +266,41 @@ impl<const N: usize> SpatialPlant<N> {
     /// The platform kind.
     pub fn platform(&self) -> PlatformKind {
         self.config.platform
+    }
+}
+
+impl<const N: usize> Simulated<N> for SpatialPlant<N> {
+    type Space = Spatial;
+
+    #[inline]
+    fn measure(&self) -> Measurement<f64, N, Spatial> {
+        SpatialPlant::measure(self)
+    }
+
+    #[inline]
+    fn truth(&self) -> &PlantState<N, Spatial> {
+        SpatialPlant::truth(self)
+    }
+
+    #[inline]
+    fn end_effector(&self) -> Pose3<f64> {
+        SpatialPlant::end_effector(self)
+    }
+
+    #[inline]
+    fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
+        SpatialPlant::tracking_error(self, target_in_effector)
+    }
+
+    #[inline]
+    fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
+        SpatialPlant::try_advance_delayed(self, previous, command, delay, dt)
     }
 }
 
@@ -429,12 +449,14 @@ mod tests {
         let base = Pose::new(0.3, -0.2, 0.7);
         let star = Pose3::translation(0.0, 0.0, 0.2);
         let r_bd = chain.end_effector(&q).compose(&star);
-        let target = SpatialTarget::Piecewise(crate::SpatialPiecewise::new(Vec::new()).unwrap());
+        let target =
+            SpatialTarget::Piecewise(crate::PiecewiseTrajectory::<Spatial>::new(Vec::new()).unwrap());
         let initial = SpatialInitial { base, steering: 0.0, joints: q, r_bd };
         let p = SpatialPlant::new(PlantConfig::new(PlatformKind::Omni), chain, &initial, target).unwrap();
         let (links, effector) = p.frames();
         let last = links[6].compose(&chain.tool);
         assert!((last.translation - effector.translation).norm() < 1e-15);
+        assert_eq!(p.end_effector(), effector, "the same products");
         let direct = Pose3::from_planar(&base).compose(&chain.end_effector(&q));
         assert!((direct.translation - effector.translation).norm() < 1e-14);
         assert!(p.tracking_error(&star).norm() < 1e-14, "{}", p.tracking_error(&star));

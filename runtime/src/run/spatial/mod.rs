@@ -24,8 +24,8 @@ use std::time::Instant;
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
 use companion_core::{Chain, Manipulator, Measurement, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::{
-    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PlantConfig, PlantError,
-    SpatialInitial, SpatialPiecewise, SpatialPlant, SpatialTarget, TrajectoryError,
+    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PiecewiseTrajectory, PlantConfig,
+    PlantError, SpatialInitial, SpatialPlant, SpatialTarget, TrajectoryError,
 };
 
 use crate::domain::arm::{ArmError, SpatialArmSpec, MAX_JOINTS};
@@ -387,7 +387,7 @@ pub fn build_plant<const N: usize>(
     let (target, joints) = match &s.target {
         SpatialTargetChoice::Lifted(t) => (SpatialTarget::Lifted(LiftedTrajectory::new(*t, height)), home),
         SpatialTargetChoice::File(path) => {
-            let p = SpatialPiecewise::load(path)
+            let p = PiecewiseTrajectory::<Spatial>::load(path)
                 .map_err(|source| SpatialRunError::TargetFile { path: path.clone(), source })?;
             let q = match p.initial_joints() {
                 None => home,
