@@ -19,7 +19,6 @@ use companion_runtime::run::hil::chaos::{self, Plan};
 use companion_runtime::run::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
 use companion_runtime::run::hil::fault::Corruption;
 use companion_runtime::run::hil::plant::PlantLock;
-use companion_runtime::run::hil::plant::PlantRun;
 use companion_runtime::run::hil::report::LatencyReport;
 use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
@@ -36,7 +35,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
-use super::sim::{print_spatial_table, print_table};
+use super::sim::print_table;
 use super::terminal::Terminal;
 
 /// The default simulated duration of a HIL run when `--duration` is not given (s).
@@ -757,15 +756,12 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
         Ok(o) => o,
         Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
-    match &outcome.run {
-        PlantRun::Planar(r) => print_table(std::slice::from_ref(r)),
-        PlantRun::Spatial(r) => print_spatial_table(&r.summary),
-    }
+    print_table(&[&outcome.summary]);
     print_latency(&outcome.latency);
     if outcome.end != PlantEnd::Completed {
         eprintln!("plant: {}", outcome.end.describe());
     }
-    print_failures("plant", outcome.run.failures());
+    print_failures("plant", &outcome.summary.failures);
     println!("wrote {}", cfg.out.display());
     if let Some(p) = &cfg.mcap {
         println!(
@@ -773,7 +769,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
             p.display()
         );
     }
-    Ok(ExitCode::from(plant_exit_code(&outcome.end, outcome.run.failures())))
+    Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.summary.failures)))
 }
 
 /// `companion control`.

@@ -12,7 +12,7 @@ use crate::domain::controller::AnyController;
 use crate::domain::plant_setup::{self, PlantSetupError};
 use crate::domain::record::{CommandSource, Row, Summary};
 use crate::domain::scenario::{Scenario, ScenarioError};
-use crate::run::sim::{summary_sample, DelayLine};
+use crate::run::sim::{sample, DelayLine};
 
 /// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
 /// step.
@@ -114,10 +114,10 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     for n in 0..=steps {
         let meas = plant.measure();
         let report = ctrl.step(&meas, s.dt, told);
-        let sample = summary_sample(&plant, &star);
-        let ep = sample.ep_norm;
-        summary.add(&Row { plant: sample, report, source: CommandSource::Fresh });
-        let t = sample.t;
+        let state = sample(&plant, &star, false);
+        let ep = state.ep_norm;
+        summary.add(&Row { plant: state, report, source: CommandSource::Fresh });
+        let t = state.t;
         if ep.is_nan() || ep > judge.divergence {
             tail.diverged_at = Some(t);
             break;
