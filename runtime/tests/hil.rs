@@ -266,6 +266,9 @@ fn lockstep_timeseries_is_byte_identical_to_sim() {
         assert_eq!(lat["mode"], "lockstep");
         assert_eq!(lat["cycles"], 3001);
         assert_eq!(lat["invalid_total"], 0);
+        // In lockstep, as in sim, every command is the answer to its own measurement.
+        let fresh = serde_json::json!({"fresh": 3001, "held": 0, "stopped": 0});
+        assert_eq!((&ha["command_sources"], &sb["command_sources"]), (&fresh, &fresh));
     }
     // The delay is the plant's business in real time.
     let (st, _, err) = run(&["hil", "--delay", "0.002", "--duration", "1"]);
@@ -561,6 +564,17 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
         statuses[first_stop..].iter().any(|s| s != "held" && s != "stopped"),
         "fresh commands after the stop"
     );
+    // summary.json says where the commands came from, as the plant counted them and as every
+    // row says.
+    let sources = &json(&d.join("summary.json"))["command_sources"];
+    let count = |k: &str| statuses.iter().filter(|s| s.as_str() == k).count() as u64;
+    assert_eq!(sources["held"], lat["held_periods"], "{sources}");
+    assert_eq!(sources["stopped"], lat["stopped_periods"], "{sources}");
+    assert_eq!(
+        (sources["held"].as_u64(), sources["stopped"].as_u64()),
+        (Some(count("held")), Some(count("stopped")))
+    );
+    assert_eq!(sources["fresh"].as_u64(), Some(statuses.len() as u64 - count("held") - count("stopped")));
 }
 
 /// A controller stopped for longer than `--peer-timeout` is a hung peer to the plant, which

@@ -673,3 +673,66 @@ fn spatial_serve_allocations(
     assert_eq!(stats.rejected, 0, "every step accepted");
     n
 }
+
+/// A sink that keeps every row in room made beforehand.
+struct Keep<S: companion_runtime::domain::record::Task, const N: usize>(Vec<Row<S, N>>);
+
+impl<S: companion_runtime::domain::record::Task, const N: usize>
+    companion_runtime::domain::record::RowSink<S, N> for Keep<S, N>
+{
+    fn log_every(&self) -> u64 {
+        1
+    }
+    fn record(
+        &mut self,
+        _: u64,
+        row: &Row<S, N>,
+        _: bool,
+    ) -> Result<(), companion_runtime::domain::record::error::RecordError> {
+        self.0.push(*row);
+        Ok(())
+    }
+}
+
+/// The in-process loop (`companion sim`'s, and the lockstep plant's) with either arm —
+/// measure, step the law, record the row, advance through a pure delay — allocates nothing.
+#[test]
+fn the_simulation_loop_of_either_arm_allocates_nothing() {
+    use companion_runtime::run::sim::{run_loop, InProcess, LoopEnd};
+    let silent = companion_runtime::domain::observe::Silent;
+    let delayed = |d: f64| {
+        Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+            .duration(d)
+            .delay(0.0025)
+            .build()
+            .unwrap()
+    };
+    // The paper's arm.
+    let s = delayed(2.0);
+    let mut plant = companion_runtime::run::sim::build_plant(&s).unwrap();
+    let mut exchange = InProcess::new(&s).unwrap();
+    let mut rows = Keep(Vec::with_capacity(2_100));
+    let (n, end) =
+        allocations_in(|| run_loop(&s, &mut Robot::of(&mut plant, &s), &mut exchange, &mut rows, &silent));
+    assert_eq!((n, end.unwrap(), rows.0.len()), (0, LoopEnd::Completed, 2_001));
+    // The UR5.
+    use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+    use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
+    let arm = SpatialArmSpec::from_choice(&ArmChoice::parse("ur5")).unwrap().unwrap();
+    let ss =
+        SpatialScenario::new(delayed(2.0), arm, SpatialTargetChoice::Lifted(PaperTrajectory::One)).unwrap();
+    let star = companion_runtime::run::spatial::target_in_effector::<6>(&ss).unwrap();
+    let chain = ss.arm.chain::<f64, 6>().unwrap();
+    let mut plant = companion_runtime::run::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let law =
+        companion_runtime::domain::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm)
+            .unwrap();
+    let mut exchange = InProcess::with(law, &ss.base);
+    let mut rows = Keep::<companion_core::Spatial, 6>(Vec::with_capacity(2_100));
+    let (n, end) = allocations_in(|| {
+        let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+        run_loop(&ss.base, &mut robot, &mut exchange, &mut rows, &silent)
+    });
+    assert_eq!((n, end.unwrap(), rows.0.len()), (0, LoopEnd::Completed, 2_001));
+    assert!(rows.0[2_000].plant.ep_norm < rows.0[0].plant.ep_norm, "the arm tracks");
+}

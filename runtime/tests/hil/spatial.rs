@@ -49,6 +49,8 @@ fn a_spatial_arm_in_lockstep_is_byte_identical_to_sim() {
         let (hs, ss) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
         assert_eq!(hs["trajectory_digest"], ss["trajectory_digest"], "{extra:?}");
         assert_eq!(hs["verdict"], "ok");
+        let fresh = serde_json::json!({"fresh": 2001, "held": 0, "stopped": 0});
+        assert_eq!((&hs["command_sources"], &ss["command_sources"]), (&fresh, &fresh), "{extra:?}");
         assert_eq!(json(&hil_dir.join("scenario.json"))["joints"], ss["joints"]);
         let lat = json(&hil_dir.join("latency.json"));
         assert_eq!(lat["mode"], "lockstep");
@@ -90,6 +92,14 @@ fn a_spatial_arm_in_real_time_tracks_its_target() {
     let held = rows.iter().filter(|r| *r.last().unwrap() == "held").count();
     assert!(rows.iter().all(|r| matches!(*r.last().unwrap(), "ok" | "held")), "only fresh and held commands");
     assert_eq!(held as u64, lat["held_periods"].as_u64().unwrap());
+    // summary.json says where the commands came from, as the planar arm's does.
+    let sources = &s["command_sources"];
+    assert_eq!(
+        (sources["held"].as_u64(), sources["stopped"].as_u64()),
+        (Some(held as u64), Some(0)),
+        "{s:#}"
+    );
+    assert_eq!(sources["fresh"].as_u64(), Some(4001 - held as u64), "{s:#}");
     let (first, last) = (ep[0], ep[ep.len() - 1]);
     println!("‖e_p‖ {first:.3e} → {last:.3e}; {held} periods held");
     assert!(last < 0.25 * first, "‖e_p‖ {first} → {last}");
