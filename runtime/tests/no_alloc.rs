@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use anyhow::Result;
 use companion_core::{PaperRun, PlatformKind};
-use companion_plant::PaperTrajectory;
+use companion_plant::{PaperTrajectory, Simulated};
 use companion_runtime::domain::controller::AnyController;
 use companion_runtime::domain::record::Row;
 use companion_runtime::domain::scenario::Scenario;

@@ -190,23 +190,6 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         &self.state
     }
 
-    /// The true world pose of the end effector, `r_b · r_eb(q)⁻¹` (m, m, rad).
-    pub fn end_effector(&self) -> Pose<f64> {
-        let r_eb = self.arm.kinematics(&self.state.joints).r_eb;
-        self.state.base.compose(&r_eb.inverse())
-    }
-
-    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
-    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
-    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
-    pub fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
-        let s = &self.state;
-        let r_bd = s.base.between(&s.target);
-        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
-        let e = target_in_effector.between(&r_ed);
-        Vector3::new(e.x, e.y, e.theta)
-    }
-
     /// What the controller sees at the current step: time, platform pose, steering,
     /// joints, target pose and target velocity `u_d(t)`.
     ///
@@ -255,49 +238,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// A time step that is not finite and `> 0`, or differs from the plant's fixed step
     /// (set by the first step), or a non-finite command; the state is left as it was.
     pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
-        self.try_advance_delayed(command, command, 0.0, dt)
-    }
-
-    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
-    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
-    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
-    /// `delay = 0` this is [`try_advance`](Self::try_advance), to the bit.
-    ///
-    /// # Errors
-    /// As [`try_advance`](Self::try_advance), and a delay that is not finite or not in
-    /// `[0, dt)`; the state is left as it was.
-    pub fn try_advance_delayed(
-        &mut self,
-        previous: &Command<f64, N>,
-        command: &Command<f64, N>,
-        delay: f64,
-        dt: f64,
-    ) -> Result<(), AdvanceError> {
-        AdvanceError::check(self.dt, previous, command, delay, dt)?;
-        self.dt = Some(dt);
-        let model = Model::new(&self.config, &self.trajectory);
-        let n = self.state.step;
-        let t0 = n as f64 * dt;
-        let t1 = (n + 1) as f64 * dt;
-        let trig = &mut self.trig;
-        let x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, trig);
-        let applied = model.applied(&x, command);
-        // u_d(t₁⁺): the piece the target follows over the next step.
-        let target_velocity =
-            self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
-        self.x = x;
-        self.state = PlantState {
-            t: t1,
-            step: n + 1,
-            base: Pose::from_vector(&self.x.base),
-            steering: self.x.steering,
-            joints: self.x.joints,
-            target: Pose::from_vector(&self.x.target),
-            target_velocity,
-            applied,
-            command: *command,
-        };
-        Ok(())
+        Simulated::try_advance_delayed(self, command, command, 0.0, dt)
     }
 }
 
@@ -373,6 +314,14 @@ pub trait Simulated<const N: usize> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError>;
+
+    /// One step of `dt` seconds with `command` held throughout.
+    ///
+    /// # Errors
+    /// As [`try_advance_delayed`](Self::try_advance_delayed).
+    fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        self.try_advance_delayed(command, command, 0.0, dt)
+    }
 }
 
 impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
@@ -388,17 +337,27 @@ impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
         Plant::truth(self)
     }
 
-    #[inline]
+    /// The true world pose of the end effector, `r_b · r_eb(q)⁻¹` (m, m, rad).
     fn end_effector(&self) -> Pose<f64> {
-        Plant::end_effector(self)
+        let r_eb = self.arm.kinematics(&self.state.joints).r_eb;
+        self.state.base.compose(&r_eb.inverse())
     }
 
-    #[inline]
+    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
+    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
+    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
     fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
-        Plant::tracking_error(self, target_in_effector)
+        let s = &self.state;
+        let r_bd = s.base.between(&s.target);
+        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
+        let e = target_in_effector.between(&r_ed);
+        Vector3::new(e.x, e.y, e.theta)
     }
 
-    #[inline]
+    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
+    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
+    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
+    /// `delay = 0` this is [`Plant::try_advance`], to the bit.
     fn try_advance_delayed(
         &mut self,
         previous: &Command<f64, N>,
@@ -406,6 +365,26 @@ impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        Plant::try_advance_delayed(self, previous, command, delay, dt)
+        let model = Model::new(&self.config, &self.trajectory);
+        let n = self.state.step;
+        let trig = &mut self.trig;
+        let (x, applied, t1) =
+            model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, trig)?;
+        // u_d(t₁⁺): the piece the target follows over the next step.
+        let target_velocity =
+            self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
+        self.x = x;
+        self.state = PlantState {
+            t: t1,
+            step: n + 1,
+            base: Pose::from_vector(&self.x.base),
+            steering: self.x.steering,
+            joints: self.x.joints,
+            target: Pose::from_vector(&self.x.target),
+            target_velocity,
+            applied,
+            command: *command,
+        };
+        Ok(())
     }
 }

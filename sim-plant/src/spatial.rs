@@ -142,27 +142,9 @@ impl<const N: usize> SpatialPlant<N> {
         &self.target
     }
 
-    /// The true state.
-    pub fn truth(&self) -> &PlantState<N, Spatial> {
-        &self.state
-    }
-
     /// The time (s).
     pub fn time(&self) -> f64 {
         self.state.t
-    }
-
-    /// What the controller sees: the true state (no noise in spatial runs).
-    pub fn measure(&self) -> Measurement<f64, N, Spatial> {
-        let s = &self.state;
-        Measurement {
-            t: s.t,
-            base: s.base,
-            steering: s.steering,
-            joints: s.joints,
-            target: s.target,
-            target_velocity: s.target_velocity,
-        }
     }
 
     /// Every joint's moving frame (after its motion `Jᵢ(qᵢ)`) and the end effector, in the
@@ -176,22 +158,6 @@ impl<const N: usize> SpatialPlant<N> {
             links[i] = world.compose(&f);
         }
         (links, world.compose(&f.compose(&self.chain.tool)))
-    }
-
-    /// The end effector in the world: `r_b · r_be(q)` (the last of [`frames`](Self::frames),
-    /// to the bit).
-    pub fn end_effector(&self) -> Pose3<f64> {
-        Pose3::from_planar(&self.state.base).compose(&self.chain.end_effector(&self.state.joints))
-    }
-
-    /// The true tracking error `e_p = (p̃, log R̃)` of `r̃ = (r*_ed)⁻¹ r_ed`,
-    /// `r_ed = r_be(q)⁻¹ r_bd`, from the exact state (core's `spatial` module docs).
-    pub fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
-        let world = Pose3::from_planar(&self.state.base);
-        let effector = world.compose(&self.chain.end_effector(&self.state.joints));
-        let r = target_in_effector.inverse().compose(&effector.inverse().compose(&self.state.target));
-        let phi = so3::log(&r.rotation);
-        Vector6::new(r.translation[0], r.translation[1], r.translation[2], phi[0], phi[1], phi[2])
     }
 
     /// The target's pose at `t` from the integrated planar state (lifted) or in closed form.
@@ -217,13 +183,47 @@ impl<const N: usize> SpatialPlant<N> {
         }
     }
 
-    /// One RK4 step of `dt` seconds with `command` held (the planar plant's step).
-    ///
-    /// # Errors
-    /// A time step that is not finite and `> 0` or differs from the first, or a non-finite
-    /// command; the state is left as it was.
-    pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
-        self.try_advance_delayed(command, command, 0.0, dt)
+    /// The platform kind.
+    pub fn platform(&self) -> PlatformKind {
+        self.config.platform
+    }
+}
+
+impl<const N: usize> Simulated<N> for SpatialPlant<N> {
+    type Space = Spatial;
+
+    /// What the controller sees: the true state (no noise in spatial runs).
+    fn measure(&self) -> Measurement<f64, N, Spatial> {
+        let s = &self.state;
+        Measurement {
+            t: s.t,
+            base: s.base,
+            steering: s.steering,
+            joints: s.joints,
+            target: s.target,
+            target_velocity: s.target_velocity,
+        }
+    }
+
+    /// The true state.
+    fn truth(&self) -> &PlantState<N, Spatial> {
+        &self.state
+    }
+
+    /// The end effector in the world: `r_b · r_be(q)` (the last of [`frames`](Self::frames),
+    /// to the bit).
+    fn end_effector(&self) -> Pose3<f64> {
+        Pose3::from_planar(&self.state.base).compose(&self.chain.end_effector(&self.state.joints))
+    }
+
+    /// The true tracking error `e_p = (p̃, log R̃)` of `r̃ = (r*_ed)⁻¹ r_ed`,
+    /// `r_ed = r_be(q)⁻¹ r_bd`, from the exact state (core's `spatial` module docs).
+    fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
+        let world = Pose3::from_planar(&self.state.base);
+        let effector = world.compose(&self.chain.end_effector(&self.state.joints));
+        let r = target_in_effector.inverse().compose(&effector.inverse().compose(&self.state.target));
+        let phi = so3::log(&r.rotation);
+        Vector6::new(r.translation[0], r.translation[1], r.translation[2], phi[0], phi[1], phi[2])
     }
 
     /// One step of `dt` seconds in which `previous` acts for the first `delay` seconds and
@@ -233,20 +233,18 @@ impl<const N: usize> SpatialPlant<N> {
     /// # Errors
     /// As [`try_advance`](Self::try_advance), and a delay that is not in `[0, dt)`; the state
     /// is left as it was.
-    pub fn try_advance_delayed(
+    fn try_advance_delayed(
         &mut self,
         previous: &Command<f64, N>,
         command: &Command<f64, N>,
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        AdvanceError::check(self.dt, previous, command, delay, dt)?;
-        self.dt = Some(dt);
         let model = Model::new(&self.config, &self.planar);
         let n = self.state.step;
-        let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
-        self.x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, &mut self.trig);
-        let applied = model.applied(&self.x, command);
+        let (x, applied, t1) =
+            model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, &mut self.trig)?;
+        self.x = x;
         let target = self.target_pose(t1, &self.x.target);
         let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
         self.state = PlantState {
@@ -261,46 +259,6 @@ impl<const N: usize> SpatialPlant<N> {
             command: *command,
         };
         Ok(())
-    }
-
-    /// The platform kind.
-    pub fn platform(&self) -> PlatformKind {
-        self.config.platform
-    }
-}
-
-impl<const N: usize> Simulated<N> for SpatialPlant<N> {
-    type Space = Spatial;
-
-    #[inline]
-    fn measure(&self) -> Measurement<f64, N, Spatial> {
-        SpatialPlant::measure(self)
-    }
-
-    #[inline]
-    fn truth(&self) -> &PlantState<N, Spatial> {
-        SpatialPlant::truth(self)
-    }
-
-    #[inline]
-    fn end_effector(&self) -> Pose3<f64> {
-        SpatialPlant::end_effector(self)
-    }
-
-    #[inline]
-    fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
-        SpatialPlant::tracking_error(self, target_in_effector)
-    }
-
-    #[inline]
-    fn try_advance_delayed(
-        &mut self,
-        previous: &Command<f64, N>,
-        command: &Command<f64, N>,
-        delay: f64,
-        dt: f64,
-    ) -> Result<(), AdvanceError> {
-        SpatialPlant::try_advance_delayed(self, previous, command, delay, dt)
     }
 }
 
@@ -342,6 +300,12 @@ mod tests {
         SpatialPlant::new(PlantConfig::new(kind), chain, &initial, SpatialTarget::Lifted(lifted)).unwrap()
     }
 
+    /// The planar plant of the paper's arm on `traj`.
+    fn paper_plant(kind: PlatformKind, traj: PaperTrajectory) -> Plant<companion_core::Rpr<f64>, 3> {
+        let arm = companion_core::Rpr::paper();
+        Plant::new(PlantConfig::new(kind), arm, paper_initial(traj), Trajectory::from(traj)).unwrap()
+    }
+
     fn command(k: usize) -> (Command<f64, 3>, Command<f64, 6>) {
         let s = (k as f64 * 0.37).sin();
         let platform = PlatformCommand { v: 0.5 * s, v_lat: 0.2, omega: 0.3 - s, v_xi: 0.1 * s };
@@ -357,13 +321,7 @@ mod tests {
     fn the_planar_part_is_the_planar_plants_bit_for_bit() {
         for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
             for traj in [PaperTrajectory::One, PaperTrajectory::Two] {
-                let mut planar = Plant::new(
-                    PlantConfig::new(kind),
-                    companion_core::Rpr::paper(),
-                    paper_initial(traj),
-                    Trajectory::from(traj),
-                )
-                .unwrap();
+                let mut planar = paper_plant(kind, traj);
                 let mut spatial = ur5_plant(kind, traj);
                 for k in 0..7000 {
                     let (c3, c6) = command(k);
@@ -389,13 +347,7 @@ mod tests {
     fn the_delayed_step_is_the_planar_plants_bit_for_bit() {
         for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
             let traj = PaperTrajectory::One;
-            let mut planar = Plant::new(
-                PlantConfig::new(kind),
-                companion_core::Rpr::paper(),
-                paper_initial(traj),
-                Trajectory::from(traj),
-            )
-            .unwrap();
+            let mut planar = paper_plant(kind, traj);
             let mut spatial = ur5_plant(kind, traj);
             for k in 1..3000 {
                 let ((p3, p6), (c3, c6)) = (command(k - 1), command(k));

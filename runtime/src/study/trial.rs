@@ -5,7 +5,7 @@
 //! The loop is `sim::run_loop`'s (measure, step, advance — and the same pure delay), with
 //! nothing logged: the summary reads the plant's exact state at every step.
 
-use companion_plant::AdvanceError;
+use companion_plant::{AdvanceError, Simulated};
 use serde::{Deserialize, Serialize};
 
 use crate::domain::controller::AnyController;

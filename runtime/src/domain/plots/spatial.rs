@@ -11,7 +11,10 @@ use companion_core::{Chain, Pose3, Spatial};
 use plotters::prelude::*;
 
 use super::error::PlotError;
-use super::{bounds, equal_scale, log_lines, page_head, Area, ARM, BASE, EFFECTOR, H, SECOND, TARGET, W};
+use super::{
+    bounds, equal_scale, log_lines, page_head, velocity_plot, Area, VelocitySeries, ARM, BASE, EFFECTOR, H,
+    SECOND, TARGET, W,
+};
 use crate::domain::record::{Row, Summary};
 
 type Plot = Result<(), Box<dyn std::error::Error + Send + Sync>>;
@@ -229,36 +232,17 @@ fn side_view<const N: usize>(
     Ok(())
 }
 
+/// Every platform velocity the run commanded (those that stayed zero left out).
 fn velocities<const N: usize>(file: &Path, name: &str, rows: &[Row<Spatial, N>]) -> Plot {
-    let root: Area<'_> = SVGBackend::new(file, (W, H)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let series: [(&str, RGBColor, Value<N>); 4] = [
-        ("v (m/s)", EFFECTOR, |r| r.report.command.platform.v),
-        ("ω (rad/s)", SECOND, |r| r.report.command.platform.omega),
-        ("v_lat (m/s)", ARM, |r| r.report.command.platform.v_lat),
-        ("v_ξ (1/(m·s))", TARGET, |r| r.report.command.platform.v_xi),
+    let all: [VelocitySeries; 4] = [
+        ("v (m/s)", EFFECTOR, |c| c.v),
+        ("ω (rad/s)", SECOND, |c| c.omega),
+        ("v_lat (m/s)", ARM, |c| c.v_lat),
+        ("v_ξ (1/(m·s))", TARGET, |c| c.v_xi),
     ];
-    let (y0, y1) = bounds(rows.iter().flat_map(|r| series.iter().map(move |s| s.2(r))));
-    let t1 = rows.last().map_or(1.0, |r| r.plant.t).max(1e-3);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("{name}: platform velocities"), ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(36)
-        .y_label_area_size(48)
-        .build_cartesian_2d(0.0..t1, y0..y1)?;
-    chart.configure_mesh().x_desc("t (s)").draw()?;
-    for (label, colour, f) in series {
-        if rows.iter().all(|r| f(r) == 0.0) {
-            continue;
-        }
-        chart
-            .draw_series(LineSeries::new(rows.iter().map(|r| (r.plant.t, f(r))), colour.stroke_width(1)))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
-    }
-    chart.configure_series_labels().background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
-    root.present()?;
-    Ok(())
+    let used: Vec<VelocitySeries> =
+        all.into_iter().filter(|s| rows.iter().any(|r| s.2(&r.report.command.platform) != 0.0)).collect();
+    velocity_plot(file, name, rows, &used)
 }
 
 fn joints<const N: usize>(file: &Path, name: &str, rows: &[Row<Spatial, N>], chain: &Chain<f64, N>) -> Plot {

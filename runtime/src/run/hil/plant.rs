@@ -470,18 +470,11 @@ where
     let mut stats = PlantStats::default();
     let wall = Instant::now();
     let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+    let side =
+        PlantSide { clock: &clock, link: &mut ep, timing, stamp, stats: &mut stats, live, last_sent: None };
     let rt_report;
     let end = if timing.lockstep {
         rt_report = apply_rt(cfg, observer);
-        let side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
         let mut ex = Lockstep { side, steps, delay: s.delay };
         let r = sim::run_loop(s, &mut robot, &mut ex, &mut recorder, observer);
         crate::sys::rt::reset_thread();
@@ -498,15 +491,7 @@ where
         rt_report = apply_rt(cfg, observer);
         let mut sink =
             |n: u64, row: &Row<P::Space, N>, last: bool| writer.try_push(LogItem { n, row: *row, last });
-        let mut side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
+        let mut side = side;
         let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
         crate::sys::rt::reset_thread();
         live.finish();
