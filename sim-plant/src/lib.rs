@@ -32,9 +32,9 @@
 //! For spatial arms (§5), [`SpatialPlant`] carries a [`Chain`](companion_core::Chain) of six
 //! to eight joints on the same platforms, integrated by the same step, with a target in
 //! SE(3): the paper's trajectories lifted with a vertical sine, or 6-DOF body twists from a
-//! TOML file of the planar file's form (see [`spatial_target`]). Its state is the planar
-//! plant's [`PlantState`] with the target in space, and both plants are driven through one
-//! interface, [`Simulated`]. (Two plant types, because the planar plant is generic over the
+//! TOML file of the planar file's form (see [`spatial_target`]). Its start and its state are
+//! the planar plant's [`InitialConditions`] and [`PlantState`] with the target in space, and
+//! both plants are driven through one interface, [`Simulated`]. (Two plant types, because the planar plant is generic over the
 //! paper's closed-form planar arms (`Arm`) and integrates its target with the robot, where
 //! the spatial one evaluates a chain and moves its target in SE(3).)
 //!
@@ -95,7 +95,7 @@ pub use limits::{
     REALISTIC_WHEELBASE,
 };
 pub use plant::{Plant, PlantConfig, PlantState, Simulated};
-pub use spatial::{vertical_reach, SpatialInitial, SpatialPlant};
+pub use spatial::{vertical_reach, SpatialPlant};
 pub use spatial_target::{LiftedTrajectory, SpatialTarget, LIFT_AMPLITUDE, LIFT_PERIOD};
 pub use trajectory::{
     paper_initial, FileSpace, Location, PaperTrajectory, PiecewiseTrajectory, Segment, Trajectory,

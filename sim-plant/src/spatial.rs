@@ -20,22 +20,10 @@ use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose, Pose3
 
 use crate::dynamics::{Continuous, Model, Trig};
 use crate::error::{AdvanceError, PlantError, Rule};
+use crate::initial::InitialConditions;
 use crate::plant::{PlantConfig, PlantState, Simulated};
 use crate::spatial_target::SpatialTarget;
 use crate::trajectory::{PiecewiseTrajectory, Trajectory};
-
-/// Where a spatial run starts.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialInitial<const N: usize> {
-    /// The platform's pose `r_b` (m, m, rad).
-    pub base: Pose<f64>,
-    /// Car-like platform: the steering state `ξ` (1/m).
-    pub steering: f64,
-    /// The joints `q` (rad or m).
-    pub joints: SVector<f64, N>,
-    /// The target seen from the platform, `r_bd(0)`.
-    pub r_bd: Pose3<f64>,
-}
 
 /// The simulated spatial mobile manipulator and its target (module docs).
 #[derive(Clone, Debug)]
@@ -62,7 +50,7 @@ impl<const N: usize> SpatialPlant<N> {
     pub fn new(
         config: PlantConfig,
         chain: Chain<f64, N>,
-        initial: &SpatialInitial<N>,
+        initial: &InitialConditions<N, Spatial>,
         target: SpatialTarget,
     ) -> Result<Self, PlantError> {
         config.validate()?;
@@ -70,22 +58,8 @@ impl<const N: usize> SpatialPlant<N> {
             return Err(PlantError::Invalid { param: "noise", rule: Rule::Unsupported, value: 1.0 });
         }
         chain.validate().map_err(PlantError::Arm)?;
-        let finite = |param, v: f64| PlantError::check_finite(param, v);
-        for v in initial.base.to_vector().iter() {
-            finite("initial.base", *v)?;
-        }
-        finite("initial.steering", initial.steering)?;
-        for v in &initial.joints {
-            finite("initial.joints", *v)?;
-        }
-        if !initial.r_bd.is_finite() {
-            return Err(PlantError::Invalid {
-                param: "initial.r_bd",
-                rule: Rule::NonFinite,
-                value: f64::NAN,
-            });
-        }
-        let r_d0 = Pose3::from_planar(&initial.base).compose(&initial.r_bd);
+        initial.validate()?;
+        let r_d0 = initial.target;
         let (planar, starts) = match &target {
             SpatialTarget::Lifted(l) => (Trajectory::from(l.planar), Vec::new()),
             SpatialTarget::Piecewise(p) => {
@@ -291,12 +265,8 @@ mod tests {
     fn ur5_plant(kind: PlatformKind, traj: PaperTrajectory) -> SpatialPlant<6> {
         let chain = Chain::<f64, 6>::ur5();
         let lifted = LiftedTrajectory::new(traj, 0.9);
-        let initial = SpatialInitial {
-            base: Pose::identity(),
-            steering: 0.0,
-            joints: chain.home(),
-            r_bd: lifted.initial_r_bd(),
-        };
+        let initial =
+            InitialConditions::<6, Spatial>::in_space(Pose::identity(), lifted.initial_r_bd(), chain.home());
         SpatialPlant::new(PlantConfig::new(kind), chain, &initial, SpatialTarget::Lifted(lifted)).unwrap()
     }
 
@@ -403,7 +373,7 @@ mod tests {
         let r_bd = chain.end_effector(&q).compose(&star);
         let target =
             SpatialTarget::Piecewise(crate::PiecewiseTrajectory::<Spatial>::new(Vec::new()).unwrap());
-        let initial = SpatialInitial { base, steering: 0.0, joints: q, r_bd };
+        let initial = InitialConditions::<7, Spatial>::in_space(base, r_bd, q);
         let p = SpatialPlant::new(PlantConfig::new(PlatformKind::Omni), chain, &initial, target).unwrap();
         let (links, effector) = p.frames();
         let last = links[6].compose(&chain.tool);
@@ -421,12 +391,8 @@ mod tests {
     fn noise_and_bad_steps_are_refused() {
         let chain = Chain::<f64, 6>::ur5();
         let lifted = LiftedTrajectory::new(PaperTrajectory::One, 0.9);
-        let initial = SpatialInitial {
-            base: Pose::identity(),
-            steering: 0.0,
-            joints: chain.home(),
-            r_bd: lifted.initial_r_bd(),
-        };
+        let initial =
+            InitialConditions::<6, Spatial>::in_space(Pose::identity(), lifted.initial_r_bd(), chain.home());
         let noisy = PlantConfig::new(PlatformKind::Unicycle).with_imperfections(crate::Imperfections {
             noise: Some(crate::Noise::default()),
             ..Default::default()

@@ -19,8 +19,8 @@ use std::path::{Path, PathBuf};
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
 use companion_core::{Chain, Manipulator, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::{
-    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PiecewiseTrajectory, PlantConfig,
-    PlantError, SpatialInitial, SpatialPlant, SpatialTarget, TrajectoryError,
+    vertical_reach, Imperfections, InitialConditions, LiftedTrajectory, PaperTrajectory, PiecewiseTrajectory,
+    PlantConfig, PlantError, SpatialPlant, SpatialTarget, TrajectoryError,
 };
 
 use crate::domain::arm::{ArmError, SpatialArmSpec};
@@ -399,7 +399,10 @@ pub fn build_plant<const N: usize>(
         seed: p.seed.unwrap_or(1),
     };
     let config = PlantConfig::new(s.base.controller.platform).with_imperfections(imperfections);
-    let initial = SpatialInitial { base: Pose::identity(), steering, joints, r_bd };
+    let initial = InitialConditions::<N, Spatial> {
+        steering,
+        ..InitialConditions::<N, Spatial>::in_space(Pose::identity(), r_bd, joints)
+    };
     SpatialPlant::new(config, *chain, &initial, target).map_err(SpatialRunError::Plant)
 }
 
