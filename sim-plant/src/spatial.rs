@@ -25,7 +25,9 @@ use crate::plant::{PlantConfig, PlantState, Simulated};
 use crate::spatial_target::SpatialTarget;
 use crate::trajectory::{PiecewiseTrajectory, Trajectory};
 
-/// The simulated spatial mobile manipulator and its target (module docs).
+/// The simulated spatial mobile manipulator and its target (module docs). (Beside the planar
+/// [`crate::Plant`], which is generic over the paper's closed-form planar arms and integrates
+/// its target with the robot; both share the state, the start, the step and the interface.)
 #[derive(Clone, Debug)]
 pub struct SpatialPlant<const N: usize> {
     config: PlantConfig,

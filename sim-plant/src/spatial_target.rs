@@ -133,7 +133,8 @@ impl PiecewiseTrajectory<Spatial> {
     }
 }
 
-/// The target of a spatial run.
+/// The target of a spatial run. (Beside the planar [`Trajectory`], which it contains: a lifted
+/// target is a planar trajectory plus a height, a file's target moves exactly in SE(3).)
 #[derive(Clone, Debug, PartialEq)]
 pub enum SpatialTarget {
     /// A paper trajectory lifted with a vertical sine.

@@ -24,38 +24,8 @@ fn a_spatial_arm_in_lockstep_is_byte_identical_to_sim() {
         &["--arm", "panda", "--delay", "0.0025", "--no-delay-compensation"],
     ];
     for extra in runs {
-        let d = dir("spatial-lockstep");
-        let (hil_dir, sim_dir) = (d.join("hil"), d.join("sim"));
-        let (hm, sm) = (d.join("hil.mcap"), d.join("sim.mcap"));
-        let n = name("spatial-lockstep");
-        let mut args = vec!["hil", "--lockstep", "--duration", "2", "--no-plots", "--name", &n];
-        args.extend(["--out", hil_dir.to_str().unwrap(), "--mcap", hm.to_str().unwrap()]);
-        args.extend(extra);
-        let (st, out, err) = run(&args);
-        assert!(st.success(), "{extra:?}\n{out}\n{err}");
-        let mut args = vec!["sim", "--duration", "2", "--no-plots"];
-        args.extend(["--out", sim_dir.to_str().unwrap(), "--mcap", sm.to_str().unwrap()]);
-        args.extend(extra);
-        let (st, _, err) = run(&args);
-        assert!(st.success(), "{err}");
-        let a = std::fs::read(hil_dir.join("timeseries.csv")).unwrap();
-        let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
-        assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
-        assert!(a == b, "hil --lockstep {extra:?} and sim --arm differ");
-        assert!(
-            std::fs::read(&hm).unwrap() == std::fs::read(&sm).unwrap(),
-            "{extra:?}: the MCAP files differ"
-        );
-        let (hs, ss) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
-        assert_eq!(hs["trajectory_digest"], ss["trajectory_digest"], "{extra:?}");
-        assert_eq!(hs["verdict"], "ok");
-        let fresh = serde_json::json!({"fresh": 2001, "held": 0, "stopped": 0});
-        assert_eq!((&hs["command_sources"], &ss["command_sources"]), (&fresh, &fresh), "{extra:?}");
-        assert_eq!(json(&hil_dir.join("scenario.json"))["joints"], ss["joints"]);
-        let lat = json(&hil_dir.join("latency.json"));
-        assert_eq!(lat["mode"], "lockstep");
-        assert_eq!(lat["cycles"], 2001);
-        assert_eq!(lat["invalid_total"], 0);
+        let (hs, _) = lockstep_equals_sim("2", extra);
+        assert_eq!(hs["verdict"], "ok", "{extra:?}");
     }
 }
 
@@ -153,14 +123,9 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
         p.extend(plant);
         let mut c = vec!["--name", n.as_str()];
         c.extend(control);
-        let ((ps, pe), (cs, ce)) = two_roles(&p, &c);
-        assert_eq!(cs.code(), Some(2), "{ce}");
-        assert_eq!(ps.code(), Some(2), "{pe}");
-        assert!(ce.contains(&format!("refused the plant: {why}")), "{ce}");
-        assert!(pe.contains(&format!("the controller refused this plant: {why}")), "{pe}");
-        let lat = json(&d.join("latency.json"));
-        assert!(lat["end"].as_str().unwrap().contains(why), "{lat:#}");
-        (pe, ce)
+        let (plant, control) = two_roles(&p, &c);
+        refused_for(&d, &plant, &control, why);
+        (plant.1, control.1)
     };
     let (_, ce) = refused(&["--arm", "ur5"], &["--arm", other.to_str().unwrap()], "arm mismatch");
     assert!(ce.contains("the plant's arm is ur5"), "{ce}");
@@ -179,41 +144,11 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
 #[test]
 fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
     let _g = serial();
-    let d = dir("spatial-kill");
-    let n = name("spatial-kill");
-    let mut demo = Demo::start(&[
-        "hil",
-        "--arm",
-        "ur5",
-        "--duration",
-        "20",
-        "--log-every",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--name",
-        &n,
-        "--out",
-        d.to_str().unwrap(),
-    ]);
-    let pid = demo.plant_pid();
-    wait_rows(&d.join("timeseries.csv"), 500);
-    signal(pid, "KILL");
+    let (demo, _, d) = kill_the_plant("spatial-kill", &["--arm", "ur5"]);
     let (st, seen) = demo.wait(Duration::from_secs(20));
     assert_eq!(st.code(), Some(3), "{seen:#?}");
     // The rows written as the run went (every 50 ms) are there, every line complete.
-    let text = std::fs::read_to_string(d.join("timeseries.csv")).unwrap();
-    let mut lines = text.lines();
-    let cols = lines.next().expect("a header").split(',').count();
-    let rows: Vec<&str> = lines.collect();
-    // At least the 500 rows seen before the kill (a starved plant may have written none since).
-    assert!(rows.len() >= 500, "{} rows", rows.len());
-    for l in &rows {
-        assert_eq!(l.split(',').count(), cols, "malformed line {l:?}");
-    }
-    let fault = json(&d.join("fault.json"));
-    assert_eq!(fault["plant_exit"], "killed by signal 9");
-    assert_eq!(fault["rows_on_disk"].as_u64(), Some(rows.len() as u64));
+    rows_kept_after_the_kill(&d);
 }
 
 /// `--chaos` with a spatial arm, as with the paper's (the CI's soak): seeded stops of either

@@ -1,4 +1,5 @@
-//! The figures of a spatial run: `top.svg` (x–y: platform, end effector and target paths,
+//! The figures of a spatial run (apart from the paper's figures of the planar arm, which the
+//! paper lays out; the velocity figure is the one both draw): `top.svg` (x–y: platform, end effector and target paths,
 //! the robot drawn at intervals), `side.svg` (x–z: the arm drawn at the same instants, the
 //! target's and the end effector's heights), `ep.svg` (‖e_p‖ and the position and rotation
 //! parts, log axis), `hs.svg`, `velocities.svg` and `joints.svg` (each joint against its

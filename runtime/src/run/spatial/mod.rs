@@ -214,7 +214,9 @@ impl From<Vec<Row<Spatial, 8>>> for SpatialRows {
     }
 }
 
-/// What a spatial run gives back: its summary and the logged rows.
+/// What a spatial run gives back: its summary and the logged rows. (Beside the paper's
+/// arm's `RunOutcome` because its scenario adds the arm and the target and its rows' joint
+/// count is known only at run time.)
 #[derive(Clone, Debug)]
 pub struct SpatialOutcome {
     /// The scenario.
