@@ -122,20 +122,6 @@ pub(crate) struct Model<'a> {
     pub trajectory: &'a Trajectory,
 }
 
-impl<'a> Model<'a> {
-    /// The equations of motion of a plant configured by `config` whose target (planar, or
-    /// a spatial target's planar part) follows `trajectory`.
-    pub fn new(config: &crate::plant::PlantConfig, trajectory: &'a Trajectory) -> Self {
-        Self {
-            kind: config.platform,
-            wheel_scale: 1.0 + config.imperfections.wheel_scale_error,
-            lag: config.imperfections.actuator_lag,
-            steering_limit: config.steering_limit,
-            trajectory,
-        }
-    }
-}
-
 impl Model<'_> {
     /// One period of `dt` seconds from step `n` at state `x`: of `(previous, command, delay)`,
     /// `previous` for the first `delay` seconds, `command` for the rest, each piece by RK4;

@@ -42,6 +42,18 @@ impl PlantConfig {
         Self { steering_limit: Some(limit), ..self }
     }
 
+    /// The equations of motion of a plant so configured whose target (planar, or a spatial
+    /// target's planar part) follows `trajectory`.
+    pub(crate) fn model<'a>(&self, trajectory: &'a Trajectory) -> Model<'a> {
+        Model {
+            kind: self.platform,
+            wheel_scale: 1.0 + self.imperfections.wheel_scale_error,
+            lag: self.imperfections.actuator_lag,
+            steering_limit: self.steering_limit,
+            trajectory,
+        }
+    }
+
     /// Checks every parameter.
     ///
     /// # Errors
@@ -90,6 +102,21 @@ pub struct PlantState<const N: usize, S: Space<f64> = Planar> {
     pub applied: Command<f64, N>,
     /// The command held over the last step (zero before the first step).
     pub command: Command<f64, N>,
+}
+
+impl<const N: usize, S: Space<f64>> PlantState<N, S> {
+    /// The state as the controller would measure it without noise: time, platform pose,
+    /// steering, joints, target pose and target velocity, bit for bit.
+    pub fn measurement(&self) -> Measurement<f64, N, S> {
+        Measurement {
+            t: self.t,
+            base: self.base,
+            steering: self.steering,
+            joints: self.joints,
+            target: self.target,
+            target_velocity: self.target_velocity,
+        }
+    }
 }
 
 /// The simulated mobile manipulator and its target.
@@ -200,14 +227,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// same measurement.
     pub fn measure(&self) -> Measurement<f64, N> {
         let s = &self.state;
-        let mut m = Measurement {
-            t: s.t,
-            base: s.base,
-            steering: s.steering,
-            joints: s.joints,
-            target: s.target,
-            target_velocity: s.target_velocity,
-        };
+        let mut m = s.measurement();
         if let Some(noise) = self.config.imperfections.noise {
             // A generator per measurement: the noise of step n is ChaCha stream n of the
             // seed (see the `imperfections` module), whatever was measured before.
@@ -365,7 +385,7 @@ impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        let model = Model::new(&self.config, &self.trajectory);
+        let model = self.config.model(&self.trajectory);
         let n = self.state.step;
         let trig = &mut self.trig;
         let (x, applied, t1) =

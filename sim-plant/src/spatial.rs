@@ -18,7 +18,7 @@
 use companion_core::nalgebra::{SVector, Vector3, Vector6};
 use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose, Pose3, Spatial};
 
-use crate::dynamics::{Continuous, Model, Trig};
+use crate::dynamics::{Continuous, Trig};
 use crate::error::{AdvanceError, PlantError, Rule};
 use crate::initial::InitialConditions;
 use crate::plant::{PlantConfig, PlantState, Simulated};
@@ -170,15 +170,7 @@ impl<const N: usize> Simulated<N> for SpatialPlant<N> {
 
     /// What the controller sees: the true state (no noise in spatial runs).
     fn measure(&self) -> Measurement<f64, N, Spatial> {
-        let s = &self.state;
-        Measurement {
-            t: s.t,
-            base: s.base,
-            steering: s.steering,
-            joints: s.joints,
-            target: s.target,
-            target_velocity: s.target_velocity,
-        }
+        self.state.measurement()
     }
 
     /// The true state.
@@ -216,7 +208,7 @@ impl<const N: usize> Simulated<N> for SpatialPlant<N> {
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        let model = Model::new(&self.config, &self.planar);
+        let model = self.config.model(&self.planar);
         let n = self.state.step;
         let (x, applied, t1) =
             model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, &mut self.trig)?;
