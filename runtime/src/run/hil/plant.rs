@@ -474,7 +474,8 @@ where
         PlantSide { clock: &clock, link: &mut ep, timing, stamp, stats: &mut stats, live, last_sent: None };
     let rt_report;
     let end = if timing.lockstep {
-        rt_report = apply_rt(cfg, observer);
+        // (Its warning after the loop: the lockstep progress bar is drawn meanwhile.)
+        rt_report = cfg.rt_config(Role::Plant).map(|rt| crate::sys::rt::apply(&rt));
         let mut ex = Lockstep { side, steps, delay: s.delay };
         let r = sim::run_loop(s, &mut robot, &mut ex, &mut recorder, observer);
         crate::sys::rt::reset_thread();
@@ -484,6 +485,9 @@ where
             LoopEnd::Ended(end) => end,
         };
         recorder.flush()?;
+        if let Some(w) = rt_report.as_ref().and_then(|r| r.warning("plant")) {
+            observer.warn(&w);
+        }
         end
     } else {
         // The writer thread first, so that it does not inherit the real-time CPU and priority.
