@@ -759,22 +759,14 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
     let _g = serial();
     let d = dir("refused");
     let n = name("refused");
-    let ((ps, pe), (cs, ce)) = two_roles(
-        &[
-            "--lockstep",
-            "--choice",
-            "b",
-            "--duration",
-            "1",
-            "--no-plots",
-            "--name",
-            &n,
-            "--out",
-            d.to_str().unwrap(),
-        ],
-        &["--name", &n, "--choice", "a"],
-    );
+    let plant = [&lockstep_plant(&n, &d)[..], &["--choice", "b"]].concat();
+    let ((ps, pe), (cs, ce)) = two_roles(&plant, &["--name", &n, "--choice", "a"]);
     scenario_refused(&d, (ps, pe), (cs, ce));
+}
+
+/// The flags of a 1 s lockstep plant without plots, demo `n`, writing into `d`.
+fn lockstep_plant<'a>(n: &'a str, d: &'a Path) -> Vec<&'a str> {
+    vec!["--lockstep", "--duration", "1", "--no-plots", "--name", n, "--out", d.to_str().unwrap()]
 }
 
 /// Both roles exited 2 and said that the controller refused the plant's scenario; the

@@ -89,21 +89,8 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
     let d = dir("arm-file");
     let n = name("arm-file");
     let ur5 = arm_file("ur5.toml");
-    let ((ps, pe), (cs, ce)) = two_roles(
-        &[
-            "--arm",
-            "ur5",
-            "--lockstep",
-            "--duration",
-            "1",
-            "--no-plots",
-            "--name",
-            &n,
-            "--out",
-            d.to_str().unwrap(),
-        ],
-        &["--arm", &ur5, "--name", &n],
-    );
+    let plant = [&["--arm", "ur5"][..], &lockstep_plant(&n, &d)].concat();
+    let ((ps, pe), (cs, ce)) = two_roles(&plant, &["--arm", &ur5, "--name", &n]);
     assert!(ps.success() && cs.success(), "plant:\n{pe}\ncontroller:\n{ce}");
     // The same joints, another limit: refused for the arm, both sides naming both arms.
     let other = d.join("ur5-other.toml");
@@ -118,9 +105,7 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
     let refused = |plant: &[&str], control: &[&str], why: &str| {
         let d = dir("arm-refused");
         let n = name("arm-refused");
-        let mut p =
-            vec!["--lockstep", "--duration", "1", "--no-plots", "--name", &n, "--out", d.to_str().unwrap()];
-        p.extend(plant);
+        let p = [&lockstep_plant(&n, &d)[..], plant].concat();
         let mut c = vec!["--name", n.as_str()];
         c.extend(control);
         let (plant, control) = two_roles(&p, &c);
