@@ -26,7 +26,7 @@ PARTS = [
     ("controller step", ["AnyController::step", "InProcess", "Exchange>::exchange", "companion_core::"]),
     ("plant step (RK4)", ["Plant<A,_>::advance", "Plant<A, _>::advance", "try_advance", "companion_plant::dynamics"]),
     ("measurement", ["Plant<A,_>::measure", "Plant<A, _>::measure"]),
-    ("plant sample (logged end effector)", ["sim::sample", "sim::summary_sample", "end_effector"]),
+    ("plant sample (logged end effector)", ["robot::sample", "Robot<", "end_effector", "tracking_error"]),
     (HANDOFF, ["RecordWriter", "RowSink", "rtrb::", "Recorder::record"]),
     ("progress bar", ["indicatif"]),
 ]
