@@ -846,6 +846,8 @@ class Bridge:
         self.counts = {"fresh": 0, "deadline_misses": 0, "late": 0, "held": 0, "stopped": 0, "stop_events": 0}
         self.rejected = 0
         self.invalid = {}
+        # When the last valid answer too late to apply arrived: the controller is alive then.
+        self.late_heard = 0
         self.delays = []
         # --rows: one tuple per period (kept in memory, written at the end: no file I/O in
         # the loop).
@@ -914,6 +916,7 @@ class Bridge:
                 raise Refused(describe_refusal(c, self.last_sent))
             elif why == "late":
                 self.counts["late"] += 1
+                self.late_heard = now
             else:
                 self.invalid[why] = self.invalid.get(why, 0) + 1
 
@@ -1028,6 +1031,8 @@ class Bridge:
                 # robot's time goes on from where it was.
                 if late > 50 * period:
                     print(f"bridge: period {n} released {late / 1e6:.0f} ms late", file=sys.stderr)
+                # This process was not running: not the controller's silence.
+                heard += late - period
                 start = time.monotonic_ns() - n * period
                 release = start + n * period
             m = self.publish(n, (END_OF_RUN if n == steps else 0) | (STOPPED if stopped else 0), delay)
@@ -1077,7 +1082,8 @@ class Bridge:
             self.robot.advance(acting, cmd, switch_at)
             acting = cmd
             if not got:
-                self.watch(heard)
+                # Silence is the controller's: any valid answer, also a late one, is news.
+                self.watch(max(heard, self.late_heard))
         return EXIT_OK
 
     def progress(self, n):

@@ -130,11 +130,13 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         while let Some(c) = self.link.try_receive()? {
             let now = self.clock.now_ns();
             let checked = check_command::<N>(&c, self.stamp.session, n);
-            if let Some(ledger) = misses.as_deref_mut() {
-                // A valid answer, current or late: the misses it answers get their cause.
-                if matches!(checked, Ok(()))
-                    || matches!(checked, Err(WireError::Stale(seq)) if check_command::<N>(&c, self.stamp.session, seq).is_ok())
-                {
+            // A valid answer, current or late: the controller is alive now (the watch's news),
+            // and the misses it answers get their cause.
+            let valid = matches!(checked, Ok(()))
+                || matches!(checked, Err(WireError::Stale(seq)) if check_command::<N>(&c, self.stamp.session, seq).is_ok());
+            if valid {
+                self.stats.last_valid_answer_ns = now;
+                if let Some(ledger) = misses.as_deref_mut() {
                     ledger.answered(&c, &mut self.stats.miss_causes);
                 }
             }
@@ -336,6 +338,8 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
             st.plant_stalls += 1;
             st.skipped_releases += skipped;
             st.longest_stall_ns = st.longest_stall_ns.max(behind);
+            // Not the controller's silence: this process was not running.
+            cy.watch.excuse(behind - period);
         }
         let t_pub = self.publish(n, fl, cy.delay, meas)?;
         cy.published[slot(n)] = t_pub;
@@ -497,6 +501,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
     ) -> Result<(), LinkError> {
         if !answered && cy.last_step > n + 1 {
             let now = self.clock.now_ns();
+            cy.watch.news(self.stats.last_valid_answer_ns);
             if let Some(loss) = cy.watch.check(now, self.timing.peer_timeout_ns, self.link)? {
                 cy.end_after(n + 1, lost(loss, n));
             }

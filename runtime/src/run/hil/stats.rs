@@ -54,6 +54,9 @@ impl InvalidCounts {
 /// What the plant measured about the exchange.
 #[derive(Clone, Debug, Default)]
 pub struct PlantStats {
+    /// When the last valid answer arrived, applied or too late to be (ns; 0: none): the
+    /// controller is alive then (the peer watch's news).
+    pub last_valid_answer_ns: u64,
     /// Controller compute time, from each command (ns).
     pub compute: LatencyHistogram,
     /// Measurement publication to command receipt, on the plant's clock (ns); late commands

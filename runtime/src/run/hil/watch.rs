@@ -2,6 +2,13 @@
 //! `--silence-ms`) ask the transport whether the peer is alive, at most once per silence
 //! interval; a dead or departed peer is found at once, a live one that stays silent for the
 //! timeout is hung.
+//!
+//! Silence is the peer's, not the watcher's: any valid message from the peer is news, also an
+//! answer that came too late to be applied (a late peer is alive, and the hold policy, not
+//! the watch, deals with its lateness), and the time the watcher itself was not scheduled
+//! (a stall it measured) is excused. On a loaded machine both processes starve; before, a
+//! plant that had waited 0.67 s for a CPU, and whose controller answered late, called its
+//! controller hung after 2.2 s (`runtime/tests/hil.rs`, load 8–9 on two CPUs).
 
 use crate::transport::link::{Link, LinkError, PeerState};
 
@@ -34,32 +41,52 @@ pub enum PeerLoss {
 pub struct PeerWatch {
     silence_ns: u64,
     last_heard_ns: u64,
+    last_news_ns: u64,
     last_check_ns: u64,
 }
 
 impl PeerWatch {
     /// A watch that checks after `silence_ns` without news, starting at `now_ns`.
     pub fn new(silence_ns: u64, now_ns: u64) -> Self {
-        Self { silence_ns, last_heard_ns: now_ns, last_check_ns: now_ns }
+        Self { silence_ns, last_heard_ns: now_ns, last_news_ns: now_ns, last_check_ns: now_ns }
     }
 
     /// The peer was heard from (or the silence starts now).
     #[inline]
     pub fn heard(&mut self, now_ns: u64) {
         self.last_heard_ns = now_ns;
+        self.last_news_ns = now_ns;
         self.last_check_ns = now_ns;
     }
 
-    /// When the peer was last heard from (ns).
+    /// A valid message from the peer arrived at `at_ns` that was not taken as heard (an
+    /// answer too late to apply): the peer is alive then; the silence counts from it.
+    #[inline]
+    pub fn news(&mut self, at_ns: u64) {
+        if at_ns > self.last_news_ns {
+            self.last_news_ns = at_ns;
+            self.last_check_ns = self.last_check_ns.max(at_ns);
+        }
+    }
+
+    /// The watcher itself stalled for `stall_ns` (not scheduled): that time is not the
+    /// peer's silence.
+    #[inline]
+    pub fn excuse(&mut self, stall_ns: u64) {
+        self.last_news_ns = self.last_news_ns.saturating_add(stall_ns);
+    }
+
+    /// When the peer was last heard from (ns): its last applied message.
     #[inline]
     pub fn last_heard_ns(&self) -> u64 {
         self.last_heard_ns
     }
 
-    /// Silence so far (ns).
+    /// Silence so far (ns): since the peer's last valid message, less the watcher's own
+    /// stalls since.
     #[inline]
     pub fn silent_ns(&self, now_ns: u64) -> u64 {
-        now_ns.saturating_sub(self.last_heard_ns)
+        now_ns.saturating_sub(self.last_news_ns)
     }
 
     /// Checks the peer if it has been silent for the silence interval since the last check;
@@ -134,5 +161,23 @@ mod tests {
         );
         let mut gone = Peer(PeerState::Absent, 0);
         assert_eq!(w.check(190, 50, &mut gone).unwrap(), Some(PeerLoss::Gone));
+    }
+
+    /// A late answer is news (the peer is alive), and the watcher's own stall is not the
+    /// peer's silence; a peer that sends nothing is still found hung.
+    #[test]
+    fn late_answers_are_news_and_the_watchers_stall_is_excused() {
+        let mut alive = Peer(PeerState::Alive(7), 0);
+        let mut w = PeerWatch::new(20, 100);
+        w.news(140);
+        assert_eq!(w.last_heard_ns(), 100, "a late answer is not an applied one");
+        assert_eq!(w.silent_ns(170), 30);
+        assert_eq!(w.check(170, 50, &mut alive).unwrap(), None);
+        w.news(130);
+        assert_eq!(w.silent_ns(170), 30, "older news changes nothing");
+        w.excuse(25);
+        assert_eq!(w.silent_ns(190), 25, "the 25 ns the watcher stalled are excused");
+        assert_eq!(w.check(190, 50, &mut alive).unwrap(), None);
+        assert_eq!(w.check(215, 50, &mut alive).unwrap(), Some(PeerLoss::Hung { silent_ns: 50, pid: 7 }));
     }
 }

@@ -368,3 +368,77 @@ fn look_out_ends_the_run_after_the_next_step_when_the_controller_is_gone() {
     assert_eq!(quiet, (PlantEnd::Completed, 10));
     assert_eq!(gone, (PlantEnd::ControllerGone { cycle: 6 }, 7));
 }
+
+/// Runs periods `1..=periods` through release, await and look-out (the cycle long enough);
+/// `stall`: a period after which this process is not scheduled for 600 ms.
+fn run_periods(
+    link: &mut Scripted,
+    clock: &Rc<FakeClock>,
+    periods: u64,
+    stall: Option<u64>,
+) -> (PlantEnd, u64) {
+    let mut stats = PlantStats::default();
+    let end = with_side(clock, link, &mut stats, |side, cy| {
+        cy.last_step = periods + 10;
+        let r = side.release(cy, 0, &zero_measurement()).unwrap();
+        side.await_command(cy, 0, r.deadline).unwrap();
+        for n in 1..=periods {
+            if stall == Some(n) {
+                clock.advance(600 * MS);
+            }
+            let r = side.release(cy, n, &zero_measurement()).unwrap();
+            let heard = side.await_command(cy, n, r.deadline).unwrap();
+            side.look_out(cy, n, heard.fresh.is_some()).unwrap();
+            if cy.end != PlantEnd::Completed {
+                break;
+            }
+        }
+        cy.end
+    });
+    (end, stats.late_commands)
+}
+
+/// A controller that answers every measurement, but after its deadline (1.2 ms: each answer
+/// lands in the next period, too old to apply), is alive: its late answers are news to the
+/// peer watch, and 2.5 s of them (past the 2 s peer timeout) do not end the run. One that
+/// answers nothing for as long is found hung at the timeout.
+#[test]
+fn a_controller_that_answers_late_is_alive_and_a_silent_one_is_hung() {
+    let clock = Rc::new(FakeClock::new(0, 1_000));
+    let script: Vec<Option<u64>> =
+        std::iter::once(Some(0)).chain(std::iter::repeat_n(Some(1_200_000), 2_600)).collect();
+    let mut late = Scripted::new(&clock, &script);
+    let (end, late_commands) = run_periods(&mut late, &clock, 2_500, None);
+    assert_eq!(end, PlantEnd::Completed);
+    assert!(late_commands >= 2_400, "{late_commands}");
+
+    let clock = Rc::new(FakeClock::new(0, 1_000));
+    let mut silent = Scripted::new(&clock, &[Some(0)]);
+    let (end, _) = run_periods(&mut silent, &clock, 2_500, None);
+    assert!(matches!(end, PlantEnd::ControllerHung { .. }), "{end:?}");
+}
+
+/// The plant's own stall (600 ms not scheduled) is not the controller's silence: a
+/// controller silent for 1.6 s around it, 2.2 s of wall time, is not hung (the 2 s timeout
+/// counts 1.6 s); without the stall the same silence of 2.2 s would be.
+#[test]
+fn the_plants_own_stall_is_not_the_controllers_silence() {
+    let clock = Rc::new(FakeClock::new(0, 1_000));
+    // Answers in time, then nothing for periods 1..=1600, then in time again.
+    let script: Vec<Option<u64>> = std::iter::once(Some(0))
+        .chain(std::iter::repeat_n(None, 1_600))
+        .chain(std::iter::repeat_n(Some(100_000), 500))
+        .collect();
+    let mut link = Scripted::new(&clock, &script);
+    let (end, _) = run_periods(&mut link, &clock, 2_000, Some(800));
+    assert_eq!(end, PlantEnd::Completed);
+
+    let clock = Rc::new(FakeClock::new(0, 1_000));
+    let script: Vec<Option<u64>> = std::iter::once(Some(0))
+        .chain(std::iter::repeat_n(None, 2_200))
+        .chain(std::iter::repeat_n(Some(100_000), 100))
+        .collect();
+    let mut link = Scripted::new(&clock, &script);
+    let (end, _) = run_periods(&mut link, &clock, 2_250, None);
+    assert!(matches!(end, PlantEnd::ControllerHung { .. }), "{end:?}");
+}
