@@ -8,7 +8,7 @@ that runs `companion_runtime::run::sim::run_loop`; the others are the remaining 
 writer). Made by benches/profile_run.sh.
 
 Robust to inlining: every instruction of the function that holds the loop (run_loop, or
-run_one if run_loop was inlined into it) and every call made from it are looked up with
+run_one or simulate if run_loop was inlined into it) and every call made from it are looked up with
 `addr2line -i`; the cost (self, or the call's inclusive cost) is charged to the frame
 inlined directly into run_loop — `AnyController::step`, `Plant::advance`, ... — or, for a
 call made by run_loop itself, to the function called.
@@ -26,7 +26,7 @@ PARTS = [
     ("controller step", ["AnyController::step", "InProcess", "Exchange>::exchange", "companion_core::"]),
     ("plant step (RK4)", ["Plant<A,_>::advance", "Plant<A, _>::advance", "try_advance", "companion_plant::dynamics"]),
     ("measurement", ["Plant<A,_>::measure", "Plant<A, _>::measure"]),
-    ("plant sample (logged end effector)", ["sim::sample", "sim::summary_sample", "end_effector"]),
+    ("plant sample (logged end effector)", ["robot::sample", "Robot<", "end_effector", "tracking_error"]),
     (HANDOFF, ["RecordWriter", "RowSink", "rtrb::", "Recorder::record"]),
     ("progress bar", ["indicatif"]),
 ]
@@ -84,7 +84,16 @@ def summary_in(prefix, self_cost, calls, binary):
 def main():
     steps, binary, main_out = float(sys.argv[1]), sys.argv[2], sys.argv[3]
     self_cost, calls, main_total = load(main_out)
-    holders = [f for f in self_cost if f and (f.startswith(LOOP) or f.startswith("companion_runtime::run::sim::run_one"))]
+    holders = [
+        f
+        for f in self_cost
+        if f
+        and (
+            f.startswith(LOOP)
+            or f.startswith("companion_runtime::run::sim::run_one")
+            or f.startswith("companion_runtime::run::sim::simulate")
+        )
+    ]
     items = []  # (address, callee or None, cost)
     for f in holders:
         items += [(a, None, c) for a, c in self_cost[f].items()]

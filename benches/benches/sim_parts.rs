@@ -69,7 +69,7 @@ fn plant(c: &mut Criterion) {
         b.iter(|| {
             let p = &snaps[i].0;
             i = (i + 1) % snaps.len();
-            black_box((black_box(p).measure(), sample(p, &companion_core::Pose::new(0.5, 0.0, 0.0))))
+            black_box((black_box(p).measure(), sample(p, &companion_core::Pose::new(0.5, 0.0, 0.0), true)))
         });
     });
 
@@ -78,7 +78,7 @@ fn plant(c: &mut Criterion) {
     let rows: Vec<Row> =
         run_one(&config.scenario(PaperTrajectory::Two), dir.path(), &Silent).expect("the paper's run").rows;
     // Formatted and written into the void (the csv writer's buffer is flushed as it fills).
-    let mut csv = CsvFile::new(std::io::sink(), PlatformKind::Unicycle).expect("a sink takes anything");
+    let mut csv = CsvFile::new(std::io::sink(), PlatformKind::Unicycle, 3).expect("a sink takes anything");
     let mut i = 0;
     group.bench_function("csv_row", |b| {
         b.iter(|| {
@@ -88,7 +88,7 @@ fn plant(c: &mut Criterion) {
         });
     });
     let lim = companion_core::Params::<f64, 3>::paper_limits();
-    let mut acc = SummaryAccumulator::new("bench", lim.lower.into(), lim.upper.into());
+    let mut acc = SummaryAccumulator::new("bench", lim.lower.as_slice(), lim.upper.as_slice());
     let mut i = 0;
     group.bench_function("summary_add", |b| {
         b.iter(|| {

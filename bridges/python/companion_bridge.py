@@ -3,13 +3,18 @@
 
 Written from docs/protocol.md alone (protocol version 4) with the official iceoryx2 binding
 (`pip install iceoryx2==0.10.0`). It plays the plant: it simulates the paper's unicycle with
-its RPR arm tracking trajectory 1 (a bridge to hardware would read its sensors in `measure()`
-and drive its motors in `apply()`), publishes one measurement per period, applies the
-controller's answer from the moment it arrives, and reports the measured delay.
+its RPR arm tracking trajectory 1 — or, with `--arm FILE`, an arm file's chain of 6 to 8
+joints tracking trajectory 1 lifted into space (docs/protocol.md §8) — (a bridge to hardware
+would read its sensors in `measure()` and drive its motors in `advance()`), publishes one
+measurement per period, applies the controller's answer from the moment it arrives, and
+reports the measured delay.
 
     companion control --name demo --duration 5 &
     python3 bridges/python/companion_bridge.py --name demo --duration 5            # real time
     python3 bridges/python/companion_bridge.py --name demo --duration 5 --lockstep
+
+    companion control --name demo --arm ur5 &
+    python3 bridges/python/companion_bridge.py --name demo --arm examples/arms/ur5.toml
 
 It also injects faults for the tests (`--help`). Exit codes as `companion plant`: 0 the run
 completed, 2 an error or the controller refused this plant, 3 the controller died or left,
@@ -26,6 +31,7 @@ import statistics
 import struct
 import sys
 import time
+import tomllib
 
 import iceoryx2 as iox
 
@@ -214,7 +220,24 @@ def rpr_arm_description():
     }
 
 
-RPR_ARM_HASH = scenario_hash(rpr_arm_description())
+def arm_hash(description):
+    """The arm hash: the canonical hash of the description with every negative zero written as
+    zero (docs/protocol.md, "The arm hash")."""
+
+    def positive_zeros(v):
+        if isinstance(v, float):
+            return v + 0.0
+        if isinstance(v, list):
+            return [positive_zeros(e) for e in v]
+        if isinstance(v, dict):
+            return {k: positive_zeros(e) for k, e in v.items()}
+        return v
+
+    return scenario_hash(positive_zeros(description))
+
+
+RPR_ARM_HASH = arm_hash(rpr_arm_description())
+RPR_LIMITS = [(-math.pi / 3.0, math.pi / 3.0), (0.0, 0.7), (-math.pi / 2.0, math.pi / 2.0)]
 
 
 def planar_target(pose, velocity):
@@ -265,19 +288,24 @@ def target_velocity(t):
 class Robot:
     """Unicycle + RPR arm + target, integrated by RK4 under a held command."""
 
+    space = PLANAR
+    limits = RPR_LIMITS
+
     def __init__(self, dt):
         self.dt = dt
         self.step = 0
         self.base = (0.0, 0.0, 0.0)
         self.q = (0.0, 0.35, 0.0)
         self.target = compose(self.base, (2.6, 1.0, 0.0))
+        self.arm_hash = RPR_ARM_HASH
 
     @property
     def t(self):
         return self.step * self.dt
 
     def measure(self):
-        return self.t, self.base, self.q, self.target, target_velocity(self.t)
+        """Time, platform, joints and the target as the wire carries it."""
+        return self.t, self.base, self.q, planar_target(self.target, target_velocity(self.t))
 
     def tracking_error(self):
         q1, q2, q3 = self.q
@@ -315,7 +343,7 @@ class Robot:
 
         self.base = step(b, kb1, kb2, kb3, kb4)
         self.target = step(d, kd1, kd2, kd3, kd4)
-        self.q = tuple(self.q[i] + h * cmd[2][i] for i in range(3))
+        self.q = tuple(self.q[i] + h * cmd[2][i] for i in range(len(self.q)))
 
     def advance(self, previous, command, delay):
         """One period: `previous` for the first `delay` seconds, then `command`."""
@@ -330,14 +358,229 @@ class Robot:
         self.step += 1
 
 
-ZERO = (0.0, 0.0, (0.0, 0.0, 0.0))
+class SpatialRobot(Robot):
+    """The unicycle carrying an arm file's chain, tracking trajectory 1 lifted (§8): the
+    planar motion integrated as the planar robot's, at the height where the arm at home holds
+    the target at r*_ed, plus a 5 cm vertical sine over 10 s. The joints start at home."""
+
+    space = SPATIAL
+
+    def __init__(self, dt, chain):
+        super().__init__(dt)
+        self.chain = chain
+        self.q = tuple(j[5] for j in chain.joints)
+        self.limits = [(j[3], j[4]) for j in chain.joints]
+        self.arm_hash = arm_hash(chain.description())
+        home = chain.end_effector(self.q)
+        # r*_ed: TARGET_DISTANCE along the flange's z, level when the arm is at home.
+        self.star = (transpose(home[0]), (0.0, 0.0, TARGET_DISTANCE))
+        self.height = compose3(home, self.star)[1][2]
+
+    def z(self, t):
+        return self.height + LIFT_AMPLITUDE * math.sin(2.0 * math.pi * t / LIFT_PERIOD)
+
+    def z_rate(self, t):
+        w = 2.0 * math.pi / LIFT_PERIOD
+        return LIFT_AMPLITUDE * w * math.cos(w * t)
+
+    def target_pose(self):
+        x, y, th = self.target
+        return about_axis(2, math.sin(th), math.cos(th)), (x, y, self.z(self.t))
+
+    def measure(self):
+        t = self.t
+        rotation, position = self.target_pose()
+        u = target_velocity(t)
+        twist = (u[0], u[1], self.z_rate(t), 0.0, 0.0, u[2])
+        yaw = math.atan2(rotation[3], rotation[0])
+        return t, self.base, self.q, (position, rotation, yaw, twist)
+
+    def tracking_error(self):
+        """‖e_p‖ of e_p = (p̃, log R̃), r̃ = (r*_ed)⁻¹ r_ed, r_ed = (r_b r_be(q))⁻¹ r_d."""
+        effector = compose3(planar_pose3(self.base), self.chain.end_effector(self.q))
+        r = compose3(inverse3(self.star), compose3(inverse3(effector), self.target_pose()))
+        phi = so3_log(r[0])
+        return math.sqrt(sum(x * x for x in r[1]) + sum(x * x for x in phi))
 
 
-def command_of(c):
+def zero_command(joints):
+    """No motion: the safe command of a robot with `joints` joints."""
+    return (0.0, 0.0, (0.0,) * joints)
+
+
+def command_of(c, joints):
     """The velocities of a checked command: zero when the law rejected the step."""
     if c.status != 0:
-        return ZERO
-    return (c.v, c.omega, (c.joints[0], c.joints[1], c.joints[2]))
+        return zero_command(joints)
+    return (c.v, c.omega, tuple(c.joints[i] for i in range(joints)))
+
+
+# ----- a spatial arm (docs/protocol.md §8): an arm file's chain, trajectory 1 lifted ---------
+# Poses in SE(3) are (R, p): R a 3×3 rotation as a 9-tuple row by row, p a 3-tuple.
+
+IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
+TARGET_DISTANCE = 0.2
+LIFT_AMPLITUDE, LIFT_PERIOD = 0.05, 10.0
+
+
+def mat_mul(a, b):
+    return tuple(
+        a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j] for i in range(3) for j in range(3)
+    )
+
+
+def mat_vec(a, v):
+    return tuple(a[3 * i] * v[0] + a[3 * i + 1] * v[1] + a[3 * i + 2] * v[2] for i in range(3))
+
+
+def transpose(a):
+    return (a[0], a[3], a[6], a[1], a[4], a[7], a[2], a[5], a[8])
+
+
+def compose3(a, b):
+    """a · b."""
+    t = mat_vec(a[0], b[1])
+    return mat_mul(a[0], b[0]), (a[1][0] + t[0], a[1][1] + t[1], a[1][2] + t[2])
+
+
+def inverse3(a):
+    rt = transpose(a[0])
+    t = mat_vec(rt, a[1])
+    return rt, (-t[0], -t[1], -t[2])
+
+
+def about_axis(axis, s, c):
+    """The rotation by the angle of sine s and cosine c about axis 0 (x), 1 (y) or 2 (z)."""
+    if axis == 0:
+        return (1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c)
+    if axis == 1:
+        return (c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c)
+    return (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
+
+
+def exact_sincos(a):
+    """sin a, cos a with values within 4 ε of 0 or ±1 rounded to them (right angles exact)."""
+    tiny = 4.0 * sys.float_info.epsilon
+
+    def snap(x):
+        for v in (0.0, 1.0, -1.0):
+            if abs(x - v) <= tiny:
+                return v
+        return x
+
+    return snap(math.sin(a)), snap(math.cos(a))
+
+
+def from_rpy(roll, pitch, yaw):
+    """R_z(yaw) R_y(pitch) R_x(roll), as an arm file's `rpy`."""
+    return mat_mul(
+        mat_mul(about_axis(2, *exact_sincos(yaw)), about_axis(1, *exact_sincos(pitch))),
+        about_axis(0, *exact_sincos(roll)),
+    )
+
+
+def so3_exp(phi):
+    """exp [φ]× (Rodrigues)."""
+    th = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+    if th < 1e-12:
+        return IDENTITY
+    x, y, z = phi[0] / th, phi[1] / th, phi[2] / th
+    s, c = math.sin(th), math.cos(th)
+    v = 1.0 - c
+    return (
+        c + x * x * v, x * y * v - z * s, x * z * v + y * s,
+        x * y * v + z * s, c + y * y * v, y * z * v - x * s,
+        x * z * v - y * s, y * z * v + x * s, c + z * z * v,
+    )  # fmt: skip
+
+
+def so3_log(r):
+    """The rotation vector of R (|φ| ≤ π)."""
+    v = ((r[7] - r[5]) * 0.5, (r[2] - r[6]) * 0.5, (r[3] - r[1]) * 0.5)
+    c = (r[0] + r[4] + r[8] - 1.0) * 0.5
+    s = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    th = math.atan2(s, c)
+    if c > -0.9:
+        k = th / s if s > 0.0 else 1.0
+        return (v[0] * k, v[1] * k, v[2] * k)
+    # Near π: the axis from the largest diagonal entry of (sym(R) − cos θ I) / (1 − cos θ).
+    d = [(r[4 * i] - c) / (1.0 - c) for i in range(3)]
+    k = max(range(3), key=lambda i: d[i])
+    n = [0.0, 0.0, 0.0]
+    n[k] = math.sqrt(max(d[k], 0.0))
+    for j in range(3):
+        if j != k:
+            n[j] = (r[3 * k + j] + r[3 * j + k]) * 0.5 / (1.0 - c) / n[k]
+    if n[0] * v[0] + n[1] * v[1] + n[2] * v[2] < 0.0:
+        n = [-x for x in n]
+    return (n[0] * th, n[1] * th, n[2] * th)
+
+
+class Chain:
+    """An arm file (README, "Arms as data"): the mount on the platform, each joint's frame in
+    the previous joint's moving frame, its axis and limits, and the tool."""
+
+    def __init__(self, path):
+        try:
+            with open(path, "rb") as f:
+                d = tomllib.load(f)
+            self._read(path, d)
+        except (OSError, tomllib.TOMLDecodeError, KeyError, TypeError, ValueError) as e:
+            raise Fatal(f"arm file {path}: {e!r}")
+
+    def _read(self, path, d):
+
+        def frame(t):
+            t = t or {}
+            if "rotation" in t:
+                rotation = tuple(float(x) for row in t["rotation"] for x in row)
+            else:
+                rotation = from_rpy(*[float(x) for x in t.get("rpy", [0.0, 0.0, 0.0])])
+            return rotation, tuple(float(x) for x in t.get("xyz", [0.0, 0.0, 0.0]))
+
+        self.name = d.get("name", path)
+        self.mount = frame(d.get("mount"))
+        self.tool = frame(d.get("tool"))
+        self.joints = []
+        for j in d["joint"]:
+            lower, upper = (float(x) for x in j["limits"])
+            axis = tuple(float(x) for x in j["axis"])
+            self.joints.append((j["type"], frame(j), axis, lower, upper, float(j["home"])))
+        if not 1 <= len(self.joints) <= MAX_JOINTS:
+            raise Fatal(f"arm file {path}: {len(self.joints)} joints, the wire carries 1 to {MAX_JOINTS}")
+
+    def description(self):
+        """The arm as docs/protocol.md ("The arm hash") describes it."""
+
+        def frame(f):
+            return {"rotation": list(f[0]), "translation": list(f[1])}
+
+        return {
+            "mount": frame(self.mount),
+            "joints": [
+                {"kind": kind, "origin": frame(origin), "axis": list(axis), "lower": lower, "upper": upper}
+                for kind, origin, axis, lower, upper, _ in self.joints
+            ],
+            "tool": frame(self.tool),
+        }
+
+    def end_effector(self, q):
+        """r_be(q) = M · O₁ J₁(q₁) ⋯ O_N J_N(q_N) · E, the end effector seen from the platform."""
+        f = self.mount
+        for (kind, origin, axis, _, _, _), qi in zip(self.joints, q):
+            if kind == "revolute" and axis == (0.0, 0.0, 1.0):
+                motion = (about_axis(2, math.sin(qi), math.cos(qi)), (0.0, 0.0, 0.0))
+            elif kind == "revolute":
+                motion = (so3_exp((axis[0] * qi, axis[1] * qi, axis[2] * qi)), (0.0, 0.0, 0.0))
+            else:
+                motion = (IDENTITY, (axis[0] * qi, axis[1] * qi, axis[2] * qi))
+            f = compose3(compose3(f, origin), motion)
+        return compose3(f, self.tool)
+
+
+def planar_pose3(pose):
+    """The platform's (x, y, θ) as a pose in space: a rotation about z, height 0."""
+    return about_axis(2, math.sin(pose[2]), math.cos(pose[2])), (pose[0], pose[1], 0.0)
 
 
 # ----- the transport (docs/protocol.md §2) ----------------------------------------------------
@@ -551,10 +794,13 @@ class Summary:
         self.v_sign_changes = 0
         self.max_v = self.max_w = 0.0
         self.steps = 0
+        self.margins = None
 
     def add(self, robot, cmd):
         t, (x, y, _), ep = robot.t, robot.base, robot.tracking_error()
         self.steps += 1
+        margins = [min(q - lo, hi - q) for q, (lo, hi) in zip(robot.q, robot.limits)]
+        self.margins = margins if self.margins is None else [min(a, b) for a, b in zip(self.margins, margins)]
         if self.last_pos is not None:
             self.path += math.hypot(x - self.last_pos[0], y - self.last_pos[1])
         self.last_pos = (x, y)
@@ -586,13 +832,19 @@ class Bridge:
     def __init__(self, a):
         self.a = a
         command = CommandWithoutJointScale if a.short_command else Command
+        self.robot = SpatialRobot(a.dt, Chain(a.arm)) if a.arm else Robot(a.dt)
+        self.joints = len(self.robot.q)
+        # What this bridge announces: its robot's, unless a test says otherwise.
+        self.joint_count = self.joints if a.joint_count is None else a.joint_count
+        self.arm_hash = self.robot.arm_hash if a.arm_hash is None else a.arm_hash
+        self.space = self.robot.space if a.space is None else a.space
         self.link = Link(a.name, a.events, a.default_settings, a.service_version, command)
         self.session = random.getrandbits(64) or 1
         self.period_ns = 0 if a.lockstep else int(round(a.dt * 1e9))
         self.flags = (LOCKSTEP if a.lockstep else 0) | (NOTIFIES if a.events else 0)
-        self.robot = Robot(a.dt)
         self.summary = Summary()
         self.counts = {"fresh": 0, "deadline_misses": 0, "late": 0, "held": 0, "stopped": 0, "stop_events": 0}
+        self.rejected = 0
         self.invalid = {}
         self.delays = []
         # --rows: one tuple per period (kept in memory, written at the end: no file I/O in
@@ -610,7 +862,7 @@ class Bridge:
     # -- messages --
 
     def measurement(self, seq, flags, delay):
-        t, base, q, target, ud = self.robot.measure()
+        t, base, q, (position, rotation, yaw, twist) = self.robot.measure()
         m = Measurement()
         m.version = self.a.protocol_version
         m.flags = self.flags | flags
@@ -622,19 +874,18 @@ class Bridge:
         m.sim_time = t
         m.dt = self.a.dt
         m.delay = delay
-        m.arm_hash = self.a.arm_hash
+        m.arm_hash = self.arm_hash
         m.platform = PLATFORMS[self.a.platform]
         m.hold_periods = self.a.hold_periods
-        m.joint_count = self.a.joint_count
-        m.space = self.a.space
+        m.joint_count = self.joint_count
+        m.space = self.space
         m.base[:] = base
-        position, rotation, yaw, twist = planar_target(target, ud)
         m.target_position[:] = position
         m.target_rotation[:] = rotation
         m.target_yaw = yaw
         m.target_twist[:] = twist
-        for i in range(3):
-            m.joints[i] = q[i]
+        for i, qi in enumerate(q):
+            m.joints[i] = qi
         return m
 
     def publish(self, seq, flags, delay):
@@ -677,11 +928,11 @@ class Bridge:
             return "late"
         if c.seq > seq:
             return "future_seq"
-        if c.joint_count != self.a.joint_count:
+        if c.joint_count != self.joint_count:
             return "joint_count"
         if not known_status(c.status):
             return "status"
-        values = [c.v, c.v_lat, c.omega, c.v_xi] + [c.joints[i] for i in range(self.a.joint_count)]
+        values = [c.v, c.v_lat, c.omega, c.v_xi] + [c.joints[i] for i in range(self.joint_count)]
         if not all(math.isfinite(x) for x in values):
             return "non_finite"
         return None
@@ -696,6 +947,7 @@ class Bridge:
 
     def note_diagnostics(self, c):
         if c.status != 0:
+            self.rejected += 1
             return
         if not math.isfinite(c.joint_scale) or c.joint_scale < 1.0:
             self.joint_scale_invalid += 1
@@ -747,7 +999,7 @@ class Bridge:
             c, _ = got
             self.counts["fresh"] += 1
             self.note_diagnostics(c)
-            cmd = command_of(c)
+            cmd = command_of(c, self.joints)
             self.summary.add(self.robot, cmd)
             if n < steps:
                 self.robot.advance(cmd, cmd, 0.0)
@@ -758,7 +1010,7 @@ class Bridge:
         period = self.period_ns
         deadline_ns = int(a.deadline_us * 1000)
         start = time.monotonic_ns()
-        acting, last_fresh, delay = ZERO, None, 0.0
+        acting, last_fresh, delay = zero_command(self.joints), None, 0.0
         misses = 0
         stopped = False
         heard = start
@@ -798,7 +1050,8 @@ class Bridge:
                 heard = t_rx
                 self.counts["fresh"] += 1
                 self.note_diagnostics(c)
-                cmd, last_fresh, misses, stopped = command_of(c), command_of(c), 0, False
+                cmd = last_fresh = command_of(c, self.joints)
+                misses, stopped = 0, False
                 if n > 0:
                     switch_at = min((t_rx - t_pub) * a.dt / period, a.dt * (1 - 1e-9))
                     delay = switch_at
@@ -810,7 +1063,7 @@ class Bridge:
                     cmd = last_fresh
                     self.counts["held"] += 1
                 else:
-                    cmd = ZERO
+                    cmd = zero_command(self.joints)
                     self.counts["stopped"] += 1
                     if not stopped and last_fresh is not None:
                         self.counts["stop_events"] += 1
@@ -855,6 +1108,13 @@ class Bridge:
             "max_ep_norm_after_20s": self.summary.max_ep_after_20 if self.summary.ep_after_20 else None,
             "median_ep_norm_after_20s": statistics.median(self.summary.ep_after_20) if self.summary.ep_after_20 else None,
             "steps": self.summary.steps,
+            "rejected_steps": self.rejected,
+            "joints": self.joints,
+            "min_joint_margin": self.summary.margins,
+            "smallest_joint_margin": min(self.summary.margins) if self.summary.margins else None,
+            "smallest_margin_joint": 1 + min(range(self.joints), key=lambda i: self.summary.margins[i])
+            if self.summary.margins
+            else None,
             "max_joint_scale": self.max_joint_scale,
             "joint_guard_steps": self.joint_guard_steps,
             "joint_scale_invalid": self.joint_scale_invalid,
@@ -947,11 +1207,16 @@ def main(argv=None):
     p.add_argument("--scenario-json", help="a scenario.json whose controller object gives the scenario hash")
     p.add_argument("--scenario-hash", type=lambda s: int(s, 0), default=0, help="sent as is (0: not checked)")
     p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
-    p.add_argument("--joint-count", type=int, default=3)
     p.add_argument(
-        "--arm-hash", type=lambda s: int(s, 0), default=RPR_ARM_HASH, help="sent as is (default: the RPR arm's; 0: not checked)"
+        "--arm",
+        help="an arm file of 6 to 8 joints (examples/arms/ur5.toml): its chain tracks trajectory 1 lifted "
+        "(default: the paper's RPR arm on trajectory 1)",
     )
-    p.add_argument("--space", type=int, default=PLANAR, help="(tests) the target space code sent")
+    p.add_argument("--joint-count", type=int, help="(tests) the joint count sent (default: the arm's)")
+    p.add_argument(
+        "--arm-hash", type=lambda s: int(s, 0), help="sent as is (default: the arm's own; 0: not checked)"
+    )
+    p.add_argument("--space", type=int, help="(tests) the target space code sent (default: the arm's)")
     p.add_argument("--protocol-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version field")
     p.add_argument("--service-version", type=int, default=PROTOCOL_VERSION, help="(tests) the version in the names")
     p.add_argument(
@@ -971,7 +1236,9 @@ def main(argv=None):
     a.inject = parse_inject(a.inject)
     if a.scenario_json:
         with open(a.scenario_json) as f:
-            a.scenario_hash = scenario_hash(json.load(f)["controller"])
+            described = json.load(f)
+        # A spatial run's scenario.json holds the planar run's scenario under `base`.
+        a.scenario_hash = scenario_hash(described.get("controller") or described["base"]["controller"])
     signal.signal(signal.SIGTERM, _terminate)
     try:
         bridge = Bridge(a)

@@ -35,7 +35,7 @@ use companion_plant::PaperTrajectory;
 use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, JOINTS};
 use companion_runtime::domain::observe::Silent;
 use companion_runtime::domain::scenario::Scenario;
-use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd, Robot};
 use companion_runtime::transport::link::LinkError;
 
 /// Commands compared per case: steps 0..=999.
@@ -263,7 +263,7 @@ fn run_case(
     let reference = InProcess::new(&s)?;
     let c = CController::spawn(platform, run, scalar, s.dt)?;
     let mut twin = Twin { reference, c, steps: Vec::with_capacity(COMMANDS) };
-    let end = run_loop(&s, &mut plant, &mut twin, &mut NoRows, &Silent)?;
+    let end = run_loop(&s, &mut Robot::of(&mut plant, &s), &mut twin, &mut NoRows, &Silent)?;
     assert_eq!(end, LoopEnd::Completed);
     let Twin { c, steps, .. } = twin;
     let closing = c.finish()?;

@@ -29,7 +29,7 @@ use companion_plant::PaperTrajectory;
 use companion_runtime::domain::controller::{measurement_in, Scalar, StepReport, JOINTS};
 use companion_runtime::domain::observe::Silent;
 use companion_runtime::domain::scenario::Scenario;
-use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd};
+use companion_runtime::run::sim::{build_plant, run_loop, Exchange, InProcess, LoopEnd, Robot};
 use companion_runtime::transport::link::LinkError;
 
 const TARGET: &str = "thumbv7em-none-eabihf";
@@ -122,7 +122,10 @@ fn reference(platform: PlatformKind, run: PaperRun, scalar: Scalar) -> Result<(V
     let s = Scenario::builder(PaperTrajectory::One, run, platform).scalar(scalar).duration(0.999).build()?;
     let mut plant = build_plant(&s)?;
     let mut rec = Recorder { reference: InProcess::new(&s)?, steps: Vec::with_capacity(STEPS) };
-    assert_eq!(run_loop(&s, &mut plant, &mut rec, &mut NoRows, &Silent)?, LoopEnd::Completed);
+    assert_eq!(
+        run_loop(&s, &mut Robot::of(&mut plant, &s), &mut rec, &mut NoRows, &Silent)?,
+        LoopEnd::Completed
+    );
     assert_eq!(rec.steps.len(), STEPS);
     assert!(rec.steps.iter().all(|(_, r)| r.error.is_none()), "companion sim rejected a step");
     let mut blob = Vec::new();

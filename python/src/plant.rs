@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use companion_core::nalgebra::SVector;
 use companion_core::{Command, PlatformCommand, Pose, Rpr};
-use companion_plant::{PaperTrajectory, Plant as CorePlant};
+use companion_plant::{PaperTrajectory, Plant as CorePlant, Simulated};
 use companion_runtime::domain::controller::JOINTS;
 use companion_runtime::domain::scenario::{Options, Target};
 use numpy::PyReadonlyArray1;

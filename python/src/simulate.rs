@@ -7,11 +7,10 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use companion_plant::PaperTrajectory;
 use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::domain::observe::Silent;
-use companion_runtime::domain::record::spatial::SpatialRecord;
 use companion_runtime::domain::record::verdict::DEFAULT_MAX_REJECTED;
 use companion_runtime::domain::record::{Acceptance, Row};
 use companion_runtime::domain::scenario::{Options, Target};
-use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
+use companion_runtime::run::spatial::{SpatialRows, SpatialScenario, SpatialTargetChoice};
 use numpy::ndarray::{Array1, Array2};
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
@@ -81,9 +80,19 @@ fn planar_timeseries<'py>(py: Python<'py>, rows: &[Row]) -> PyResult<Bound<'py, 
     Ok(d)
 }
 
-fn spatial_timeseries<'py>(py: Python<'py>, rows: &[SpatialRecord]) -> PyResult<Bound<'py, PyDict>> {
+fn spatial_timeseries<'py>(py: Python<'py>, rows: &SpatialRows) -> PyResult<Bound<'py, PyDict>> {
+    match rows {
+        SpatialRows::Six(r) => arm_timeseries(py, r),
+        SpatialRows::Seven(r) => arm_timeseries(py, r),
+        SpatialRows::Eight(r) => arm_timeseries(py, r),
+    }
+}
+
+fn arm_timeseries<'py, const N: usize>(
+    py: Python<'py>,
+    rows: &[Row<companion_core::Spatial, N>],
+) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    let n = rows.first().map_or(6, |r| r.joints);
     let homogeneous = |p: &companion_core::Pose3<f64>, k: usize| {
         let (i, j) = (k / 4, k % 4);
         match (i, j) {
@@ -93,45 +102,40 @@ fn spatial_timeseries<'py>(py: Python<'py>, rows: &[SpatialRecord]) -> PyResult<
             _ => p.rotation[(i, j)],
         }
     };
+    type SpatialRow<const N: usize> = Row<companion_core::Spatial, N>;
     let pose4 =
-        |py, f: &dyn Fn(&SpatialRecord) -> companion_core::Pose3<f64>| -> PyResult<Bound<'py, PyAny>> {
+        |py, f: &dyn Fn(&SpatialRow<N>) -> companion_core::Pose3<f64>| -> PyResult<Bound<'py, PyAny>> {
             let a = Array2::from_shape_fn((rows.len(), 16), |(i, k)| homogeneous(&f(&rows[i]), k));
             a.into_shape_with_order((rows.len(), 4, 4))
                 .map(|a| a.into_pyarray(py).into_any())
                 .map_err(|e| PyValueError::new_err(e.to_string()))
         };
-    d.set_item("t", column(py, rows, |r| r.t))?;
-    d.set_item(
-        "base",
-        columns(py, rows, 3, |r, j| [r.base.translation[0], r.base.translation[1], r.heading][j]),
-    )?;
-    d.set_item("steering", column(py, rows, |r| r.steering))?;
-    d.set_item("joints", columns(py, rows, n, |r, j| r.q[j]))?;
-    d.set_item("end_effector", pose4(py, &|r| r.effector)?)?;
-    d.set_item("target", pose4(py, &|r| r.target)?)?;
-    d.set_item("target_twist", columns(py, rows, 6, |r, j| r.target_twist[j]))?;
-    d.set_item("e_p", columns(py, rows, 6, |r, j| r.e_p[j]))?;
-    d.set_item("ep_norm", column(py, rows, |r| r.ep_norm))?;
+    let pose = |p: &companion_core::Pose<f64>, j: usize| [p.x, p.y, p.theta][j];
+    d.set_item("t", column(py, rows, |r| r.plant.t))?;
+    d.set_item("base", columns(py, rows, 3, |r, j| pose(&r.plant.base, j)))?;
+    d.set_item("steering", column(py, rows, |r| r.plant.steering))?;
+    d.set_item("joints", columns(py, rows, N, |r, j| r.plant.joints[j]))?;
+    d.set_item("end_effector", pose4(py, &|r| r.plant.end_effector)?)?;
+    d.set_item("target", pose4(py, &|r| r.plant.target)?)?;
+    d.set_item("target_twist", columns(py, rows, 6, |r, j| r.plant.target_velocity[j]))?;
+    d.set_item("e_p", columns(py, rows, 6, |r, j| r.plant.e_p[j]))?;
+    d.set_item("ep_norm", column(py, rows, |r| r.plant.ep_norm))?;
     d.set_item(
         "command",
-        columns(py, rows, 4 + n, |r, j| {
-            let p = &r.command;
+        columns(py, rows, 4 + N, |r, j| {
+            let c = &r.report.command;
+            let p = &c.platform;
             if j < 4 {
                 [p.v, p.v_lat, p.omega, p.v_xi][j]
             } else {
-                r.joint_rates[j - 4]
+                c.joints[j - 4]
             }
         }),
     )?;
-    d.set_item("h_s", column(py, rows, |r| r.h_s))?;
-    d.set_item("saturation", column(py, rows, |r| r.saturation))?;
-    d.set_item("joint_scale", column(py, rows, |r| r.joint_scale))?;
-    d.set_item(
-        "status",
-        rows.iter()
-            .map(|r| r.error.map_or_else(|| "ok".to_string(), |e| format!("rejected:{e:?}")))
-            .collect::<Vec<_>>(),
-    )?;
+    d.set_item("h_s", column(py, rows, |r| r.report.h_s))?;
+    d.set_item("saturation", column(py, rows, |r| r.report.saturation))?;
+    d.set_item("joint_scale", column(py, rows, |r| r.report.joint_scale))?;
+    d.set_item("status", rows.iter().map(Row::status).collect::<Vec<_>>())?;
     Ok(d)
 }
 
@@ -237,10 +241,11 @@ pub fn simulate<'py>(
             };
             let s = SpatialScenario::new(base, arm, target).map_err(|e| err(e.into()))?;
             companion_runtime::run::spatial::check(&s).map_err(|e| spatial_error(py, e))?;
-            let run =
-                py.detach(|| companion_runtime::run::spatial::run_spatial(&s, &dir, &Silent, max_rejected));
+            let run = py.detach(|| {
+                companion_runtime::run::spatial::run_spatial(&s, &dir, &Silent, max_rejected, None)
+            });
             run.map_err(|e| spatial_error(py, e))
-                .and_then(|o| Ok((spatial_timeseries(py, &o.records)?, json_dict(py, &o.summary)?)))
+                .and_then(|(o, _)| Ok((spatial_timeseries(py, &o.rows)?, json_dict(py, &o.summary)?)))
         }
     };
     if !keep {

@@ -497,7 +497,7 @@ fn bad_arm_files_and_spatial_targets_are_refused_by_field() {
         &["segment 1: `velocity` has 3 entries", "6"],
     );
     refused(&d, &["sim", "--arm", "ur5", "--all"], &["--all", "--arm"]);
-    refused(&d, &["sim", "--arm", "ur5", "--delay", "0.002"], &["--delay", "spatial arm"]);
+    refused(&d, &["sim", "--arm", "ur5", "--delay", "1"], &["delay must be a number of seconds in [0,"]);
     refused(&d, &["sim", "--arm", "panda", "--noise"], &["noise", "spatial arm"]);
     let gain = file(&d, "gain.toml", "[controller]\ngain = [1.0, 1.0, 1.0]\n");
     refused(&d, &["sim", "--arm", "ur5", "--config", &gain], &["controller.gain", "planar arm"]);

@@ -227,6 +227,47 @@ impl Demo {
     }
 }
 
+/// `companion hil --lockstep` and `companion sim` of one scenario (`extra` flags, `seconds`
+/// long, each writing an MCAP replay): their `timeseries.csv`, trajectory digests and replays
+/// the same byte for byte, every command fresh, the plant's lockstep counts — with either arm.
+/// Returns the two summaries.
+fn lockstep_equals_sim(seconds: &str, extra: &[&str]) -> (serde_json::Value, serde_json::Value) {
+    let d = dir("lockstep");
+    let (hil_dir, sim_dir) = (d.join("hil"), d.join("sim"));
+    let (hm, sm) = (d.join("hil.mcap"), d.join("sim.mcap"));
+    let n = name("lockstep");
+    let mut args = vec!["hil", "--lockstep", "--duration", seconds, "--no-plots", "--name", &n];
+    args.extend(["--out", hil_dir.to_str().unwrap(), "--mcap", hm.to_str().unwrap()]);
+    args.extend(extra);
+    let (st, out, err) = run(&args);
+    assert!(st.success(), "{extra:?}\n{out}\n{err}");
+    let mut args = vec!["sim", "--duration", seconds, "--no-plots"];
+    args.extend(["--out", sim_dir.to_str().unwrap(), "--mcap", sm.to_str().unwrap()]);
+    args.extend(extra);
+    let (st, _, err) = run(&args);
+    assert!(st.success(), "{extra:?}\n{err}");
+    let a = std::fs::read(hil_dir.join("timeseries.csv")).unwrap();
+    let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
+    assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
+    assert!(a == b, "hil --lockstep {extra:?} and sim differ");
+    assert!(std::fs::read(&hm).unwrap() == std::fs::read(&sm).unwrap(), "{extra:?}: the MCAP files differ");
+    // And so is the trajectory's fingerprint in summary.json (every step, unrounded).
+    let (hs, ss) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
+    assert_eq!(hs["trajectory_digest"].as_str().map(str::len), Some(16), "a digest");
+    assert_eq!(hs["trajectory_digest"], ss["trajectory_digest"], "hil --lockstep {extra:?}");
+    let cycles = (seconds.parse::<f64>().unwrap() * 1000.0).round() as u64 + 1;
+    let lat = json(&hil_dir.join("latency.json"));
+    assert_eq!(lat["mode"], "lockstep");
+    assert_eq!(lat["cycles"], cycles);
+    assert_eq!(lat["invalid_total"], 0);
+    // In lockstep, as in sim, every command is the answer to its own measurement.
+    let fresh = serde_json::json!({"fresh": cycles, "held": 0, "stopped": 0});
+    assert_eq!((&hs["command_sources"], &ss["command_sources"]), (&fresh, &fresh), "{extra:?}");
+    let scenario = |d: &Path| json(&d.join("scenario.json"))["name"].clone();
+    assert_eq!(scenario(&hil_dir), scenario(&sim_dir), "{extra:?}");
+    (hs, ss)
+}
+
 #[test]
 fn lockstep_timeseries_is_byte_identical_to_sim() {
     let _g = serial();
@@ -239,33 +280,7 @@ fn lockstep_timeseries_is_byte_identical_to_sim() {
         &["--delay", "0.0025", "--no-delay-compensation"],
     ];
     for extra in runs {
-        let d = dir("lockstep");
-        let (hil_dir, sim_dir) = (d.join("hil"), d.join("sim"));
-        let n = name("lockstep");
-        let mut args = vec!["hil", "--lockstep", "--duration", "3", "--no-plots", "--name", &n];
-        let hd = hil_dir.to_str().unwrap();
-        args.extend(["--out", hd]);
-        args.extend(extra);
-        let (st, out, err) = run(&args);
-        assert!(st.success(), "{out}\n{err}");
-        let sd = sim_dir.to_str().unwrap();
-        let mut args = vec!["sim", "--duration", "3", "--no-plots", "--out", sd];
-        args.extend(extra);
-        let (st, _, err) = run(&args);
-        assert!(st.success(), "{err}");
-        let a = std::fs::read(hil_dir.join("timeseries.csv")).unwrap();
-        let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
-        assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
-        assert!(a == b, "hil --lockstep {extra:?} and sim differ");
-        // And so is the trajectory's fingerprint in summary.json (every step, unrounded).
-        let (ha, sb) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
-        let digest = ha["trajectory_digest"].as_str().expect("a digest");
-        assert_eq!(digest.len(), 16);
-        assert_eq!(ha["trajectory_digest"], sb["trajectory_digest"], "hil --lockstep {extra:?}");
-        let lat = json(&hil_dir.join("latency.json"));
-        assert_eq!(lat["mode"], "lockstep");
-        assert_eq!(lat["cycles"], 3001);
-        assert_eq!(lat["invalid_total"], 0);
+        lockstep_equals_sim("3", extra);
     }
     // The delay is the plant's business in real time.
     let (st, _, err) = run(&["hil", "--delay", "0.002", "--duration", "1"]);
@@ -371,27 +386,37 @@ fn malformed_commands_are_counted_and_dropped_never_applied() {
     }
 }
 
-#[test]
-fn killed_plant_is_noticed_as_dead_its_data_kept_and_the_next_run_succeeds() {
-    let _g = serial();
-    let d = dir("kill-plant");
-    let n = name("killplant");
-    let mut demo = Demo::start(&[
-        "hil",
-        "--duration",
-        "20",
-        "--log-every",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--name",
-        &n,
-        "--out",
-        d.to_str().unwrap(),
-    ]);
+/// A `companion hil` of 20 s logging every step (with `extra` flags) whose plant is SIGKILLed
+/// once 500 rows are on disk: the demo (to wait for), its name and its output folder.
+fn kill_the_plant(tag: &str, extra: &[&str]) -> (Demo, String, PathBuf) {
+    let d = dir(tag);
+    let n = name(tag);
+    let mut args = vec!["hil", "--duration", "20", "--log-every", "1", "--no-plots", "--quiet", "--name", &n];
+    args.extend(["--out", d.to_str().unwrap()]);
+    args.extend(extra);
+    let mut demo = Demo::start(&args);
     let pid = demo.plant_pid();
     wait_rows(&d.join("timeseries.csv"), 500);
     signal(pid, "KILL");
+    (demo, n, d)
+}
+
+/// What a killed plant leaves in `d`: every line of `timeseries.csv` complete, at least the 500
+/// rows seen before the kill (a starved plant may have written none since), and `fault.json`
+/// saying so. The rows' statuses.
+fn rows_kept_after_the_kill(d: &Path) -> Vec<String> {
+    let statuses = csv_statuses(&d.join("timeseries.csv"));
+    assert!(statuses.len() >= 500, "{} rows", statuses.len());
+    let fault = json(&d.join("fault.json"));
+    assert_eq!(fault["plant_exit"], "killed by signal 9");
+    assert_eq!(fault["rows_on_disk"].as_u64(), Some(statuses.len() as u64));
+    statuses
+}
+
+#[test]
+fn killed_plant_is_noticed_as_dead_its_data_kept_and_the_next_run_succeeds() {
+    let _g = serial();
+    let (mut demo, n, d) = kill_the_plant("kill-plant", &[]);
     let killed = Instant::now();
     let (noticed, line) = demo.wait_line("died", Duration::from_secs(10));
     // How soon is a figure of `companion latency`, not an assertion here: on a loaded machine
@@ -404,12 +429,7 @@ fn killed_plant_is_noticed_as_dead_its_data_kept_and_the_next_run_succeeds() {
     assert_eq!(st.code(), Some(3), "{seen:#?}");
     assert!(seen.iter().any(|l| l.contains("killed by signal 9")), "{seen:#?}");
     // What was recorded up to the fault is on disk and every line is complete.
-    let statuses = csv_statuses(&d.join("timeseries.csv"));
-    // At least the 500 rows seen before the kill (a starved plant may have written none since).
-    assert!(statuses.len() >= 500, "{} rows", statuses.len());
-    let fault = json(&d.join("fault.json"));
-    assert_eq!(fault["plant_exit"], "killed by signal 9");
-    assert_eq!(fault["rows_on_disk"].as_u64(), Some(statuses.len() as u64));
+    rows_kept_after_the_kill(&d);
     // No residue: the same name runs again at once.
     let d2 = dir("kill-plant-again");
     let (st, out, err) =
@@ -561,6 +581,17 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
         statuses[first_stop..].iter().any(|s| s != "held" && s != "stopped"),
         "fresh commands after the stop"
     );
+    // summary.json says where the commands came from, as the plant counted them and as every
+    // row says.
+    let sources = &json(&d.join("summary.json"))["command_sources"];
+    let count = |k: &str| statuses.iter().filter(|s| s.as_str() == k).count() as u64;
+    assert_eq!(sources["held"], lat["held_periods"], "{sources}");
+    assert_eq!(sources["stopped"], lat["stopped_periods"], "{sources}");
+    assert_eq!(
+        (sources["held"].as_u64(), sources["stopped"].as_u64()),
+        (Some(count("held")), Some(count("stopped")))
+    );
+    assert_eq!(sources["fresh"].as_u64(), Some(statuses.len() as u64 - count("held") - count("stopped")));
 }
 
 /// A controller stopped for longer than `--peer-timeout` is a hung peer to the plant, which
@@ -728,33 +759,31 @@ fn a_plant_of_another_scenario_is_refused_and_both_sides_say_why() {
     let _g = serial();
     let d = dir("refused");
     let n = name("refused");
-    let ((ps, pe), (cs, ce)) = two_roles(
-        &[
-            "--lockstep",
-            "--choice",
-            "b",
-            "--duration",
-            "1",
-            "--no-plots",
-            "--name",
-            &n,
-            "--out",
-            d.to_str().unwrap(),
-        ],
-        &["--name", &n, "--choice", "a"],
-    );
+    let plant = [&lockstep_plant(&n, &d)[..], &["--choice", "b"]].concat();
+    let ((ps, pe), (cs, ce)) = two_roles(&plant, &["--name", &n, "--choice", "a"]);
     scenario_refused(&d, (ps, pe), (cs, ce));
+}
+
+/// The flags of a 1 s lockstep plant without plots, demo `n`, writing into `d`.
+fn lockstep_plant<'a>(n: &'a str, d: &'a Path) -> Vec<&'a str> {
+    vec!["--lockstep", "--duration", "1", "--no-plots", "--name", n, "--out", d.to_str().unwrap()]
 }
 
 /// Both roles exited 2 and said that the controller refused the plant's scenario; the
 /// plant's files (in `d`) say so too.
-fn scenario_refused(d: &Path, (ps, pe): (ExitStatus, String), (cs, ce): (ExitStatus, String)) {
+fn scenario_refused(d: &Path, plant: (ExitStatus, String), control: (ExitStatus, String)) {
+    refused_for(d, &plant, &control, "scenario mismatch");
+}
+
+/// Both roles exited 2 and said that the controller refused the plant for `why`; the plant's
+/// files (in `d`) say so too.
+fn refused_for(d: &Path, (ps, pe): &(ExitStatus, String), (cs, ce): &(ExitStatus, String), why: &str) {
     assert_eq!(cs.code(), Some(2), "{ce}");
     assert_eq!(ps.code(), Some(2), "{pe}");
-    assert!(ce.contains("refused the plant: scenario mismatch"), "{ce}");
-    assert!(pe.contains("the controller refused this plant: scenario mismatch"), "{pe}");
+    assert!(ce.contains(&format!("refused the plant: {why}")), "{ce}");
+    assert!(pe.contains(&format!("the controller refused this plant: {why}")), "{pe}");
     let lat = json(&d.join("latency.json"));
-    assert!(lat["end"].as_str().unwrap().contains("scenario mismatch"), "{lat:#}");
+    assert!(lat["end"].as_str().unwrap().contains(why), "{lat:#}");
 }
 
 #[test]

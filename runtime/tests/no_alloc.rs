@@ -12,16 +12,16 @@ use std::time::Duration;
 
 use anyhow::Result;
 use companion_core::{PaperRun, PlatformKind};
-use companion_plant::PaperTrajectory;
+use companion_plant::{PaperTrajectory, Simulated};
 use companion_runtime::domain::controller::AnyController;
 use companion_runtime::domain::record::Row;
 use companion_runtime::domain::scenario::Scenario;
 use companion_runtime::run::hil::messages::{answer, Stamp};
 use companion_runtime::run::hil::plant_loop::{run_real_time, PlantSide};
-use companion_runtime::run::hil::robot::{PlanarRobot, SpatialRobot};
 use companion_runtime::run::hil::serve::{serve, serve_law, ServeOptions};
 use companion_runtime::run::hil::stats::{ControlStats, LiveFigures, PlantStats};
 use companion_runtime::run::hil::{ControlEnd, Timing, WaitMode};
+use companion_runtime::run::robot::Robot;
 use companion_runtime::sys::clock::{Clock, FakeClock, MonotonicClock};
 use companion_runtime::sys::lock::DemoName;
 use companion_runtime::transport::ipc::{ControlEndpoint, PlantEndpoint};
@@ -238,7 +238,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
                     last_sent: None,
                 };
                 let star = companion_core::Pose::new(0.5, 0.0, 0.0);
-                let mut robot = PlanarRobot { plant: &mut plant, target_in_effector: star };
+                let mut robot = Robot { plant: &mut plant, target_in_effector: star };
                 run_real_time(&mut side, &mut robot, steps, &mut sink)
             });
             (n, end.unwrap(), stats.cycles, stats.fresh, link.transport)
@@ -448,7 +448,7 @@ fn the_plant_loop_allocates_nothing() {
             last_sent: None,
         };
         let mut robot =
-            PlanarRobot { plant: &mut plant, target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0) };
+            Robot { plant: &mut plant, target_in_effector: companion_core::Pose::new(0.5, 0.0, 0.0) };
         run_real_time(&mut side, &mut robot, steps, &mut sink)
     });
     assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
@@ -547,7 +547,7 @@ fn ur5_scenario(duration: f64) -> companion_runtime::run::spatial::SpatialScenar
 /// The real-time loop with a spatial arm (§5): the UR5's plant, its rows the spatial records.
 #[test]
 fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
-    use companion_runtime::domain::record::spatial::SpatialRecord;
+    type SpatialRow = Row<companion_core::Spatial, 6>;
     let ss = ur5_scenario(3.0);
     let star = companion_runtime::run::spatial::target_in_effector::<6>(&ss).unwrap();
     let chain = ss.arm.chain::<f64, 6>().unwrap();
@@ -563,8 +563,8 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
     let mut link = InstantController { answer: answer_of, pending: None, clock: clock.clone() };
     let mut stats = PlantStats::default();
     let live = LiveFigures::default();
-    let mut rows: Vec<SpatialRecord> = Vec::with_capacity(3_100);
-    let mut sink = |_: u64, r: &SpatialRecord, _: bool| {
+    let mut rows: Vec<SpatialRow> = Vec::with_capacity(3_100);
+    let mut sink = |_: u64, r: &SpatialRow, _: bool| {
         rows.push(*r);
         true
     };
@@ -589,7 +589,7 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
             live: &live,
             last_sent: None,
         };
-        let mut robot = SpatialRobot { plant: &mut plant, target_in_effector: star };
+        let mut robot = Robot { plant: &mut plant, target_in_effector: star };
         run_real_time(&mut side, &mut robot, steps, &mut sink)
     });
     assert_eq!(n, 0, "{n} allocations in {} plant cycles", stats.cycles);
@@ -598,10 +598,10 @@ fn the_plant_loop_of_a_spatial_arm_allocates_nothing() {
     assert_eq!(rows.len(), 3_001);
     // The arm followed the commands: the tracking error fell from the start.
     assert!(
-        rows[3_000].ep_norm < 0.5 * rows[0].ep_norm.max(1e-3),
+        rows[3_000].plant.ep_norm < 0.5 * rows[0].plant.ep_norm.max(1e-3),
         "{} → {}",
-        rows[0].ep_norm,
-        rows[3_000].ep_norm
+        rows[0].plant.ep_norm,
+        rows[3_000].plant.ep_norm
     );
 }
 
@@ -672,4 +672,67 @@ fn spatial_serve_allocations(
     assert_eq!(link.sent.len() as u64, last + 1);
     assert_eq!(stats.rejected, 0, "every step accepted");
     n
+}
+
+/// A sink that keeps every row in room made beforehand.
+struct Keep<S: companion_runtime::domain::record::Task, const N: usize>(Vec<Row<S, N>>);
+
+impl<S: companion_runtime::domain::record::Task, const N: usize>
+    companion_runtime::domain::record::RowSink<S, N> for Keep<S, N>
+{
+    fn log_every(&self) -> u64 {
+        1
+    }
+    fn record(
+        &mut self,
+        _: u64,
+        row: &Row<S, N>,
+        _: bool,
+    ) -> Result<(), companion_runtime::domain::record::error::RecordError> {
+        self.0.push(*row);
+        Ok(())
+    }
+}
+
+/// The in-process loop (`companion sim`'s, and the lockstep plant's) with either arm —
+/// measure, step the law, record the row, advance through a pure delay — allocates nothing.
+#[test]
+fn the_simulation_loop_of_either_arm_allocates_nothing() {
+    use companion_runtime::run::sim::{run_loop, InProcess, LoopEnd};
+    let silent = companion_runtime::domain::observe::Silent;
+    let delayed = |d: f64| {
+        Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+            .duration(d)
+            .delay(0.0025)
+            .build()
+            .unwrap()
+    };
+    // The paper's arm.
+    let s = delayed(2.0);
+    let mut plant = companion_runtime::run::sim::build_plant(&s).unwrap();
+    let mut exchange = InProcess::new(&s).unwrap();
+    let mut rows = Keep(Vec::with_capacity(2_100));
+    let (n, end) =
+        allocations_in(|| run_loop(&s, &mut Robot::of(&mut plant, &s), &mut exchange, &mut rows, &silent));
+    assert_eq!((n, end.unwrap(), rows.0.len()), (0, LoopEnd::Completed, 2_001));
+    // The UR5.
+    use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+    use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
+    let arm = SpatialArmSpec::from_choice(&ArmChoice::parse("ur5")).unwrap().unwrap();
+    let ss =
+        SpatialScenario::new(delayed(2.0), arm, SpatialTargetChoice::Lifted(PaperTrajectory::One)).unwrap();
+    let star = companion_runtime::run::spatial::target_in_effector::<6>(&ss).unwrap();
+    let chain = ss.arm.chain::<f64, 6>().unwrap();
+    let mut plant = companion_runtime::run::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let law =
+        companion_runtime::domain::controller::boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm)
+            .unwrap();
+    let mut exchange = InProcess::with(law, &ss.base);
+    let mut rows = Keep::<companion_core::Spatial, 6>(Vec::with_capacity(2_100));
+    let (n, end) = allocations_in(|| {
+        let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+        run_loop(&ss.base, &mut robot, &mut exchange, &mut rows, &silent)
+    });
+    assert_eq!((n, end.unwrap(), rows.0.len()), (0, LoopEnd::Completed, 2_001));
+    assert!(rows.0[2_000].plant.ep_norm < rows.0[0].plant.ep_norm, "the arm tracks");
 }

@@ -123,6 +123,31 @@ pub(crate) struct Model<'a> {
 }
 
 impl Model<'_> {
+    /// One period of `dt` seconds from step `n` at state `x`: of `(previous, command, delay)`,
+    /// `previous` for the first `delay` seconds, `command` for the rest, each piece by RK4;
+    /// checked against the plant's fixed step `fixed` (set by the first period). The state at
+    /// its end, the velocities the robot then has, and its time `(n + 1)·dt`. Both plants step
+    /// with it.
+    ///
+    /// # Errors
+    /// As [`AdvanceError::check`](crate::error::AdvanceError::check); `fixed` is left as it
+    /// was.
+    pub fn period<const N: usize>(
+        &self,
+        fixed: &mut Option<f64>,
+        (n, x): (u64, &Continuous<N>),
+        (previous, command, delay): (&Command<f64, N>, &Command<f64, N>, f64),
+        dt: f64,
+        trig: &mut Trig,
+    ) -> Result<(Continuous<N>, Command<f64, N>, f64), crate::error::AdvanceError> {
+        crate::error::AdvanceError::check(*fixed, previous, command, delay, dt)?;
+        *fixed = Some(dt);
+        let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
+        let x = self.rk4_switched(t0, t1, dt, delay, x, previous, command, trig);
+        let applied = self.applied(&x, command);
+        Ok((x, applied, t1))
+    }
+
     /// The platform's actual body velocity `u_b` and steering rate `ξ̇` for velocities
     /// `p = (v, v_lat, ω, v_ξ)` delivered by the actuators, at steering `ξ`.
     #[inline]

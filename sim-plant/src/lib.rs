@@ -32,7 +32,11 @@
 //! For spatial arms (§5), [`SpatialPlant`] carries a [`Chain`](companion_core::Chain) of six
 //! to eight joints on the same platforms, integrated by the same step, with a target in
 //! SE(3): the paper's trajectories lifted with a vertical sine, or 6-DOF body twists from a
-//! TOML file (see [`spatial_target`]).
+//! TOML file of the planar file's form (see [`spatial_target`]). Its start and its state are
+//! the planar plant's [`InitialConditions`] and [`PlantState`] with the target in space, and
+//! both plants are driven through one interface, [`Simulated`]. (Two plant types, because the planar plant is generic over the
+//! paper's closed-form planar arms (`Arm`) and integrates its target with the robot, where
+//! the spatial one evaluates a chain and moves its target in SE(3).)
 //!
 //! On request the plant is imperfect ([`Imperfections`]): first-order actuator lag,
 //! Gaussian measurement noise, a wheel-speed scale error. The default is the perfect plant
@@ -90,12 +94,10 @@ pub use limits::{
     realistic_limits, realistic_steering_limit, steering_limit, REALISTIC_MAX_STEERING_ANGLE,
     REALISTIC_WHEELBASE,
 };
-pub use plant::{Plant, PlantConfig, PlantState};
-pub use spatial::{vertical_reach, SpatialInitial, SpatialPlant, SpatialState};
-pub use spatial_target::{
-    LiftedTrajectory, SpatialPiecewise, SpatialSegment, SpatialTarget, LIFT_AMPLITUDE, LIFT_PERIOD,
-};
+pub use plant::{Plant, PlantConfig, PlantState, Simulated};
+pub use spatial::{vertical_reach, SpatialPlant};
+pub use spatial_target::{LiftedTrajectory, SpatialTarget, LIFT_AMPLITUDE, LIFT_PERIOD};
 pub use trajectory::{
-    paper_initial, Location, PaperTrajectory, PiecewiseTrajectory, Segment, Trajectory, TrajectoryError,
-    PAPER_INITIAL_JOINTS,
+    paper_initial, FileSpace, Location, PaperTrajectory, PiecewiseTrajectory, Segment, Trajectory,
+    TrajectoryError, PAPER_INITIAL_JOINTS,
 };

@@ -1,7 +1,7 @@
 //! The simulated robot: configuration, state, and the [`Plant`] that owns them.
 
 use companion_core::nalgebra::{SVector, Vector3};
-use companion_core::{Arm, Command, Measurement, PlatformKind, Pose};
+use companion_core::{Arm, Command, Measurement, Planar, PlatformKind, Pose, Space};
 use rand::distr::{OpenClosed01, StandardUniform};
 use rand::rngs::ChaCha12Rng;
 use rand::{RngExt, SeedableRng};
@@ -42,6 +42,18 @@ impl PlantConfig {
         Self { steering_limit: Some(limit), ..self }
     }
 
+    /// The equations of motion of a plant so configured whose target (planar, or a spatial
+    /// target's planar part) follows `trajectory`.
+    pub(crate) fn model<'a>(&self, trajectory: &'a Trajectory) -> Model<'a> {
+        Model {
+            kind: self.platform,
+            wheel_scale: 1.0 + self.imperfections.wheel_scale_error,
+            lag: self.imperfections.actuator_lag,
+            steering_limit: self.steering_limit,
+            trajectory,
+        }
+    }
+
     /// Checks every parameter.
     ///
     /// # Errors
@@ -62,9 +74,10 @@ impl PlantConfig {
     }
 }
 
-/// The true state of the simulated robot at one step.
+/// The true state of the simulated robot at one step: `N` joints, a target in `S` (the
+/// plane of the paper's arm, §4, or space, §5 — [`crate::SpatialPlant`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct PlantState<const N: usize> {
+pub struct PlantState<const N: usize, S: Space<f64> = Planar> {
     /// Time `t = step · dt` (s).
     pub t: f64,
     /// Step index `n` (0 before the first step).
@@ -75,11 +88,13 @@ pub struct PlantState<const N: usize> {
     pub steering: f64,
     /// Joint positions `q` (rad or m).
     pub joints: SVector<f64, N>,
-    /// Target pose `r_d` (m, m, rad); `θ` continuous, never wrapped.
-    pub target: Pose<f64>,
-    /// Target body velocity `u_d(t)` (m/s, m/s, rad/s). At a jump of `u_d` this is the
-    /// value after the jump, the one the target follows over the next step.
-    pub target_velocity: Vector3<f64>,
+    /// Target pose `r_d` in the world: in the plane (m, m, rad; `θ` continuous, never
+    /// wrapped) or in space.
+    pub target: S::Pose,
+    /// Target body velocity `u_d(t)`: `(v₁, v₂, ω)` in the plane, the twist `(v, ω)` in space
+    /// (m/s, rad/s). At a jump of `u_d` this is the value after the jump, the one the target
+    /// follows over the next step.
+    pub target_velocity: S::Vector,
     /// The velocities the robot actually has at `t`, after lag and scale error: the
     /// platform's body velocity `(v, v_lat, ω)` (for the car `ω = v ξ`), the steering rate
     /// `v_ξ` (car) and `u_q`. Fields a platform does not have are zero. Zero before the
@@ -87,6 +102,21 @@ pub struct PlantState<const N: usize> {
     pub applied: Command<f64, N>,
     /// The command held over the last step (zero before the first step).
     pub command: Command<f64, N>,
+}
+
+impl<const N: usize, S: Space<f64>> PlantState<N, S> {
+    /// The state as the controller would measure it without noise: time, platform pose,
+    /// steering, joints, target pose and target velocity, bit for bit.
+    pub fn measurement(&self) -> Measurement<f64, N, S> {
+        Measurement {
+            t: self.t,
+            base: self.base,
+            steering: self.steering,
+            joints: self.joints,
+            target: self.target,
+            target_velocity: self.target_velocity,
+        }
+    }
 }
 
 /// The simulated mobile manipulator and its target.
@@ -187,23 +217,6 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
         &self.state
     }
 
-    /// The true world pose of the end effector, `r_b · r_eb(q)⁻¹` (m, m, rad).
-    pub fn end_effector(&self) -> Pose<f64> {
-        let r_eb = self.arm.kinematics(&self.state.joints).r_eb;
-        self.state.base.compose(&r_eb.inverse())
-    }
-
-    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
-    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
-    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
-    pub fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
-        let s = &self.state;
-        let r_bd = s.base.between(&s.target);
-        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
-        let e = target_in_effector.between(&r_ed);
-        Vector3::new(e.x, e.y, e.theta)
-    }
-
     /// What the controller sees at the current step: time, platform pose, steering,
     /// joints, target pose and target velocity `u_d(t)`.
     ///
@@ -214,14 +227,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// same measurement.
     pub fn measure(&self) -> Measurement<f64, N> {
         let s = &self.state;
-        let mut m = Measurement {
-            t: s.t,
-            base: s.base,
-            steering: s.steering,
-            joints: s.joints,
-            target: s.target,
-            target_velocity: s.target_velocity,
-        };
+        let mut m = s.measurement();
         if let Some(noise) = self.config.imperfections.noise {
             // A generator per measurement: the noise of step n is ChaCha stream n of the
             // seed (see the `imperfections` module), whatever was measured before.
@@ -252,61 +258,7 @@ impl<A: Arm<f64, N>, const N: usize> Plant<A, N> {
     /// A time step that is not finite and `> 0`, or differs from the plant's fixed step
     /// (set by the first step), or a non-finite command; the state is left as it was.
     pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
-        self.try_advance_delayed(command, command, 0.0, dt)
-    }
-
-    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
-    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
-    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
-    /// `delay = 0` this is [`try_advance`](Self::try_advance), to the bit.
-    ///
-    /// # Errors
-    /// As [`try_advance`](Self::try_advance), and a delay that is not finite or not in
-    /// `[0, dt)`; the state is left as it was.
-    pub fn try_advance_delayed(
-        &mut self,
-        previous: &Command<f64, N>,
-        command: &Command<f64, N>,
-        delay: f64,
-        dt: f64,
-    ) -> Result<(), AdvanceError> {
-        AdvanceError::check(self.dt, previous, command, delay, dt)?;
-        self.dt = Some(dt);
-        let model = Self::model(&self.config, &self.trajectory);
-        let n = self.state.step;
-        let t0 = n as f64 * dt;
-        let t1 = (n + 1) as f64 * dt;
-        let trig = &mut self.trig;
-        let x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, trig);
-        let applied = model.applied(&x, command);
-        // u_d(t₁⁺): the piece the target follows over the next step.
-        let target_velocity =
-            self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
-        self.x = x;
-        self.state = PlantState {
-            t: t1,
-            step: n + 1,
-            base: Pose::from_vector(&self.x.base),
-            steering: self.x.steering,
-            joints: self.x.joints,
-            target: Pose::from_vector(&self.x.target),
-            target_velocity,
-            applied,
-            command: *command,
-        };
-        Ok(())
-    }
-
-    /// The equations of motion (an associated function, so that it borrows only these two
-    /// fields and the sin/cos cache can be borrowed beside it).
-    fn model<'a>(config: &PlantConfig, trajectory: &'a Trajectory) -> Model<'a> {
-        Model {
-            kind: config.platform,
-            wheel_scale: 1.0 + config.imperfections.wheel_scale_error,
-            lag: config.imperfections.actuator_lag,
-            steering_limit: config.steering_limit,
-            trajectory,
-        }
+        Simulated::try_advance_delayed(self, command, command, 0.0, dt)
     }
 }
 
@@ -343,5 +295,116 @@ impl Gaussian {
         let (s, c) = libm::sincos(core::f64::consts::TAU * u2);
         self.spare = Some(r * s);
         r * c
+    }
+}
+
+/// A simulated robot as its user drives it, whatever its arm: the paper's planar arm
+/// ([`Plant`], targets in the plane) or a chain in space ([`crate::SpatialPlant`]) — one
+/// interface, so that a loop that measures, records and advances is written once.
+pub trait Simulated<const N: usize> {
+    /// Where the target lives: [`Planar`] or [`companion_core::Spatial`].
+    type Space: Space<f64>;
+
+    /// What the controller sees at the current step.
+    fn measure(&self) -> Measurement<f64, N, Self::Space>;
+
+    /// The exact state.
+    fn truth(&self) -> &PlantState<N, Self::Space>;
+
+    /// The end effector's pose in the world.
+    fn end_effector(&self) -> <Self::Space as Space<f64>>::Pose;
+
+    /// The true tracking error `e_p` for the desired pose `r*_ed` of the target seen from the
+    /// end effector (three components in the plane, six in space).
+    fn tracking_error(
+        &self,
+        target_in_effector: &<Self::Space as Space<f64>>::Pose,
+    ) -> <Self::Space as Space<f64>>::Vector;
+
+    /// One step of `dt` seconds: `previous` for the first `delay` seconds, `command` for the
+    /// rest (`delay = 0`: `command` throughout).
+    ///
+    /// # Errors
+    /// A time step that is not finite and `> 0` or differs from the first, a non-finite
+    /// command, a delay outside `[0, dt)`; the state is left as it was.
+    fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError>;
+
+    /// One step of `dt` seconds with `command` held throughout.
+    ///
+    /// # Errors
+    /// As [`try_advance_delayed`](Self::try_advance_delayed).
+    fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
+        self.try_advance_delayed(command, command, 0.0, dt)
+    }
+}
+
+impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
+    type Space = Planar;
+
+    #[inline]
+    fn measure(&self) -> Measurement<f64, N> {
+        Plant::measure(self)
+    }
+
+    #[inline]
+    fn truth(&self) -> &PlantState<N> {
+        Plant::truth(self)
+    }
+
+    /// The true world pose of the end effector, `r_b · r_eb(q)⁻¹` (m, m, rad).
+    fn end_effector(&self) -> Pose<f64> {
+        let r_eb = self.arm.kinematics(&self.state.joints).r_eb;
+        self.state.base.compose(&r_eb.inverse())
+    }
+
+    /// The true tracking error `e_p = (r*_ed)⁻¹ r_ed` of the paper's eq. (42) at the current
+    /// step, with `r_ed = r_eb(q) r_bd` from the exact state (never noisy) and the desired
+    /// pose `r*_ed` of the target seen from the end effector; the angle wrapped to (−π, π].
+    fn tracking_error(&self, target_in_effector: &Pose<f64>) -> Vector3<f64> {
+        let s = &self.state;
+        let r_bd = s.base.between(&s.target);
+        let r_ed = self.arm.kinematics(&s.joints).r_eb.compose(&r_bd);
+        let e = target_in_effector.between(&r_ed);
+        Vector3::new(e.x, e.y, e.theta)
+    }
+
+    /// One step of `dt` seconds in which the command changes `delay` seconds in: `previous`
+    /// acts over `[t, t + delay)`, `command` over `[t + delay, t + dt)`, each integrated by
+    /// RK4 (a command that takes effect late: the robot's transport and compute delay). With
+    /// `delay = 0` this is [`Plant::try_advance`], to the bit.
+    fn try_advance_delayed(
+        &mut self,
+        previous: &Command<f64, N>,
+        command: &Command<f64, N>,
+        delay: f64,
+        dt: f64,
+    ) -> Result<(), AdvanceError> {
+        let model = self.config.model(&self.trajectory);
+        let n = self.state.step;
+        let trig = &mut self.trig;
+        let (x, applied, t1) =
+            model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, trig)?;
+        // u_d(t₁⁺): the piece the target follows over the next step.
+        let target_velocity =
+            self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
+        self.x = x;
+        self.state = PlantState {
+            t: t1,
+            step: n + 1,
+            base: Pose::from_vector(&self.x.base),
+            steering: self.x.steering,
+            joints: self.x.joints,
+            target: Pose::from_vector(&self.x.target),
+            target_velocity,
+            applied,
+            command: *command,
+        };
+        Ok(())
     }
 }

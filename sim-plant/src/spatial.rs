@@ -18,46 +18,16 @@
 use companion_core::nalgebra::{SVector, Vector3, Vector6};
 use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose, Pose3, Spatial};
 
-use crate::dynamics::{Continuous, Model, Trig};
+use crate::dynamics::{Continuous, Trig};
 use crate::error::{AdvanceError, PlantError, Rule};
-use crate::plant::PlantConfig;
+use crate::initial::InitialConditions;
+use crate::plant::{PlantConfig, PlantState, Simulated};
 use crate::spatial_target::SpatialTarget;
 use crate::trajectory::{PiecewiseTrajectory, Trajectory};
 
-/// Where a spatial run starts.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialInitial<const N: usize> {
-    /// The platform's pose `r_b` (m, m, rad).
-    pub base: Pose<f64>,
-    /// Car-like platform: the steering state `ξ` (1/m).
-    pub steering: f64,
-    /// The joints `q` (rad or m).
-    pub joints: SVector<f64, N>,
-    /// The target seen from the platform, `r_bd(0)`.
-    pub r_bd: Pose3<f64>,
-}
-
-/// The true state of a spatial plant at one step.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialState<const N: usize> {
-    /// Time `t = step · dt` (s).
-    pub t: f64,
-    /// Step index.
-    pub step: u64,
-    /// Platform pose `r_b` (m, m, rad), `θ` never wrapped.
-    pub base: Pose<f64>,
-    /// Steering `ξ` (1/m).
-    pub steering: f64,
-    /// Joints `q`.
-    pub joints: SVector<f64, N>,
-    /// The target's pose in the world `r_d`.
-    pub target: Pose3<f64>,
-    /// The target's body twist `u_d(t)` (m/s, rad/s); after a jump, the value that applies
-    /// over the next step.
-    pub target_velocity: Vector6<f64>,
-}
-
-/// The simulated spatial mobile manipulator and its target (module docs).
+/// The simulated spatial mobile manipulator and its target (module docs). (Beside the planar
+/// [`crate::Plant`], which is generic over the paper's closed-form planar arms and integrates
+/// its target with the robot; both share the state, the start, the step and the interface.)
 #[derive(Clone, Debug)]
 pub struct SpatialPlant<const N: usize> {
     config: PlantConfig,
@@ -68,7 +38,7 @@ pub struct SpatialPlant<const N: usize> {
     /// A file target's pose at the start of each segment (and the final pose).
     starts: Vec<Pose3<f64>>,
     x: Continuous<N>,
-    state: SpatialState<N>,
+    state: PlantState<N, Spatial>,
     dt: Option<f64>,
     trig: Trig,
 }
@@ -82,7 +52,7 @@ impl<const N: usize> SpatialPlant<N> {
     pub fn new(
         config: PlantConfig,
         chain: Chain<f64, N>,
-        initial: &SpatialInitial<N>,
+        initial: &InitialConditions<N, Spatial>,
         target: SpatialTarget,
     ) -> Result<Self, PlantError> {
         config.validate()?;
@@ -90,22 +60,8 @@ impl<const N: usize> SpatialPlant<N> {
             return Err(PlantError::Invalid { param: "noise", rule: Rule::Unsupported, value: 1.0 });
         }
         chain.validate().map_err(PlantError::Arm)?;
-        let finite = |param, v: f64| PlantError::check_finite(param, v);
-        for v in initial.base.to_vector().iter() {
-            finite("initial.base", *v)?;
-        }
-        finite("initial.steering", initial.steering)?;
-        for v in &initial.joints {
-            finite("initial.joints", *v)?;
-        }
-        if !initial.r_bd.is_finite() {
-            return Err(PlantError::Invalid {
-                param: "initial.r_bd",
-                rule: Rule::NonFinite,
-                value: f64::NAN,
-            });
-        }
-        let r_d0 = Pose3::from_planar(&initial.base).compose(&initial.r_bd);
+        initial.validate()?;
+        let r_d0 = initial.target;
         let (planar, starts) = match &target {
             SpatialTarget::Lifted(l) => (Trajectory::from(l.planar), Vec::new()),
             SpatialTarget::Piecewise(p) => {
@@ -134,7 +90,7 @@ impl<const N: usize> SpatialPlant<N> {
             planar,
             starts,
             x,
-            state: SpatialState {
+            state: PlantState {
                 t: 0.0,
                 step: 0,
                 base: initial.base,
@@ -142,6 +98,8 @@ impl<const N: usize> SpatialPlant<N> {
                 joints: initial.joints,
                 target: r_d0,
                 target_velocity: Vector6::zeros(),
+                applied: Command::zero(),
+                command: Command::zero(),
             },
             dt: None,
             trig: Trig::default(),
@@ -160,27 +118,9 @@ impl<const N: usize> SpatialPlant<N> {
         &self.target
     }
 
-    /// The true state.
-    pub fn truth(&self) -> &SpatialState<N> {
-        &self.state
-    }
-
     /// The time (s).
     pub fn time(&self) -> f64 {
         self.state.t
-    }
-
-    /// What the controller sees: the true state (no noise in spatial runs).
-    pub fn measure(&self) -> Measurement<f64, N, Spatial> {
-        let s = &self.state;
-        Measurement {
-            t: s.t,
-            base: s.base,
-            steering: s.steering,
-            joints: s.joints,
-            target: s.target,
-            target_velocity: s.target_velocity,
-        }
     }
 
     /// Every joint's moving frame (after its motion `Jᵢ(qᵢ)`) and the end effector, in the
@@ -194,16 +134,6 @@ impl<const N: usize> SpatialPlant<N> {
             links[i] = world.compose(&f);
         }
         (links, world.compose(&f.compose(&self.chain.tool)))
-    }
-
-    /// The true tracking error `e_p = (p̃, log R̃)` of `r̃ = (r*_ed)⁻¹ r_ed`,
-    /// `r_ed = r_be(q)⁻¹ r_bd`, from the exact state (core's `spatial` module docs).
-    pub fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
-        let world = Pose3::from_planar(&self.state.base);
-        let effector = world.compose(&self.chain.end_effector(&self.state.joints));
-        let r = target_in_effector.inverse().compose(&effector.inverse().compose(&self.state.target));
-        let phi = so3::log(&r.rotation);
-        Vector6::new(r.translation[0], r.translation[1], r.translation[2], phi[0], phi[1], phi[2])
     }
 
     /// The target's pose at `t` from the integrated planar state (lifted) or in closed form.
@@ -225,17 +155,43 @@ impl<const N: usize> SpatialPlant<N> {
                 let u = self.planar.piece(t_piece).velocity(t);
                 Vector6::new(u[0], u[1], l.z_rate(t), 0.0, 0.0, u[2])
             }
-            SpatialTarget::Piecewise(p) => p.twist(t_piece),
+            SpatialTarget::Piecewise(p) => p.velocity(t_piece),
         }
     }
 
-    /// One RK4 step of `dt` seconds with `command` held (the planar plant's step).
-    ///
-    /// # Errors
-    /// A time step that is not finite and `> 0` or differs from the first, or a non-finite
-    /// command; the state is left as it was.
-    pub fn try_advance(&mut self, command: &Command<f64, N>, dt: f64) -> Result<(), AdvanceError> {
-        self.try_advance_delayed(command, command, 0.0, dt)
+    /// The platform kind.
+    pub fn platform(&self) -> PlatformKind {
+        self.config.platform
+    }
+}
+
+impl<const N: usize> Simulated<N> for SpatialPlant<N> {
+    type Space = Spatial;
+
+    /// What the controller sees: the true state (no noise in spatial runs).
+    fn measure(&self) -> Measurement<f64, N, Spatial> {
+        self.state.measurement()
+    }
+
+    /// The true state.
+    fn truth(&self) -> &PlantState<N, Spatial> {
+        &self.state
+    }
+
+    /// The end effector in the world: `r_b · r_be(q)` (the last of [`frames`](Self::frames),
+    /// to the bit).
+    fn end_effector(&self) -> Pose3<f64> {
+        Pose3::from_planar(&self.state.base).compose(&self.chain.end_effector(&self.state.joints))
+    }
+
+    /// The true tracking error `e_p = (p̃, log R̃)` of `r̃ = (r*_ed)⁻¹ r_ed`,
+    /// `r_ed = r_be(q)⁻¹ r_bd`, from the exact state (core's `spatial` module docs).
+    fn tracking_error(&self, target_in_effector: &Pose3<f64>) -> Vector6<f64> {
+        let world = Pose3::from_planar(&self.state.base);
+        let effector = world.compose(&self.chain.end_effector(&self.state.joints));
+        let r = target_in_effector.inverse().compose(&effector.inverse().compose(&self.state.target));
+        let phi = so3::log(&r.rotation);
+        Vector6::new(r.translation[0], r.translation[1], r.translation[2], phi[0], phi[1], phi[2])
     }
 
     /// One step of `dt` seconds in which `previous` acts for the first `delay` seconds and
@@ -245,28 +201,21 @@ impl<const N: usize> SpatialPlant<N> {
     /// # Errors
     /// As [`try_advance`](Self::try_advance), and a delay that is not in `[0, dt)`; the state
     /// is left as it was.
-    pub fn try_advance_delayed(
+    fn try_advance_delayed(
         &mut self,
         previous: &Command<f64, N>,
         command: &Command<f64, N>,
         delay: f64,
         dt: f64,
     ) -> Result<(), AdvanceError> {
-        AdvanceError::check(self.dt, previous, command, delay, dt)?;
-        self.dt = Some(dt);
-        let model = Model {
-            kind: self.config.platform,
-            wheel_scale: 1.0 + self.config.imperfections.wheel_scale_error,
-            lag: self.config.imperfections.actuator_lag,
-            steering_limit: self.config.steering_limit,
-            trajectory: &self.planar,
-        };
+        let model = self.config.model(&self.planar);
         let n = self.state.step;
-        let (t0, t1) = (n as f64 * dt, (n + 1) as f64 * dt);
-        self.x = model.rk4_switched(t0, t1, dt, delay, &self.x, previous, command, &mut self.trig);
+        let (x, applied, t1) =
+            model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, &mut self.trig)?;
+        self.x = x;
         let target = self.target_pose(t1, &self.x.target);
         let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
-        self.state = SpatialState {
+        self.state = PlantState {
             t: t1,
             step: n + 1,
             base: Pose::from_vector(&self.x.base),
@@ -274,13 +223,10 @@ impl<const N: usize> SpatialPlant<N> {
             joints: self.x.joints,
             target,
             target_velocity,
+            applied,
+            command: *command,
         };
         Ok(())
-    }
-
-    /// The platform kind.
-    pub fn platform(&self) -> PlatformKind {
-        self.config.platform
     }
 }
 
@@ -313,13 +259,15 @@ mod tests {
     fn ur5_plant(kind: PlatformKind, traj: PaperTrajectory) -> SpatialPlant<6> {
         let chain = Chain::<f64, 6>::ur5();
         let lifted = LiftedTrajectory::new(traj, 0.9);
-        let initial = SpatialInitial {
-            base: Pose::identity(),
-            steering: 0.0,
-            joints: chain.home(),
-            r_bd: lifted.initial_r_bd(),
-        };
+        let initial =
+            InitialConditions::<6, Spatial>::in_space(Pose::identity(), lifted.initial_r_bd(), chain.home());
         SpatialPlant::new(PlantConfig::new(kind), chain, &initial, SpatialTarget::Lifted(lifted)).unwrap()
+    }
+
+    /// The planar plant of the paper's arm on `traj`.
+    fn paper_plant(kind: PlatformKind, traj: PaperTrajectory) -> Plant<companion_core::Rpr<f64>, 3> {
+        let arm = companion_core::Rpr::paper();
+        Plant::new(PlantConfig::new(kind), arm, paper_initial(traj), Trajectory::from(traj)).unwrap()
     }
 
     fn command(k: usize) -> (Command<f64, 3>, Command<f64, 6>) {
@@ -337,13 +285,7 @@ mod tests {
     fn the_planar_part_is_the_planar_plants_bit_for_bit() {
         for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
             for traj in [PaperTrajectory::One, PaperTrajectory::Two] {
-                let mut planar = Plant::new(
-                    PlantConfig::new(kind),
-                    companion_core::Rpr::paper(),
-                    paper_initial(traj),
-                    Trajectory::from(traj),
-                )
-                .unwrap();
+                let mut planar = paper_plant(kind, traj);
                 let mut spatial = ur5_plant(kind, traj);
                 for k in 0..7000 {
                     let (c3, c6) = command(k);
@@ -369,13 +311,7 @@ mod tests {
     fn the_delayed_step_is_the_planar_plants_bit_for_bit() {
         for kind in [PlatformKind::Unicycle, PlatformKind::Car, PlatformKind::Omni] {
             let traj = PaperTrajectory::One;
-            let mut planar = Plant::new(
-                PlantConfig::new(kind),
-                companion_core::Rpr::paper(),
-                paper_initial(traj),
-                Trajectory::from(traj),
-            )
-            .unwrap();
+            let mut planar = paper_plant(kind, traj);
             let mut spatial = ur5_plant(kind, traj);
             for k in 1..3000 {
                 let ((p3, p6), (c3, c6)) = (command(k - 1), command(k));
@@ -429,12 +365,14 @@ mod tests {
         let base = Pose::new(0.3, -0.2, 0.7);
         let star = Pose3::translation(0.0, 0.0, 0.2);
         let r_bd = chain.end_effector(&q).compose(&star);
-        let target = SpatialTarget::Piecewise(crate::SpatialPiecewise::new(Vec::new()).unwrap());
-        let initial = SpatialInitial { base, steering: 0.0, joints: q, r_bd };
+        let target =
+            SpatialTarget::Piecewise(crate::PiecewiseTrajectory::<Spatial>::new(Vec::new()).unwrap());
+        let initial = InitialConditions::<7, Spatial>::in_space(base, r_bd, q);
         let p = SpatialPlant::new(PlantConfig::new(PlatformKind::Omni), chain, &initial, target).unwrap();
         let (links, effector) = p.frames();
         let last = links[6].compose(&chain.tool);
         assert!((last.translation - effector.translation).norm() < 1e-15);
+        assert_eq!(p.end_effector(), effector, "the same products");
         let direct = Pose3::from_planar(&base).compose(&chain.end_effector(&q));
         assert!((direct.translation - effector.translation).norm() < 1e-14);
         assert!(p.tracking_error(&star).norm() < 1e-14, "{}", p.tracking_error(&star));
@@ -447,12 +385,8 @@ mod tests {
     fn noise_and_bad_steps_are_refused() {
         let chain = Chain::<f64, 6>::ur5();
         let lifted = LiftedTrajectory::new(PaperTrajectory::One, 0.9);
-        let initial = SpatialInitial {
-            base: Pose::identity(),
-            steering: 0.0,
-            joints: chain.home(),
-            r_bd: lifted.initial_r_bd(),
-        };
+        let initial =
+            InitialConditions::<6, Spatial>::in_space(Pose::identity(), lifted.initial_r_bd(), chain.home());
         let noisy = PlantConfig::new(PlatformKind::Unicycle).with_imperfections(crate::Imperfections {
             noise: Some(crate::Noise::default()),
             ..Default::default()

@@ -13,17 +13,19 @@
 //! with `z₀` chosen by the caller — the runtime takes the height at which the arm at home
 //! holds the target at `r*_ed`, so the sine stays inside the arm's reach.
 //!
-//! **A user's file** ([`SpatialPiecewise`]): the planar target file's form (see
-//! [`crate::trajectory`]) with six numbers where the plane has three. The target's body
+//! **A user's file** (`PiecewiseTrajectory<Spatial>`): the planar target file's form and
+//! type ([`crate::trajectory`], [`PiecewiseTrajectory`]) with six numbers where the plane
+//! has three. The target's body
 //! twist `ξ = (v, ω)` (m/s, rad/s, in the target's own frame) is held over each segment,
 //! so the motion is exact: `r_d(t) = r_d(t_k) exp((t − t_k) ξ_k)`. After the last segment
 //! the target stops. Unknown keys are errors; every error names the key, the segment and
 //! the component (and TOML's own errors the line).
 //!
 //! ```
-//! use companion_plant::SpatialPiecewise;
+//! use companion_core::Spatial;
+//! use companion_plant::PiecewiseTrajectory;
 //!
-//! let target = SpatialPiecewise::from_toml_str(r#"
+//! let target = PiecewiseTrajectory::<Spatial>::from_toml_str(r#"
 //!     [initial]
 //!     r_bd = [2.5, 1.0, 0.9, 0.0, 0.0, 0.0]   # x, y, z (m), roll, pitch, yaw (rad)
 //!
@@ -32,20 +34,18 @@
 //!     velocity = [0.1, 0.0, 0.02, 0.0, 0.0, 0.1]  # v (m/s), ω (rad/s), body frame
 //! "#)?;
 //! assert_eq!(target.duration(), 5.0);
-//! assert_eq!(target.twist(1.0)[2], 0.02);
+//! assert_eq!(target.velocity(1.0)[2], 0.02);
 //! # Ok::<(), companion_plant::TrajectoryError>(())
 //! ```
 //!
 //! A complete example is `sim-plant/examples/target3d.toml`.
 
 use core::f64::consts::PI;
-use std::path::Path;
 
-use companion_core::nalgebra::{Vector3, Vector6};
-use companion_core::{so3, Pose3};
-use serde::Deserialize;
+use companion_core::nalgebra::Vector3;
+use companion_core::{Pose3, Spatial};
 
-use crate::trajectory::{segment_ends, Location, PaperTrajectory, Trajectory, TrajectoryError};
+use crate::trajectory::{PaperTrajectory, PiecewiseTrajectory, Trajectory};
 
 /// The default amplitude of the lifted trajectories' vertical sine (m).
 pub const LIFT_AMPLITUDE: f64 = 0.05;
@@ -91,77 +91,14 @@ impl LiftedTrajectory {
     }
 }
 
-/// One segment of a spatial piecewise target: a body twist held for a duration.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialSegment {
-    /// How long the twist is held (s), `> 0`.
-    pub duration: f64,
-    /// The target's body twist `(v, ω)` (m/s, rad/s), in its own frame.
-    pub twist: Vector6<f64>,
-}
-
-/// Piecewise-constant 6-DOF body twists from `t = 0`, with optional initial conditions
-/// (module docs).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SpatialPiecewise {
-    segments: Vec<SpatialSegment>,
-    ends: Vec<f64>,
-    initial_r_bd: Option<Pose3<f64>>,
-    initial_joints: Option<Vec<f64>>,
-}
-
-impl SpatialPiecewise {
-    /// A target from its segments, in order.
-    ///
-    /// # Errors
-    /// A duration that is not finite or not `> 0`, a twist component that is not finite,
-    /// or a total duration that overflows.
-    pub fn new(segments: Vec<SpatialSegment>) -> Result<Self, TrajectoryError> {
-        let ends = segment_ends(segments.iter().map(|s| (s.duration, s.twist.as_slice())))?;
-        Ok(Self { segments, ends, initial_r_bd: None, initial_joints: None })
-    }
-
-    /// The segments, in order.
-    pub fn segments(&self) -> &[SpatialSegment] {
-        &self.segments
-    }
-
-    /// The total duration (s).
-    pub fn duration(&self) -> f64 {
-        self.ends.last().copied().unwrap_or(0.0)
-    }
-
-    /// `r_bd(0)` if the file gives it.
-    pub fn initial_r_bd(&self) -> Option<Pose3<f64>> {
-        self.initial_r_bd
-    }
-
-    /// `q(0)` if the file gives it (rad or m).
-    pub fn initial_joints(&self) -> Option<&[f64]> {
-        self.initial_joints.as_deref()
-    }
-
-    /// The segment containing `t` (closed on the left), if any, and its start time.
-    fn segment_at(&self, t: f64) -> Option<(usize, f64)> {
-        if t.is_nan() || t < 0.0 {
-            return None;
-        }
-        let k = self.ends.partition_point(|&end| end <= t);
-        (k < self.segments.len()).then(|| (k, if k == 0 { 0.0 } else { self.ends[k - 1] }))
-    }
-
-    /// The body twist at `t` (zero before 0 and after the last segment).
-    pub fn twist(&self, t: f64) -> Vector6<f64> {
-        self.segment_at(t).map_or_else(Vector6::zeros, |(k, _)| self.segments[k].twist)
-    }
-
+impl PiecewiseTrajectory<Spatial> {
     /// The poses at which each segment starts, and the final one, from `r_d(0)`.
     pub fn segment_starts(&self, start: &Pose3<f64>) -> Vec<Pose3<f64>> {
-        let mut poses = Vec::with_capacity(self.segments.len() + 1);
+        let mut poses = Vec::with_capacity(self.segments().len() + 1);
         let mut p = *start;
         poses.push(p);
-        for s in &self.segments {
-            p = p.compose(&Pose3::exp(&(s.twist * s.duration)));
+        for s in self.segments() {
+            p = p.compose(&Pose3::exp(&(s.velocity * s.duration)));
             poses.push(p);
         }
         poses
@@ -170,7 +107,7 @@ impl SpatialPiecewise {
     /// `r_d(t)` from the segment starts ([`segment_starts`](Self::segment_starts)): exact.
     pub fn pose(&self, starts: &[Pose3<f64>], t: f64) -> Pose3<f64> {
         match self.segment_at(t) {
-            Some((k, t0)) => starts[k].compose(&Pose3::exp(&(self.segments[k].twist * (t - t0)))),
+            Some((k, t0)) => starts[k].compose(&Pose3::exp(&(self.segments()[k].velocity * (t - t0)))),
             None if t.is_nan() || t < 0.0 => starts[0],
             None => starts[starts.len() - 1],
         }
@@ -182,81 +119,28 @@ impl SpatialPiecewise {
         let starts = self.segment_starts(start);
         let (mut lo, mut hi) = (start.translation[2], start.translation[2]);
         let mut t0 = 0.0;
-        for (k, end) in self.ends.iter().enumerate() {
+        for (k, segment) in self.segments().iter().enumerate() {
+            let end = t0 + segment.duration;
             for i in 1..=64 {
                 let t = t0 + (end - t0) * f64::from(i) / 64.0;
-                let z = starts[k].compose(&Pose3::exp(&(self.segments[k].twist * (t - t0)))).translation[2];
+                let z = starts[k].compose(&Pose3::exp(&(segment.velocity * (t - t0)))).translation[2];
                 lo = lo.min(z);
                 hi = hi.max(z);
             }
-            t0 = *end;
+            t0 = end;
         }
         (lo, hi)
     }
-
-    /// Parses a spatial target file (module docs).
-    ///
-    /// # Errors
-    /// [`TrajectoryError::Parse`] for malformed TOML, an unknown or missing key or a value
-    /// of the wrong type (the message gives the line); the other variants for a value that
-    /// breaks a rule, naming the key and segment.
-    pub fn from_toml_str(text: &str) -> Result<Self, TrajectoryError> {
-        let file: TargetFile = toml::from_str(text).map_err(TrajectoryError::Parse)?;
-        let segments = file
-            .segment
-            .iter()
-            .enumerate()
-            .map(|(k, s)| {
-                let location = Location::Segment { number: k + 1, key: "velocity", index: None };
-                Ok(SpatialSegment { duration: s.duration, twist: six(&s.velocity, location)? })
-            })
-            .collect::<Result<_, TrajectoryError>>()?;
-        let mut target = Self::new(segments)?;
-        if let Some(initial) = file.initial {
-            if let Some(r) = initial.r_bd {
-                let v = six(&r, Location::Initial { key: "r_bd", index: None })?;
-                for (i, x) in v.iter().enumerate() {
-                    if !x.is_finite() {
-                        let location = Location::Initial { key: "r_bd", index: Some(i) };
-                        return Err(TrajectoryError::NonFinite { location, value: *x });
-                    }
-                }
-                target.initial_r_bd =
-                    Some(Pose3::new(so3::from_rpy(v[3], v[4], v[5]), Vector3::new(v[0], v[1], v[2])));
-            }
-            if let Some(q) = initial.q {
-                for (i, x) in q.iter().enumerate() {
-                    if !x.is_finite() {
-                        let location = Location::Initial { key: "q", index: Some(i) };
-                        return Err(TrajectoryError::NonFinite { location, value: *x });
-                    }
-                }
-                target.initial_joints = Some(q);
-            }
-        }
-        Ok(target)
-    }
-
-    /// Reads and parses a spatial target file.
-    ///
-    /// # Errors
-    /// [`TrajectoryError::Io`] if the file cannot be read, otherwise as
-    /// [`from_toml_str`](Self::from_toml_str).
-    pub fn load(path: impl AsRef<Path>) -> Result<Self, TrajectoryError> {
-        let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
-            .map_err(|error| TrajectoryError::Io { path: path.to_path_buf(), error })?;
-        Self::from_toml_str(&text)
-    }
 }
 
-/// The target of a spatial run.
+/// The target of a spatial run. (Beside the planar [`Trajectory`], which it contains: a lifted
+/// target is a planar trajectory plus a height, a file's target moves exactly in SE(3).)
 #[derive(Clone, Debug, PartialEq)]
 pub enum SpatialTarget {
     /// A paper trajectory lifted with a vertical sine.
     Lifted(LiftedTrajectory),
     /// Piecewise-constant body twists.
-    Piecewise(SpatialPiecewise),
+    Piecewise(PiecewiseTrajectory<Spatial>),
 }
 
 impl SpatialTarget {
@@ -278,44 +162,15 @@ impl SpatialTarget {
     }
 }
 
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct TargetFile {
-    #[serde(default)]
-    initial: Option<InitialFile>,
-    #[serde(default)]
-    segment: Vec<SegmentFile>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct InitialFile {
-    r_bd: Option<Vec<f64>>,
-    q: Option<Vec<f64>>,
-}
-
-#[derive(Debug, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SegmentFile {
-    duration: f64,
-    velocity: Vec<f64>,
-}
-
-fn six(values: &[f64], location: Location) -> Result<Vector6<f64>, TrajectoryError> {
-    if values.len() == 6 {
-        Ok(Vector6::from_column_slice(values))
-    } else {
-        Err(TrajectoryError::WrongLength { location, expected: 6, found: values.len() })
-    }
-}
-
 #[cfg(test)]
 mod tests {
+    use companion_core::nalgebra::Vector6;
+
     use super::*;
 
     #[test]
     fn a_file_moves_the_target_exactly_and_stops() {
-        let t = SpatialPiecewise::from_toml_str(
+        let t = PiecewiseTrajectory::<Spatial>::from_toml_str(
             r#"
             [initial]
             r_bd = [2.0, 1.0, 0.8, 0.0, 0.0, 0.5]
@@ -342,8 +197,8 @@ mod tests {
         assert!((end.translation - t.pose(&starts, 2.0).translation).norm() < 1e-14);
         let yaw = end.rotation[(1, 0)].atan2(end.rotation[(0, 0)]);
         assert!((yaw - 1.1).abs() < 1e-12, "{yaw}");
-        assert_eq!(t.twist(10.0), Vector6::zeros());
-        assert_eq!(t.twist(2.5)[5], 0.2);
+        assert_eq!(t.velocity(10.0), Vector6::zeros());
+        assert_eq!(t.velocity(2.5)[5], 0.2);
         let (lo, hi) = t.height_range(&r0);
         assert_eq!(lo, 0.8);
         assert!((hi - 0.9).abs() < 1e-12);
@@ -351,7 +206,7 @@ mod tests {
 
     #[test]
     fn bad_files_name_the_field() {
-        let err = |s: &str| SpatialPiecewise::from_toml_str(s).unwrap_err().to_string();
+        let err = |s: &str| PiecewiseTrajectory::<Spatial>::from_toml_str(s).unwrap_err().to_string();
         let e = err("[[segment]]\nduration = 1\nvelocity = [0, 0, 0]\n");
         assert!(e.contains("segment 1: `velocity` has 3 entries: it must have 6"), "{e}");
         let e = err("[[segment]]\nduration = -1\nvelocity = [0, 0, 0, 0, 0, 0]\n");

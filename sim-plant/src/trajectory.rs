@@ -38,8 +38,9 @@
 use core::f64::consts::{FRAC_PI_2, PI};
 use std::path::{Path, PathBuf};
 
-use companion_core::nalgebra::{SVector, Vector3};
-use companion_core::Pose;
+use companion_core::nalgebra::{SVector, Vector3, Vector6};
+use companion_core::space::Vector as _;
+use companion_core::{so3, Planar, Pose, Pose3, Space, Spatial};
 use serde::Deserialize;
 
 use crate::initial::InitialConditions;
@@ -228,48 +229,78 @@ fn table1(t: f64) -> Piece {
     }
 }
 
+/// What a target file's numbers mean in a space: the plane's `(x, y, θ)` and
+/// `(v₁, v₂, ω)`, or space's `(x, y, z, roll, pitch, yaw)` and the body twist `(v, ω)`. One
+/// file format and one [`PiecewiseTrajectory`] serve both (the spatial form is read by
+/// [`crate::spatial_target`]).
+pub trait FileSpace: Space<f64> {
+    /// `r_bd` from the file's numbers (as many as [`Space::DIM`]).
+    fn pose_of(v: &[f64]) -> Self::Pose;
+    /// A velocity from the file's numbers (as many as [`Space::DIM`]).
+    fn vector_of(v: &[f64]) -> Self::Vector;
+}
+
+impl FileSpace for Planar {
+    fn pose_of(v: &[f64]) -> Pose<f64> {
+        Pose::new(v[0], v[1], v[2])
+    }
+    fn vector_of(v: &[f64]) -> Vector3<f64> {
+        Vector3::new(v[0], v[1], v[2])
+    }
+}
+
+impl FileSpace for Spatial {
+    /// Position and roll, pitch, yaw: `R_z(yaw) R_y(pitch) R_x(roll)`.
+    fn pose_of(v: &[f64]) -> Pose3<f64> {
+        Pose3::new(so3::from_rpy(v[3], v[4], v[5]), Vector3::new(v[0], v[1], v[2]))
+    }
+    fn vector_of(v: &[f64]) -> Vector6<f64> {
+        Vector6::from_column_slice(v)
+    }
+}
+
 /// One segment of a piecewise trajectory: a constant body velocity held for a duration.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Segment {
+pub struct Segment<S: Space<f64> = Planar> {
     /// How long the velocity is held (s), `> 0`.
     pub duration: f64,
-    /// The target's body velocity `u_d = (v₁, v₂, ω)` (m/s, m/s, rad/s).
-    pub velocity: Vector3<f64>,
+    /// The target's body velocity: `u_d = (v₁, v₂, ω)` in the plane (m/s, m/s, rad/s), the
+    /// twist `(v, ω)` in its own frame in space (m/s, rad/s).
+    pub velocity: S::Vector,
 }
 
 /// Piecewise-constant target velocities, starting at `t = 0`; zero after the last segment
-/// (and before `t = 0`). Optionally carries the initial `r_bd(0)` and `q(0)` of a run.
+/// (and before `t = 0`). Optionally carries the initial `r_bd(0)` and `q(0)` of a run. In
+/// the plane (the default) the plant integrates it with the robot; in space
+/// (`PiecewiseTrajectory<Spatial>`) the motion is exact, `r_d(t) = r_d(t_k) exp((t − t_k) ξ_k)`.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PiecewiseTrajectory {
-    segments: Vec<Segment>,
+pub struct PiecewiseTrajectory<S: Space<f64> = Planar> {
+    segments: Vec<Segment<S>>,
     /// `ends[k]`: the time (s) at which segment `k` ends.
     ends: Vec<f64>,
-    initial_r_bd: Option<Pose<f64>>,
+    initial_r_bd: Option<S::Pose>,
     initial_joints: Option<Vec<f64>>,
 }
 
-impl PiecewiseTrajectory {
+impl<S: FileSpace> PiecewiseTrajectory<S> {
     /// A trajectory from its segments, in order, without initial conditions.
     ///
     /// # Errors
     /// A duration that is not finite or not `> 0`, a velocity component that is not finite,
     /// or a total duration that overflows.
-    pub fn new(segments: Vec<Segment>) -> Result<Self, TrajectoryError> {
+    pub fn new(segments: Vec<Segment<S>>) -> Result<Self, TrajectoryError> {
         let ends = segment_ends(segments.iter().map(|s| (s.duration, s.velocity.as_slice())))?;
         Ok(Self { segments, ends, initial_r_bd: None, initial_joints: None })
     }
 
-    /// The same trajectory with the initial target pose seen from the platform, `r_bd(0)`
-    /// (m, m, rad).
+    /// The same trajectory with the initial target pose seen from the platform, `r_bd(0)`.
     ///
     /// # Errors
     /// A coordinate that is not finite.
-    pub fn with_initial_r_bd(mut self, r_bd: Pose<f64>) -> Result<Self, TrajectoryError> {
-        for (i, v) in r_bd.to_vector().iter().enumerate() {
-            if !v.is_finite() {
-                let location = Location::Initial { key: "r_bd", index: Some(i) };
-                return Err(TrajectoryError::NonFinite { location, value: *v });
-            }
+    pub fn with_initial_r_bd(mut self, r_bd: S::Pose) -> Result<Self, TrajectoryError> {
+        if !S::pose_is_finite(&r_bd) {
+            let location = Location::Initial { key: "r_bd", index: None };
+            return Err(TrajectoryError::NonFinite { location, value: f64::NAN });
         }
         self.initial_r_bd = Some(r_bd);
         Ok(self)
@@ -280,18 +311,13 @@ impl PiecewiseTrajectory {
     /// # Errors
     /// A value that is not finite.
     pub fn with_initial_joints(mut self, q: Vec<f64>) -> Result<Self, TrajectoryError> {
-        for (i, v) in q.iter().enumerate() {
-            if !v.is_finite() {
-                let location = Location::Initial { key: "q", index: Some(i) };
-                return Err(TrajectoryError::NonFinite { location, value: *v });
-            }
-        }
+        finite(&q, "q")?;
         self.initial_joints = Some(q);
         Ok(self)
     }
 
     /// The segments, in order.
-    pub fn segments(&self) -> &[Segment] {
+    pub fn segments(&self) -> &[Segment<S>] {
         &self.segments
     }
 
@@ -300,8 +326,8 @@ impl PiecewiseTrajectory {
         self.ends.last().copied().unwrap_or(0.0)
     }
 
-    /// `r_bd(0)` if the trajectory carries it (m, m, rad).
-    pub fn initial_r_bd(&self) -> Option<Pose<f64>> {
+    /// `r_bd(0)` if the trajectory carries it.
+    pub fn initial_r_bd(&self) -> Option<S::Pose> {
         self.initial_r_bd
     }
 
@@ -310,16 +336,71 @@ impl PiecewiseTrajectory {
         self.initial_joints.as_deref()
     }
 
-    /// The body velocity at time `t` (s): that of the segment containing `t` (segments are
-    /// closed on the left), zero before 0 and from the end of the last segment on.
-    pub fn velocity(&self, t: f64) -> Vector3<f64> {
+    /// The segment containing `t` (segments are closed on the left), if any, and its start
+    /// time.
+    pub(crate) fn segment_at(&self, t: f64) -> Option<(usize, f64)> {
         if t.is_nan() || t < 0.0 {
-            return Vector3::zeros();
+            return None;
         }
         let k = self.ends.partition_point(|&end| end <= t);
-        self.segments.get(k).map_or_else(Vector3::zeros, |s| s.velocity)
+        (k < self.segments.len()).then(|| (k, if k == 0 { 0.0 } else { self.ends[k - 1] }))
     }
 
+    /// The body velocity at time `t` (s): that of the segment containing `t`, zero before 0
+    /// and from the end of the last segment on.
+    pub fn velocity(&self, t: f64) -> S::Vector {
+        self.segment_at(t).map_or_else(S::Vector::zeros, |(k, _)| self.segments[k].velocity)
+    }
+
+    /// Parses a target file (see the [module docs](self); in space,
+    /// [`crate::spatial_target`]): `velocity` and `r_bd` have [`Space::DIM`] entries.
+    ///
+    /// # Errors
+    /// [`TrajectoryError::Parse`] for malformed TOML, an unknown or missing key or a value
+    /// of the wrong type; the other variants for a value of the wrong length or that breaks a
+    /// rule, naming the key and segment.
+    pub fn from_toml_str(text: &str) -> Result<Self, TrajectoryError> {
+        let file: TargetFile = toml::from_str(text).map_err(TrajectoryError::Parse)?;
+        let segments = file
+            .segment
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let location = Location::Segment { number: k + 1, key: "velocity", index: None };
+                Ok(Segment {
+                    duration: s.duration,
+                    velocity: S::vector_of(sized::<S>(&s.velocity, location)?),
+                })
+            })
+            .collect::<Result<_, TrajectoryError>>()?;
+        let mut trajectory = Self::new(segments)?;
+        if let Some(initial) = file.initial {
+            if let Some(r_bd) = initial.r_bd {
+                let v = sized::<S>(&r_bd, Location::Initial { key: "r_bd", index: None })?;
+                finite(v, "r_bd")?;
+                trajectory = trajectory.with_initial_r_bd(S::pose_of(v))?;
+            }
+            if let Some(q) = initial.q {
+                trajectory = trajectory.with_initial_joints(q)?;
+            }
+        }
+        Ok(trajectory)
+    }
+
+    /// Reads and parses a target file.
+    ///
+    /// # Errors
+    /// [`TrajectoryError::Io`] if the file cannot be read, otherwise as
+    /// [`from_toml_str`](Self::from_toml_str).
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, TrajectoryError> {
+        let path = path.as_ref();
+        let text = std::fs::read_to_string(path)
+            .map_err(|error| TrajectoryError::Io { path: path.to_path_buf(), error })?;
+        Self::from_toml_str(&text)
+    }
+}
+
+impl PiecewiseTrajectory {
     /// The initial conditions of a run: `defaults` with the target placed so that
     /// `r_bd(0)` is the trajectory's (if it has one: `r_d = r_b · r_bd`) and the joints
     /// replaced by the trajectory's `q(0)` (if it has one).
@@ -342,55 +423,22 @@ impl PiecewiseTrajectory {
         }
         Ok(initial)
     }
+}
 
-    /// Parses a target file (see the [module docs](self)).
-    ///
-    /// # Errors
-    /// [`TrajectoryError::Parse`] for malformed TOML, an unknown or missing key or a value
-    /// of the wrong type or length; the other variants for a value that breaks a rule.
-    pub fn from_toml_str(text: &str) -> Result<Self, TrajectoryError> {
-        let file: TargetFile = toml::from_str(text).map_err(TrajectoryError::Parse)?;
-        let segments = file
-            .segment
-            .iter()
-            .enumerate()
-            .map(|(k, s)| {
-                let location = Location::Segment { number: k + 1, key: "velocity", index: None };
-                Ok(Segment { duration: s.duration, velocity: three(&s.velocity, location)? })
-            })
-            .collect::<Result<_, TrajectoryError>>()?;
-        let mut trajectory = Self::new(segments)?;
-        if let Some(initial) = file.initial {
-            if let Some(r_bd) = initial.r_bd {
-                let r_bd = three(&r_bd, Location::Initial { key: "r_bd", index: None })?;
-                trajectory = trajectory.with_initial_r_bd(Pose::from_vector(&r_bd))?;
-            }
-            if let Some(q) = initial.q {
-                trajectory = trajectory.with_initial_joints(q)?;
-            }
-        }
-        Ok(trajectory)
-    }
-
-    /// Reads and parses a target file.
-    ///
-    /// # Errors
-    /// [`TrajectoryError::Io`] if the file cannot be read, otherwise as
-    /// [`from_toml_str`](Self::from_toml_str).
-    pub fn load(path: impl AsRef<Path>) -> Result<Self, TrajectoryError> {
-        let path = path.as_ref();
-        let text = std::fs::read_to_string(path)
-            .map_err(|error| TrajectoryError::Io { path: path.to_path_buf(), error })?;
-        Self::from_toml_str(&text)
+/// Checks that every one of `values` (key `key` of `[initial]`) is finite.
+fn finite(values: &[f64], key: &'static str) -> Result<(), TrajectoryError> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(i) => Err(TrajectoryError::NonFinite {
+            location: Location::Initial { key, index: Some(i) },
+            value: values[i],
+        }),
+        None => Ok(()),
     }
 }
 
 /// The end times of consecutive segments given as `(duration, velocity components)`, each
-/// checked: a finite duration `> 0`, finite components, a finite total. Shared by the planar
-/// and the spatial ([`crate::spatial_target`]) piecewise targets.
-pub(crate) fn segment_ends<'a>(
-    segments: impl Iterator<Item = (f64, &'a [f64])>,
-) -> Result<Vec<f64>, TrajectoryError> {
+/// checked: a finite duration `> 0`, finite components, a finite total.
+fn segment_ends<'a>(segments: impl Iterator<Item = (f64, &'a [f64])>) -> Result<Vec<f64>, TrajectoryError> {
     let mut ends = Vec::new();
     let mut end = 0.0;
     for (k, (duration, velocity)) in segments.enumerate() {
@@ -421,7 +469,8 @@ pub(crate) fn segment_ends<'a>(
     Ok(ends)
 }
 
-/// The file's layout (private: the public type is [`PiecewiseTrajectory`]).
+/// The file's layout, in the plane and in space (private: the public type is
+/// [`PiecewiseTrajectory`]).
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct TargetFile {
@@ -447,11 +496,12 @@ struct SegmentFile {
     velocity: Vec<f64>,
 }
 
-/// `values` as a 3-vector, or the error naming `location`.
-fn three(values: &[f64], location: Location) -> Result<Vector3<f64>, TrajectoryError> {
-    match values {
-        [a, b, c] => Ok(Vector3::new(*a, *b, *c)),
-        _ => Err(TrajectoryError::WrongLength { location, expected: 3, found: values.len() }),
+/// `values` if they are as many as a vector of `S` has, or the error naming `location`.
+fn sized<S: Space<f64>>(values: &[f64], location: Location) -> Result<&[f64], TrajectoryError> {
+    if values.len() == S::DIM {
+        Ok(values)
+    } else {
+        Err(TrajectoryError::WrongLength { location, expected: S::DIM, found: values.len() })
     }
 }
 
@@ -512,7 +562,8 @@ pub enum TrajectoryError {
         /// The value.
         value: f64,
     },
-    /// An array has the wrong number of entries (rule: `velocity` and `r_bd` have 3).
+    /// An array has the wrong number of entries (rule: `velocity` and `r_bd` have 3 in the
+    /// plane, 6 in space).
     #[error("{location} has {found} entries: it must have {expected}")]
     WrongLength {
         /// Where the array is.
@@ -800,7 +851,7 @@ mod tests {
             for (d, a, b, c) in &segs {
                 text.push_str(&format!("[[segment]]\nduration = {d:?}\nvelocity = [{a:?}, {b:?}, {c:?}]\n"));
             }
-            let p = PiecewiseTrajectory::from_toml_str(&text).expect("valid");
+            let p: PiecewiseTrajectory = PiecewiseTrajectory::from_toml_str(&text).expect("valid");
             prop_assert_eq!(p.segments().len(), segs.len());
             let mut start = 0.0;
             for (s, (d, a, b, c)) in p.segments().iter().zip(&segs) {

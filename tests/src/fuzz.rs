@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
 use companion_core::{Measurement, PaperRun, PlatformKind, Pose, StepError};
-use companion_plant::PaperTrajectory;
+use companion_plant::{PaperTrajectory, Simulated};
 use companion_runtime::domain::controller::{AnyController, DiscretisationConfig, Scalar, JOINTS};
 use companion_runtime::domain::plant_setup;
 use companion_runtime::domain::scenario::{LimitsChoice, Scenario};

@@ -19,7 +19,6 @@ use companion_runtime::run::hil::chaos::{self, Plan};
 use companion_runtime::run::hil::control::{run_as_parent, session, Faults, ParentOutcome, Session};
 use companion_runtime::run::hil::fault::Corruption;
 use companion_runtime::run::hil::plant::PlantLock;
-use companion_runtime::run::hil::plant::PlantRun;
 use companion_runtime::run::hil::report::LatencyReport;
 use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
@@ -36,7 +35,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
-use super::sim::{print_spatial_table, print_table};
+use super::sim::print_table;
 use super::terminal::Terminal;
 
 /// The default simulated duration of a HIL run when `--duration` is not given (s).
@@ -322,15 +321,7 @@ impl HilArgs {
         let more = |b: ScenarioBuilder| b.delay(self.delay).delay_compensation(!self.no_delay_compensation);
         let hs = match SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm))? {
             None => HilScenario::Planar(self.scenario.scenario_with(DEFAULT_DURATION, more)?),
-            Some(arm) => {
-                if self.chaos.is_some() {
-                    bail!(
-                        "--chaos runs the paper's planar arm; it cannot be combined with --arm {}",
-                        self.arm
-                    );
-                }
-                HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?)
-            }
+            Some(arm) => HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?),
         };
         let s = hs.base();
         let timing = self.timing(s)?;
@@ -766,15 +757,12 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
         Ok(o) => o,
         Err(e) => return name_in_use_or(e.name_in_use().cloned(), e),
     };
-    match &outcome.run {
-        PlantRun::Planar(r) => print_table(std::slice::from_ref(r)),
-        PlantRun::Spatial(r) => print_spatial_table(&r.summary),
-    }
+    print_table(&[&outcome.summary]);
     print_latency(&outcome.latency);
     if outcome.end != PlantEnd::Completed {
         eprintln!("plant: {}", outcome.end.describe());
     }
-    print_failures("plant", outcome.run.failures());
+    print_failures("plant", &outcome.summary.failures);
     println!("wrote {}", cfg.out.display());
     if let Some(p) = &cfg.mcap {
         println!(
@@ -782,7 +770,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
             p.display()
         );
     }
-    Ok(ExitCode::from(plant_exit_code(&outcome.end, outcome.run.failures())))
+    Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.summary.failures)))
 }
 
 /// `companion control`.
@@ -1090,12 +1078,15 @@ mod tests {
         assert_eq!(s.base().controller.platform, companion_core::PlatformKind::Car);
         let (_, s) = T::parse_from(["x", "--arm", "rpr"]).a.resolve().unwrap();
         assert!(s.spatial().is_none(), "rpr is the paper's planar arm");
+        // `--chaos` and `--delay` as with the paper's arm.
+        let (cfg, s) = T::parse_from(["x", "--arm", "ur5", "--chaos", "3"]).a.resolve().unwrap();
+        assert_eq!((cfg.chaos.map(|c| c.seed), s.spatial().map(|ss| ss.arm.joints())), (Some(3), Some(6)));
+        let (_, s) =
+            T::parse_from(["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"]).a.resolve().unwrap();
+        assert_eq!((s.base().delay, s.spatial().map(|ss| ss.arm.joints())), (0.002, Some(6)));
         for (args, why) in [
-            (&["x", "--arm", "ur5", "--chaos", "3"][..], "--chaos runs the paper's planar arm"),
-            (
-                &["x", "--arm", "ur5", "--lockstep", "--delay", "0.002"][..],
-                "--delay is not available with a spatial arm",
-            ),
+            (&["x", "--arm", "ur5", "--chaos", "3", "--lockstep"][..], "--chaos needs real time"),
+            (&["x", "--arm", "ur5", "--delay", "0.002"][..], "--delay simulates a pure delay in lockstep"),
             (&["x", "--arm", "nosuch"][..], "nosuch"),
         ] {
             let e = format!("{:#}", T::parse_from(args).a.resolve().unwrap_err());

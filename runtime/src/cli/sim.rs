@@ -6,10 +6,10 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
-use companion_runtime::domain::record::{Failure, McapRecorder, PlanarReplay, ReplaySummary, RunOutcome};
+use companion_runtime::domain::record::{Failure, Replay, ReplaySummary, RunOutcome, Summary};
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::sim::{all_scenarios, run_one_replayed, run_one_with};
-use companion_runtime::run::spatial::{replay, run_spatial};
+use companion_runtime::run::spatial::run_spatial;
 use rayon::prelude::*;
 
 use super::args::ScenarioArgs;
@@ -130,7 +130,7 @@ fn run_scenarios(
         if !args.no_plots {
             companion_runtime::domain::plots::render_all(&args.out, &outcomes)?;
         }
-        print_table(&outcomes);
+        print_table(&outcomes.iter().map(|o| &o.summary).collect::<Vec<_>>());
         println!("wrote {} runs into {}", outcomes.len(), args.out.display());
         if !args.no_plots {
             println!("open {}", args.out.join("index.html").display());
@@ -141,7 +141,7 @@ fn run_scenarios(
         let b = a.builder(a.config_file()?, a.target(), a.choice.into(), a.platform.into(), DEFAULT_DURATION);
         let s = b.delay(args.delay).delay_compensation(!args.no_delay_compensation).build()?;
         // Created before the run, so that a path that cannot be written stops it here.
-        let replay = args.mcap.as_deref().map(|p| PlanarReplay::create(p, &s)).transpose()?;
+        let replay = args.mcap.as_deref().map(|p| Replay::for_scenario(p, &s)).transpose()?;
         let term = Terminal::bar(s.steps() + 1, false);
         let (outcome, replayed) = run_one_replayed(&s, &args.out, &term, acceptance, replay)?;
         term.finish();
@@ -151,7 +151,7 @@ fn run_scenarios(
         if !args.no_plots {
             companion_runtime::domain::plots::render_run(&args.out, &outcome)?;
         }
-        print_table(std::slice::from_ref(&outcome));
+        print_table(&[&outcome.summary]);
         println!("wrote {}", args.out.display());
         Ok(vec![outcome])
     }
@@ -165,27 +165,19 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
     let s = args.scenario.spatial_scenario(arm, DEFAULT_DURATION, |b| {
         b.delay(args.delay).delay_compensation(!args.no_delay_compensation)
     })?;
-    // Created before the run, so that a path that cannot be written stops it here.
-    let mcap = args.mcap.as_deref().map(|p| McapRecorder::create(p, replay::layout(&s))).transpose()?;
     let term = Terminal::bar(s.steps() + 1, false);
-    let outcome = run_spatial(&s, &args.out, &term, max_rejected);
+    // The replay file is created before the run writes anything: a path that cannot be
+    // written stops it there.
+    let run = run_spatial(&s, &args.out, &term, max_rejected, args.mcap.as_deref());
     term.finish();
-    let outcome = match outcome {
-        Ok(o) => o,
-        Err(e) => {
-            if let Some(m) = mcap {
-                m.discard();
-            }
-            return Err(e.into());
-        }
-    };
-    if let Some(m) = mcap {
-        print_replay(&replay::write(m, s.base.controller.platform, &outcome.records)?);
+    let (outcome, replayed) = run?;
+    if let Some(r) = &replayed {
+        print_replay(r);
     }
     if !args.no_plots {
-        companion_runtime::domain::plots::spatial::render(&args.out, &outcome.figures())?;
+        outcome.render(&args.out)?;
     }
-    print_spatial_table(&outcome.summary);
+    print_table(&[&outcome.summary]);
     let m = &outcome.summary;
     println!("wrote {}", args.out.display());
     let mut code = 0;
@@ -198,33 +190,6 @@ fn run_spatial_cli(args: &SimArgs, arm: SpatialArmSpec, max_rejected: f64) -> Re
         code = EXIT_INTERRUPTED;
     }
     Ok(ExitCode::from(code))
-}
-
-/// Prints the spatial run's line: its main figures, and its rejections.
-pub fn print_spatial_table(m: &companion_runtime::domain::record::spatial::SpatialSummary) {
-    println!(
-        "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
-        "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"
-    );
-    let (after, tracked) =
-        after_20s_columns(m.steps_after_20s, m.max_ep_norm_after_20s, m.fraction_ep_below_1e_3_after_20s);
-    println!(
-        "{:<34} {:>10.2e} {after} {tracked} {:>11.4} ({}) {:>9} {}",
-        m.scenario,
-        m.final_ep_norm,
-        m.smallest_joint_margin,
-        m.smallest_margin_joint,
-        m.rejected_steps,
-        num(m.wall_time_s, 9, 3)
-    );
-    print_clear_of_holds(
-        m.steps_after_20s,
-        m.steps_after_20s_clear_of_holds,
-        m.max_ep_norm_after_20s_clear_of_holds,
-    );
-    if m.rejected_steps > 0 {
-        println!("  {} steps rejected by the law: {}", m.rejected_steps, m.rejections.describe());
-    }
 }
 
 /// After a real-time run whose commands were held after 20 s: the maximum without the half
@@ -270,26 +235,45 @@ fn num(x: f64, width: usize, precision: usize) -> String {
     }
 }
 
-/// Prints one line per run with the main figures.
-pub fn print_table(outcomes: &[RunOutcome]) {
-    println!(
-        "{:<26} {:>10} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8} {:>9}",
-        "run", "final|ep|", "max|ep|>20", "tracked", "path m", "v sgn", "max|v|", "max|w|", "wall s"
-    );
-    for o in outcomes {
-        let s = &o.summary;
+/// Prints one line per run with the main figures: the paper's arm's (path, manoeuvres,
+/// speeds), or a spatial arm's (the joint nearest its limit) — the first run's arm says which.
+pub fn print_table(summaries: &[&Summary]) {
+    let spatial = summaries.first().is_some_and(|s| s.arm.is_some());
+    if spatial {
+        println!(
+            "{:<34} {:>10} {:>10} {:>8} {:>16} {:>9} {:>9}",
+            "run", "final|ep|", "max|ep|>20", "tracked", "min margin (j)", "rejected", "wall s"
+        );
+    } else {
+        println!(
+            "{:<26} {:>10} {:>10} {:>8} {:>9} {:>7} {:>8} {:>8} {:>9}",
+            "run", "final|ep|", "max|ep|>20", "tracked", "path m", "v sgn", "max|v|", "max|w|", "wall s"
+        );
+    }
+    for s in summaries {
         let (after, tracked) =
             after_20s_columns(s.steps_after_20s, s.max_ep_norm_after_20s, s.fraction_ep_below_1e_3_after_20s);
-        println!(
-            "{:<26} {:>10.2e} {after} {tracked} {} {:>7} {} {} {}",
-            s.scenario,
-            s.final_ep_norm,
-            num(s.path_length, 9, 2),
-            s.v_sign_changes,
-            num(s.max_abs_v, 8, 3),
-            num(s.max_abs_omega, 8, 3),
-            num(s.wall_time_s, 9, 3)
-        );
+        match &s.arm {
+            Some(a) => println!(
+                "{:<34} {:>10.2e} {after} {tracked} {:>11.4} ({}) {:>9} {}",
+                s.scenario,
+                s.final_ep_norm,
+                a.smallest_joint_margin,
+                a.smallest_margin_joint,
+                s.rejected_steps,
+                num(s.wall_time_s, 9, 3)
+            ),
+            None => println!(
+                "{:<26} {:>10.2e} {after} {tracked} {} {:>7} {} {} {}",
+                s.scenario,
+                s.final_ep_norm,
+                num(s.path_length, 9, 2),
+                s.v_sign_changes,
+                num(s.max_abs_v, 8, 3),
+                num(s.max_abs_omega, 8, 3),
+                num(s.wall_time_s, 9, 3)
+            ),
+        }
         print_clear_of_holds(
             s.steps_after_20s,
             s.steps_after_20s_clear_of_holds,

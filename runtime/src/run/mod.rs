@@ -1,12 +1,14 @@
 //! The run layer: the loops and processes of the command line's verbs.
 //!
-//! - [`sim`]: `companion sim`, the planar arm in one process;
+//! - [`robot`]: the simulated robot every loop drives, of either arm;
+//! - [`sim`]: `companion sim`, one process, its loop (also the HIL plant's in lockstep);
 //! - [`spatial`]: `companion sim --arm ur5|panda|FILE`, the spatial law of §5 on a spatial
-//!   plant;
+//!   plant, through the same loop and records;
 //! - [`hil`]: `companion hil`, `plant` and `control`, the two processes over a transport;
 //! - [`latency`]: `companion latency`, the transports' round trips measured.
 
 pub mod hil;
 pub mod latency;
+pub mod robot;
 pub mod sim;
 pub mod spatial;

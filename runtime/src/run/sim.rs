@@ -1,29 +1,31 @@
 //! The in-process simulation (`companion sim`): controller and plant in one process — no IPC,
-//! fast, deterministic.
+//! fast, deterministic — of either arm.
 //!
 //! The loop here ([`run_loop`]) is also the HIL plant's lockstep loop: only the way a
 //! measurement becomes a [`StepReport`] differs ([`Exchange`]), so both write the same bytes.
+//! It drives a [`Robot`] of either arm (the paper's planar arm is its 3-joint planar case,
+//! a spatial arm `run::spatial`'s); [`simulate`] is one run in process with its records.
 
 use std::convert::Infallible;
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-use companion_core::{Command, Measurement, PaperRun, PlatformKind, Pose, Rpr};
-use companion_plant::{AdvanceError, PaperTrajectory, Plant};
+use companion_core::{Command, Measurement, PaperRun, Planar, PlatformKind, Space};
+use companion_plant::{AdvanceError, PaperTrajectory, Simulated};
 
-use crate::domain::controller::{AnyController, StepReport, JOINTS};
+use crate::domain::controller::{AnyController, Law, StepReport, JOINTS};
 use crate::domain::observe::Observer;
 pub use crate::domain::plant_setup::build as build_plant;
 use crate::domain::plant_setup::PlantSetupError;
 use crate::domain::record::error::RecordError;
 use crate::domain::record::recorder::{summary_for, Log};
-use crate::domain::record::verdict::rejection_failure;
 use crate::domain::record::{
-    write_summary, Acceptance, CommandSource, PlanarReplay, PlantSample, RecordWriter, ReplaySummary, Row,
-    RowSink, RunOutcome, SummaryAccumulator,
+    write_summary, Acceptance, CommandSource, RecordWriter, Replay, ReplaySummary, Row, RowSink, RunOutcome,
+    Summary, SummaryAccumulator, Task,
 };
 use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
+pub use crate::run::robot::{sample, Robot};
 use crate::transport::link::LinkError;
 
 /// Why [`run_loop`] stopped on an error (its ends, SIGINT among them, are [`LoopEnd`]s).
@@ -57,8 +59,9 @@ pub enum SimError {
     Loop(#[from] LoopError),
 }
 
-/// Turns a measurement into the controller's report: in process, or over the wire.
-pub trait Exchange {
+/// Turns a measurement of an arm of `N` joints (targets in `S`) into the controller's report:
+/// in process, or over the wire.
+pub trait Exchange<const N: usize = JOINTS, S: Space<f64> = Planar> {
     /// Why an exchange may end the run before its last step, as a value the loop hands back
     /// ([`LoopEnd::Ended`]): the HIL plant's lost or refusing controller
     /// ([`PlantEnd`](crate::run::hil::PlantEnd)); [`Infallible`] in process.
@@ -71,29 +74,37 @@ pub trait Exchange {
     fn exchange(
         &mut self,
         n: u64,
-        meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Self::End, StepReport>, LinkError>;
+        meas: &Measurement<f64, N, S>,
+    ) -> Result<ControlFlow<Self::End, StepReport<N>>, LinkError>;
 }
 
-/// The controller in this process.
+/// The controller in this process: the paper's law ([`AnyController`], the default) or a
+/// spatial one.
 #[derive(Debug)]
-pub struct InProcess {
+pub struct InProcess<C = AnyController> {
     /// The controller.
-    pub controller: AnyController,
+    pub controller: C,
     /// The control period (s).
     pub dt: f64,
     /// The delay the controller is told (s): the scenario's, or 0 without compensation.
     pub delay: f64,
 }
 
+impl<C> InProcess<C> {
+    /// `controller` stepped at the period of scenario `s`, told its delay unless `s` switched
+    /// the compensation off.
+    pub fn with(controller: C, s: &Scenario) -> Self {
+        Self { controller, dt: s.dt, delay: if s.delay_compensation { s.delay } else { 0.0 } }
+    }
+}
+
 impl InProcess {
-    /// The controller of a scenario.
+    /// The controller of a scenario of the paper's arm.
     ///
     /// # Errors
     /// An invalid parameter.
     pub fn new(s: &Scenario) -> Result<Self, ScenarioError> {
-        let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
-        Ok(Self { controller, dt: s.dt, delay: if s.delay_compensation { s.delay } else { 0.0 } })
+        Ok(Self::with(AnyController::new(&s.controller).map_err(ScenarioError::Param)?, s))
     }
 
     /// The controller's report for `meas` (an in-process exchange cannot fail or end a run).
@@ -103,16 +114,16 @@ impl InProcess {
     }
 }
 
-impl Exchange for InProcess {
+impl<C: Law<N, S>, const N: usize, S: Space<f64>> Exchange<N, S> for InProcess<C> {
     type End = Infallible;
 
     #[inline]
     fn exchange(
         &mut self,
         _n: u64,
-        meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<Infallible, StepReport>, LinkError> {
-        Ok(ControlFlow::Continue(self.report(meas)))
+        meas: &Measurement<f64, N, S>,
+    ) -> Result<ControlFlow<Infallible, StepReport<N>>, LinkError> {
+        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, self.delay)))
     }
 }
 
@@ -122,8 +133,8 @@ impl Exchange for InProcess {
 /// its first `r` seconds and command `n − m` for the rest. Before the first command the
 /// robot is at rest. A fixed ring: nothing allocates in the loop.
 #[derive(Clone, Debug)]
-pub struct DelayLine {
-    ring: [Command<f64, JOINTS>; DELAY_RING],
+pub struct DelayLine<const N: usize = JOINTS> {
+    ring: [Command<f64, N>; DELAY_RING],
     whole: usize,
     rest: f64,
 }
@@ -131,7 +142,7 @@ pub struct DelayLine {
 /// Commands the delay line remembers: a delay spans at most `HISTORY` periods.
 const DELAY_RING: usize = companion_core::HISTORY + 2;
 
-impl DelayLine {
+impl<const N: usize> DelayLine<N> {
     /// A delay of `delay` seconds at period `dt` (`0 ≤ delay ≤ HISTORY·dt`, checked by the
     /// scenario).
     pub fn new(delay: f64, dt: f64) -> Self {
@@ -146,11 +157,7 @@ impl DelayLine {
     /// Remembers command `n` and returns `(previous, current, delay within the period)` for
     /// period `n`.
     #[inline]
-    pub fn push(
-        &mut self,
-        n: u64,
-        command: &Command<f64, JOINTS>,
-    ) -> (Command<f64, JOINTS>, Command<f64, JOINTS>, f64) {
+    pub fn push(&mut self, n: u64, command: &Command<f64, N>) -> (Command<f64, N>, Command<f64, N>, f64) {
         let slot = |k: u64| (k % DELAY_RING as u64) as usize;
         self.ring[slot(n)] = *command;
         let at = |back: usize| {
@@ -158,28 +165,6 @@ impl DelayLine {
             k.map_or(Command::zero(), |k| self.ring[slot(k)])
         };
         (at(self.whole + 1), at(self.whole), self.rest)
-    }
-}
-
-/// The plant's state as recorded, with the true tracking error for the desired pose
-/// `target_in_effector` (`r*_ed`).
-pub fn sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
-    PlantSample { end_effector: plant.end_effector(), ..summary_sample(plant, target_in_effector) }
-}
-
-/// The plant's state for a step that is not logged: what the summary reads, without the
-/// end effector's pose (its forward kinematics cost four sin/cos; the pose is left at the
-/// identity).
-pub fn summary_sample(plant: &Plant<Rpr<f64>, JOINTS>, target_in_effector: &Pose<f64>) -> PlantSample {
-    let x = plant.truth();
-    PlantSample {
-        t: plant.time(),
-        base: x.base,
-        steering: x.steering,
-        joints: x.joints,
-        end_effector: Pose::identity(),
-        target: x.target,
-        ep_norm: plant.tracking_error(target_in_effector).norm(),
     }
 }
 
@@ -200,24 +185,30 @@ pub enum LoopEnd<X = Infallible> {
     Ended(X),
 }
 
-/// Runs steps `0..=steps` of a scenario in lockstep: measure, exchange, record, advance.
-/// After SIGINT or SIGTERM (looked for every 4096 steps, one atomic load) the step at hand
-/// is recorded as the last one, so that the files end cleanly.
+/// Runs steps `0..=steps` of scenario `s` in lockstep with the robot of either arm: measure,
+/// exchange, record, advance (with `s`'s pure delay, if any). After SIGINT or SIGTERM (looked
+/// for every 4096 steps, one atomic load) the step at hand is recorded as the last one, so
+/// that the files end cleanly.
 ///
 /// # Errors
-/// The exchange or the recording failed.
-pub fn run_loop<E: Exchange, R: RowSink>(
+/// The exchange or the recording failed, or the plant refused a step.
+pub fn run_loop<P, E, K, const N: usize>(
     s: &Scenario,
-    plant: &mut Plant<Rpr<f64>, JOINTS>,
+    robot: &mut Robot<'_, P, N>,
     exchange: &mut E,
-    sink: &mut R,
+    sink: &mut K,
     observer: &dyn Observer,
-) -> Result<LoopEnd<E::End>, LoopError> {
+) -> Result<LoopEnd<E::End>, LoopError>
+where
+    P: Simulated<N>,
+    P::Space: Task,
+    E: Exchange<N, P::Space>,
+    K: RowSink<P::Space, N>,
+{
     let steps = s.steps();
-    let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
-    let star = s.controller.params::<f64>().primary.target_in_effector;
+    let mut delay = (s.delay > 0.0).then(|| DelayLine::<N>::new(s.delay, s.dt));
     for n in 0..=steps {
-        let meas = plant.measure();
+        let meas = robot.measure();
         let report = match exchange.exchange(n, &meas)? {
             ControlFlow::Continue(report) => report,
             ControlFlow::Break(end) => return Ok(LoopEnd::Ended(end)),
@@ -225,19 +216,18 @@ pub fn run_loop<E: Exchange, R: RowSink>(
         let interrupted =
             n % PROGRESS_EVERY == 0 && n < steps && crate::sys::signals::termination_requested();
         let last = n == steps || interrupted;
-        let plant_sample =
-            if sink.logs(n, last) { sample(plant, &star) } else { summary_sample(plant, &star) };
-        let row = Row { plant: plant_sample, report, source: CommandSource::Fresh };
+        let row = robot.row(&report, CommandSource::Fresh, sink.logs(n, last));
         sink.record(n, &row, last)?;
         if interrupted {
             return Ok(LoopEnd::Interrupted { last: n });
         }
         if n < steps {
+            let c = &report.command;
             match &mut delay {
-                None => plant.advance(&report.command, s.dt),
+                None => robot.advance(c, c, 0.0, s.dt)?,
                 Some(line) => {
-                    let (previous, current, within) = line.push(n, &report.command);
-                    plant.try_advance_delayed(&previous, &current, within, s.dt)?;
+                    let (previous, current, within) = line.push(n, c);
+                    robot.advance(&previous, &current, within, s.dt)?;
                 }
             }
         }
@@ -254,24 +244,74 @@ const WRITER_RING: usize = 1 << 14;
 /// The simulation's recording: the summary over every step on the loop's thread, the logged
 /// rows to the writer thread (which formats the CSV, a quarter of the work of a run, in
 /// parallel).
-struct Background {
+struct Background<S: Task, const N: usize> {
     summary: SummaryAccumulator,
-    log: RecordWriter<Log>,
+    log: RecordWriter<Log<S, N>, S, N>,
 }
 
-impl RowSink for Background {
+impl<S: Task, const N: usize> RowSink<S, N> for Background<S, N> {
     fn log_every(&self) -> u64 {
         self.log.log_every()
     }
 
     #[inline]
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
+    fn record(&mut self, n: u64, row: &Row<S, N>, last: bool) -> Result<(), RecordError> {
         self.summary.add(row);
         if self.logs(n, last) {
             self.log.record(n, row, last)?;
         }
         Ok(())
     }
+}
+
+/// What a simulation in process gives back: its summary (judged), logged rows and replay.
+#[derive(Debug)]
+pub struct Simulation<S: Task, const N: usize> {
+    /// The summary.
+    pub summary: Summary,
+    /// The logged rows.
+    pub rows: Vec<Row<S, N>>,
+    /// The replay file, if one was written.
+    pub replay: Option<ReplaySummary>,
+}
+
+/// One run of scenario `s` in process, of either arm: the robot against the controller in this
+/// process, the summary over every step here, the logged rows (`log`, with its replay file if
+/// any) written by a thread of their own; the summary judged against `max_rejected` (and
+/// `ended_early` if SIGINT or SIGTERM cut the run short). The replay file is finished whether
+/// the run succeeds or not: after an error part-way it holds the rows up to the error. The
+/// caller writes `summary.json` and `scenario.json`.
+///
+/// # Errors
+/// The loop or the recording failed.
+pub fn simulate<P, C, const N: usize>(
+    s: &Scenario,
+    robot: &mut Robot<'_, P, N>,
+    controller: C,
+    log: Log<P::Space, N>,
+    summary: SummaryAccumulator,
+    observer: &dyn Observer,
+    max_rejected: f64,
+) -> Result<Simulation<P::Space, N>, LoopError>
+where
+    P: Simulated<N>,
+    P::Space: Task,
+    C: Law<N, P::Space>,
+{
+    let mut exchange = InProcess::with(controller, s);
+    let log = RecordWriter::spawn(log, WRITER_RING, Duration::from_secs(1))?;
+    let mut sink = Background { summary, log };
+    let start = Instant::now();
+    let looped = run_loop(s, robot, &mut exchange, &mut sink, observer);
+    let finished = sink.log.finish();
+    // The loop's error first: it says what went wrong (the writer's may only say that it
+    // stopped). A log dropped here finishes its replay file as it goes.
+    let end = looped?;
+    let mut log = finished?;
+    let replay = log.finish_replay().map_err(RecordError::from)?;
+    let mut summary = sink.summary.finish(start.elapsed().as_secs_f64());
+    summary.judge(end != LoopEnd::Completed, max_rejected);
+    Ok(Simulation { summary, rows: log.rows, replay })
 }
 
 /// Runs one scenario in process and writes its files into `dir`, held to the default
@@ -309,31 +349,15 @@ pub fn run_one_replayed(
     dir: &Path,
     observer: &dyn Observer,
     acceptance: &Acceptance,
-    replay: Option<PlanarReplay>,
+    replay: Option<Replay>,
 ) -> Result<(RunOutcome, Option<ReplaySummary>), SimError> {
     let mut plant = build_plant(s)?;
-    let mut exchange = InProcess::new(s)?;
+    let controller = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
+    let mut robot = Robot::of(&mut plant, s);
     let log = Log::for_scenario(s, dir)?.with_replay(replay);
-    let log = RecordWriter::spawn(log, WRITER_RING, Duration::from_secs(1))?;
-    let mut sink = Background { summary: summary_for(s), log };
-    let start = Instant::now();
-    let looped = run_loop(s, &mut plant, &mut exchange, &mut sink, observer);
-    let finished = sink.log.finish();
-    // The loop's error first: it says what went wrong (the writer's may only say that it
-    // stopped). A log dropped here finishes its replay file as it goes.
-    let end = looped?;
-    let mut log = finished?;
-    let replayed = log.finish_replay().map_err(RecordError::from)?;
-    let mut summary = sink.summary.finish(start.elapsed().as_secs_f64());
-    summary.ended_early = end != LoopEnd::Completed;
-    summary.failures.extend(rejection_failure(
-        &summary.rejections,
-        summary.steps,
-        summary.first_rejection_at_s,
-        acceptance.max_rejected,
-    ));
-    write_summary(dir, s, &summary)?;
-    Ok((RunOutcome { scenario: s.clone(), summary, rows: log.rows }, replayed))
+    let run = simulate(s, &mut robot, controller, log, summary_for(s), observer, acceptance.max_rejected)?;
+    write_summary(dir, s, &run.summary)?;
+    Ok((RunOutcome { scenario: s.clone(), summary: run.summary, rows: run.rows }, run.replay))
 }
 
 /// The scenarios of `companion sim --all`: every paper run (trajectories 1 and 2 × a–d), b and

@@ -4,19 +4,19 @@
 //!
 //! The loop is `sim::run_loop`'s (measure, step, advance — and the same pure delay), with
 //! nothing logged: the summary reads the plant's exact state at every step. [`run_spatial`]
-//! does the same for a spatial arm (`sim --arm`'s loop, its [`SpatialSummary`]).
+//! does the same for a spatial arm (`sim --arm`'s loop), into the same [`Summary`].
 
 use companion_core::{Manipulator, Spatial, SpatialArm};
-use companion_plant::AdvanceError;
+use companion_plant::{AdvanceError, Simulated};
 use serde::{Deserialize, Serialize};
 
 use crate::domain::arm::ArmError;
 use crate::domain::controller::{boxed_spatial_controller, AnyController};
 use crate::domain::plant_setup::{self, PlantSetupError};
-use crate::domain::record::spatial::{SpatialAccumulator, SpatialSummary};
 use crate::domain::record::{CommandSource, Row, Summary};
 use crate::domain::scenario::{Scenario, ScenarioError};
-use crate::run::sim::{summary_sample, DelayLine};
+use crate::run::robot::Robot;
+use crate::run::sim::{sample, DelayLine};
 use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
 
 /// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
@@ -32,6 +32,9 @@ pub enum TrialError {
     /// The plant refused a step.
     #[error(transparent)]
     Advance(#[from] AdvanceError),
+    /// A spatial scenario's arm, law, target or plant cannot be built.
+    #[error(transparent)]
+    Spatial(#[from] SpatialRunError),
 }
 
 /// How a trial judges its run.
@@ -171,9 +174,9 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     for n in 0..=steps {
         let meas = plant.measure();
         let report = ctrl.step(&meas, s.dt, told);
-        let sample = summary_sample(&plant, &star);
-        summary.add(&Row { plant: sample, report, source: CommandSource::Fresh });
-        if !tail.add(sample.t, sample.ep_norm, report.saturation) {
+        let state = sample(&plant, &star, false);
+        summary.add(&Row { plant: state, report, source: CommandSource::Fresh });
+        if !tail.add(state.t, state.ep_norm, report.saturation) {
             break;
         }
         if n < steps {
@@ -189,32 +192,12 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(s.dt) })
 }
 
-/// Why a spatial trial could not run.
-#[derive(Debug, thiserror::Error)]
-pub enum SpatialTrialError {
-    /// The arm, the law, the target or the plant cannot be built.
-    #[error(transparent)]
-    Setup(#[from] SpatialRunError),
-    /// The plant refused a step.
-    #[error(transparent)]
-    Advance(#[from] AdvanceError),
-}
-
-/// The outcome of one spatial trial (`companion explore --arm`).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SpatialTrial {
-    /// The run's summary (as `summary.json` would have it, without the wall time).
-    pub summary: SpatialSummary,
-    /// The exploration's figures.
-    pub tail: Tail,
-}
-
 /// Runs the spatial scenario `s` in process, without files: `companion sim --arm`'s loop
 /// (`run::spatial::execute`: measure, step, advance) with nothing logged.
 ///
 /// # Errors
 /// A bad arm, law, target or plant, or a plant step refused.
-pub fn run_spatial(s: &SpatialScenario, judge: &Judge) -> Result<SpatialTrial, SpatialTrialError> {
+pub fn run_spatial(s: &SpatialScenario, judge: &Judge) -> Result<Trial, TrialError> {
     match s.arm.joints() {
         6 => run_spatial_n::<6>(s, judge),
         7 => run_spatial_n::<7>(s, judge),
@@ -223,10 +206,7 @@ pub fn run_spatial(s: &SpatialScenario, judge: &Judge) -> Result<SpatialTrial, S
     }
 }
 
-fn run_spatial_n<const N: usize>(
-    s: &SpatialScenario,
-    judge: &Judge,
-) -> Result<SpatialTrial, SpatialTrialError>
+fn run_spatial_n<const N: usize>(s: &SpatialScenario, judge: &Judge) -> Result<Trial, TrialError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
@@ -236,26 +216,26 @@ where
         boxed_spatial_controller::<N>(&s.base.controller, &s.arm).map_err(SpatialRunError::from)?;
     let star = ctrl.target_in_effector();
     let mut plant = spatial::build_plant(s, &chain, &star)?;
-    let (lower, upper) = spatial::limits(&chain);
-    let mut summary = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
+    let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+    let mut summary = spatial::summary_for(s, &chain);
     let (steps, dt) = (s.steps(), s.base.dt);
     let mut tail = TailCounter::new(judge, steps, dt);
     for n in 0..=steps {
-        let meas = plant.measure();
+        let meas = robot.measure();
         let report = ctrl.step(&meas, dt, 0.0);
-        let rec = spatial::record_of(&plant, &star, &report, CommandSource::Fresh, false);
-        summary.add(&rec);
-        if !tail.add(rec.t, rec.ep_norm, report.saturation) {
+        let row = robot.row(&report, CommandSource::Fresh, false);
+        summary.add(&row);
+        if !tail.add(row.plant.t, row.plant.ep_norm, report.saturation) {
             break;
         }
         if n < steps {
-            plant.try_advance(&report.command, dt)?;
+            robot.advance(&report.command, &report.command, 0.0, dt)?;
         }
     }
-    Ok(SpatialTrial { summary: summary.finish(0.0, false, 1.0), tail: tail.finish(dt) })
+    Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(dt) })
 }
 
-/// What an exploration's line reads from a run, planar or spatial.
+/// What an exploration's line reads from a run, planar or spatial (one [`Summary`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Figures {
     /// `‖e_p‖` at the last step.
@@ -266,8 +246,8 @@ pub struct Figures {
     pub max_abs_v: f64,
     /// Steps the law rejected.
     pub rejected_steps: u64,
-    /// The platform's reversals (planar runs' `maneuvers`; `None`: not counted, spatial runs).
-    pub maneuvers: Option<u64>,
+    /// The platform's reversals (`summary.json`'s `maneuvers`).
+    pub maneuvers: u64,
     /// Steps run.
     pub steps: u64,
 }
@@ -281,22 +261,7 @@ impl Trial {
             min_joint_margin: m.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min),
             max_abs_v: m.max_abs_v,
             rejected_steps: m.rejected_steps,
-            maneuvers: Some(m.maneuvers),
-            steps: m.steps,
-        }
-    }
-}
-
-impl SpatialTrial {
-    /// The figures an exploration writes.
-    pub fn figures(&self) -> Figures {
-        let m = &self.summary;
-        Figures {
-            final_ep_norm: m.final_ep_norm,
-            min_joint_margin: m.smallest_joint_margin,
-            max_abs_v: m.max_abs_v,
-            rejected_steps: m.rejected_steps,
-            maneuvers: None,
+            maneuvers: m.maneuvers,
             steps: m.steps,
         }
     }

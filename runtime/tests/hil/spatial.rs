@@ -1,6 +1,7 @@
 //! The HIL demo with a spatial arm (`--arm ur5|panda|FILE`, §5): lockstep runs byte-identical
-//! to `companion sim --arm`, a real-time run that tracks, and arms that do not match refused
-//! by both sides with the reason.
+//! to `companion sim --arm` (with `--delay` too), a real-time run that tracks, a chaos soak
+//! whose counts match what was injected, and arms that do not match refused by both sides
+//! with the reason.
 
 use super::*;
 
@@ -13,42 +14,18 @@ fn arm_file(name: &str) -> String {
 fn a_spatial_arm_in_lockstep_is_byte_identical_to_sim() {
     let _g = serial();
     let panda = arm_file("panda.toml");
-    let runs: [&[&str]; 3] = [
+    // With a simulated delay the plant announces it and the controller predicts over it (or,
+    // with --no-delay-compensation, over 0), as `companion sim --arm … --delay` does.
+    let runs: [&[&str]; 5] = [
         &["--arm", "ur5"],
         &["--arm", "ur5", "--platform", "omni", "--trajectory", "2"],
         &["--arm", &panda, "--platform", "car", "--scalar", "f32", "--choice", "c"],
+        &["--arm", "ur5", "--delay", "0.0025"],
+        &["--arm", "panda", "--delay", "0.0025", "--no-delay-compensation"],
     ];
     for extra in runs {
-        let d = dir("spatial-lockstep");
-        let (hil_dir, sim_dir) = (d.join("hil"), d.join("sim"));
-        let (hm, sm) = (d.join("hil.mcap"), d.join("sim.mcap"));
-        let n = name("spatial-lockstep");
-        let mut args = vec!["hil", "--lockstep", "--duration", "2", "--no-plots", "--name", &n];
-        args.extend(["--out", hil_dir.to_str().unwrap(), "--mcap", hm.to_str().unwrap()]);
-        args.extend(extra);
-        let (st, out, err) = run(&args);
-        assert!(st.success(), "{extra:?}\n{out}\n{err}");
-        let mut args = vec!["sim", "--duration", "2", "--no-plots"];
-        args.extend(["--out", sim_dir.to_str().unwrap(), "--mcap", sm.to_str().unwrap()]);
-        args.extend(extra);
-        let (st, _, err) = run(&args);
-        assert!(st.success(), "{err}");
-        let a = std::fs::read(hil_dir.join("timeseries.csv")).unwrap();
-        let b = std::fs::read(sim_dir.join("timeseries.csv")).unwrap();
-        assert!(a.len() > 10_000, "a real file ({} bytes)", a.len());
-        assert!(a == b, "hil --lockstep {extra:?} and sim --arm differ");
-        assert!(
-            std::fs::read(&hm).unwrap() == std::fs::read(&sm).unwrap(),
-            "{extra:?}: the MCAP files differ"
-        );
-        let (hs, ss) = (json(&hil_dir.join("summary.json")), json(&sim_dir.join("summary.json")));
-        assert_eq!(hs["trajectory_digest"], ss["trajectory_digest"], "{extra:?}");
-        assert_eq!(hs["verdict"], "ok");
-        assert_eq!(json(&hil_dir.join("scenario.json"))["joints"], ss["joints"]);
-        let lat = json(&hil_dir.join("latency.json"));
-        assert_eq!(lat["mode"], "lockstep");
-        assert_eq!(lat["cycles"], 2001);
-        assert_eq!(lat["invalid_total"], 0);
+        let (hs, _) = lockstep_equals_sim("2", extra);
+        assert_eq!(hs["verdict"], "ok", "{extra:?}");
     }
 }
 
@@ -85,6 +62,14 @@ fn a_spatial_arm_in_real_time_tracks_its_target() {
     let held = rows.iter().filter(|r| *r.last().unwrap() == "held").count();
     assert!(rows.iter().all(|r| matches!(*r.last().unwrap(), "ok" | "held")), "only fresh and held commands");
     assert_eq!(held as u64, lat["held_periods"].as_u64().unwrap());
+    // summary.json says where the commands came from, as the planar arm's does.
+    let sources = &s["command_sources"];
+    assert_eq!(
+        (sources["held"].as_u64(), sources["stopped"].as_u64()),
+        (Some(held as u64), Some(0)),
+        "{s:#}"
+    );
+    assert_eq!(sources["fresh"].as_u64(), Some(4001 - held as u64), "{s:#}");
     let (first, last) = (ep[0], ep[ep.len() - 1]);
     println!("‖e_p‖ {first:.3e} → {last:.3e}; {held} periods held");
     assert!(last < 0.25 * first, "‖e_p‖ {first} → {last}");
@@ -104,21 +89,8 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
     let d = dir("arm-file");
     let n = name("arm-file");
     let ur5 = arm_file("ur5.toml");
-    let ((ps, pe), (cs, ce)) = two_roles(
-        &[
-            "--arm",
-            "ur5",
-            "--lockstep",
-            "--duration",
-            "1",
-            "--no-plots",
-            "--name",
-            &n,
-            "--out",
-            d.to_str().unwrap(),
-        ],
-        &["--arm", &ur5, "--name", &n],
-    );
+    let plant = [&["--arm", "ur5"][..], &lockstep_plant(&n, &d)].concat();
+    let ((ps, pe), (cs, ce)) = two_roles(&plant, &["--arm", &ur5, "--name", &n]);
     assert!(ps.success() && cs.success(), "plant:\n{pe}\ncontroller:\n{ce}");
     // The same joints, another limit: refused for the arm, both sides naming both arms.
     let other = d.join("ur5-other.toml");
@@ -133,19 +105,12 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
     let refused = |plant: &[&str], control: &[&str], why: &str| {
         let d = dir("arm-refused");
         let n = name("arm-refused");
-        let mut p =
-            vec!["--lockstep", "--duration", "1", "--no-plots", "--name", &n, "--out", d.to_str().unwrap()];
-        p.extend(plant);
+        let p = [&lockstep_plant(&n, &d)[..], plant].concat();
         let mut c = vec!["--name", n.as_str()];
         c.extend(control);
-        let ((ps, pe), (cs, ce)) = two_roles(&p, &c);
-        assert_eq!(cs.code(), Some(2), "{ce}");
-        assert_eq!(ps.code(), Some(2), "{pe}");
-        assert!(ce.contains(&format!("refused the plant: {why}")), "{ce}");
-        assert!(pe.contains(&format!("the controller refused this plant: {why}")), "{pe}");
-        let lat = json(&d.join("latency.json"));
-        assert!(lat["end"].as_str().unwrap().contains(why), "{lat:#}");
-        (pe, ce)
+        let (plant, control) = two_roles(&p, &c);
+        refused_for(&d, &plant, &control, why);
+        (plant.1, control.1)
     };
     let (_, ce) = refused(&["--arm", "ur5"], &["--arm", other.to_str().unwrap()], "arm mismatch");
     assert!(ce.contains("the plant's arm is ur5"), "{ce}");
@@ -164,39 +129,37 @@ fn an_arm_file_equal_to_the_preset_is_admitted_and_another_arm_is_refused() {
 #[test]
 fn a_killed_spatial_plant_leaves_its_rows_on_disk() {
     let _g = serial();
-    let d = dir("spatial-kill");
-    let n = name("spatial-kill");
-    let mut demo = Demo::start(&[
-        "hil",
-        "--arm",
-        "ur5",
-        "--duration",
-        "20",
-        "--log-every",
-        "1",
-        "--no-plots",
-        "--quiet",
-        "--name",
-        &n,
-        "--out",
-        d.to_str().unwrap(),
-    ]);
-    let pid = demo.plant_pid();
-    wait_rows(&d.join("timeseries.csv"), 500);
-    signal(pid, "KILL");
+    let (demo, _, d) = kill_the_plant("spatial-kill", &["--arm", "ur5"]);
     let (st, seen) = demo.wait(Duration::from_secs(20));
     assert_eq!(st.code(), Some(3), "{seen:#?}");
     // The rows written as the run went (every 50 ms) are there, every line complete.
-    let text = std::fs::read_to_string(d.join("timeseries.csv")).unwrap();
-    let mut lines = text.lines();
-    let cols = lines.next().expect("a header").split(',').count();
-    let rows: Vec<&str> = lines.collect();
-    // At least the 500 rows seen before the kill (a starved plant may have written none since).
-    assert!(rows.len() >= 500, "{} rows", rows.len());
-    for l in &rows {
-        assert_eq!(l.split(',').count(), cols, "malformed line {l:?}");
-    }
-    let fault = json(&d.join("fault.json"));
-    assert_eq!(fault["plant_exit"], "killed by signal 9");
-    assert_eq!(fault["rows_on_disk"].as_u64(), Some(rows.len() as u64));
+    rows_kept_after_the_kill(&d);
+}
+
+/// `--chaos` with a spatial arm, as with the paper's (the CI's soak): seeded stops of either
+/// process, corrupted and held-back commands; the plant counts them, and the check in
+/// `chaos.json` finds every count matching what was injected and every row on disk.
+#[test]
+fn a_spatial_chaos_soak_counts_what_was_injected() {
+    let _g = serial();
+    let d = dir("spatial-chaos");
+    let n = name("spatial-chaos");
+    let args =
+        ["hil", "--arm", "ur5", "--chaos", "1", "--duration", "6", "--no-plots", "--quiet", "--name", &n];
+    let mut all = args.to_vec();
+    all.extend(["--out", d.to_str().unwrap()]);
+    let (st, out, err) = run(&all);
+    let chaos = json(&d.join("chaos.json"));
+    assert!(st.success(), "{out}\n{err}\n{chaos:#}");
+    assert_eq!(chaos["mismatches"], serde_json::json!([]), "{chaos:#}");
+    let injected = &chaos["injected"];
+    let corrupted: u64 = ["version", "session", "future_seq", "non_finite"]
+        .iter()
+        .map(|k| injected[k].as_u64().unwrap())
+        .sum();
+    assert!(corrupted > 0 && injected["delayed"].as_u64().unwrap() > 0, "{chaos:#}");
+    assert_eq!(chaos["rows"][0], chaos["rows"][1], "every row on disk: {chaos:#}");
+    assert_eq!(json(&d.join("summary.json"))["arm"], "ur5");
+    let lat = json(&d.join("latency.json"));
+    assert_eq!(lat["invalid_total"].as_u64(), Some(corrupted), "{lat:#}");
 }

@@ -20,17 +20,42 @@ pub use spec::{
 };
 
 use companion_core::nalgebra::Vector2;
-use companion_core::nalgebra::Vector3;
+use companion_core::space::Vector as _;
 use companion_core::{
-    CarLike, Controller, Measurement, Omnidirectional, ParamError, PlatformKind, Pose, Real, Rpr, Rule,
-    Unicycle,
+    CarLike, Controller, Measurement, Omnidirectional, ParamError, Planar, PlatformKind, Pose, Real, Rpr,
+    Rule, Space, Spatial, Unicycle,
 };
 
 type Uni<T> = Controller<T, Unicycle<T>, Rpr<T>, JOINTS>;
 type Car<T> = Controller<T, CarLike<T>, Rpr<T>, JOINTS>;
 type Omni<T> = Controller<T, Omnidirectional, Rpr<T>, JOINTS>;
 
-/// A controller for one of the three platforms in f64 or f32.
+/// One controller step on an `f64` measurement: the command to hold for `period` seconds,
+/// taking effect `delay` seconds after the measurement — the paper's planar law
+/// ([`AnyController`]) or a spatial one of `N` joints (a boxed [`SpatialStep`]). The loops
+/// step either through it.
+pub trait Law<const N: usize = JOINTS, S: Space<f64> = Planar> {
+    /// The step.
+    fn step(&mut self, meas: &Measurement<f64, N, S>, period: f64, delay: f64) -> StepReport<N>;
+}
+
+impl Law for AnyController {
+    #[inline]
+    fn step(&mut self, meas: &Measurement<f64, JOINTS>, period: f64, delay: f64) -> StepReport {
+        AnyController::step(self, meas, period, delay)
+    }
+}
+
+impl<const N: usize> Law<N, Spatial> for Box<dyn SpatialStep<N> + Send> {
+    #[inline]
+    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, period: f64, delay: f64) -> StepReport<N> {
+        self.as_mut().step(meas, period, delay)
+    }
+}
+
+/// A controller for one of the three platforms in f64 or f32. (An enum, where a spatial law is
+/// boxed behind [`SpatialStep`]: the paper's law is stepped inline, allocation-free, by
+/// every caller, the Python package's batch stepping among them.)
 #[derive(Clone, Debug)]
 pub enum AnyController {
     /// Unicycle, f64.
@@ -143,15 +168,19 @@ pub fn measurement_in<T: Real>(m: &Measurement<f64, JOINTS>) -> Measurement<T, J
     }
 }
 
-fn report<T: Real>(
-    r: Result<companion_core::Output<T, JOINTS>, companion_core::Rejected<T, JOINTS>>,
-) -> StepReport {
+/// The report of a step of the law in scalar type `T`, of either space: the command in `f64`
+/// and the logged diagnostics (`‖e_p‖` of all the components), or the safe command.
+pub(crate) fn report<T: Real, const N: usize, S: Space<T>>(
+    r: Result<companion_core::Output<T, N, S>, companion_core::Rejected<T, N>>,
+) -> StepReport<N> {
     match r {
         Ok(out) => {
             let d = &out.diagnostics;
+            // 0 + a² + b² + …: for three components the planar law's (a² + b²) + c², to the bit.
+            let e2 = d.e_p.as_slice().iter().fold(0.0, |s, x| s + x.as_f64() * x.as_f64());
             StepReport {
                 command: command_f64(&out.command),
-                ep_norm: norm(&d.e_p),
+                ep_norm: e2.sqrt(),
                 h_s: d.h_s.as_f64(),
                 psi: d.psi.as_f64(),
                 saturation: d.saturation.as_f64(),
@@ -162,9 +191,4 @@ fn report<T: Real>(
         }
         Err(rej) => StepReport::rejected(rej.error),
     }
-}
-
-fn norm<T: Real>(v: &Vector3<T>) -> f64 {
-    let (a, b, c) = (v[0].as_f64(), v[1].as_f64(), v[2].as_f64());
-    (a * a + b * b + c * c).sqrt()
 }

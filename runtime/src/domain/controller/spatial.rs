@@ -41,22 +41,7 @@ where
             target: pose_in(&meas.target),
             target_velocity: meas.target_velocity.map(T::of),
         };
-        match self.step_delayed(&m, T::of(period), T::of(delay)) {
-            Ok(out) => {
-                let d = &out.diagnostics;
-                StepReport {
-                    command: command_f64(&out.command),
-                    ep_norm: d.e_p.map(Real::as_f64).norm(),
-                    h_s: d.h_s.as_f64(),
-                    psi: d.psi.as_f64(),
-                    saturation: d.saturation.as_f64(),
-                    alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
-                    joint_scale: d.joint_scale.as_f64(),
-                    error: None,
-                }
-            }
-            Err(r) => StepReport::rejected(r.error),
-        }
+        super::report(self.step_delayed(&m, T::of(period), T::of(delay)))
     }
 
     fn target_in_effector(&self) -> Pose3<f64> {

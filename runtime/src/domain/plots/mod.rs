@@ -12,7 +12,7 @@ use companion_core::Params;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use companion_core::{PaperRun, PlatformKind};
+use companion_core::{PaperRun, PlatformCommand, PlatformKind, Space};
 use companion_plant::PaperTrajectory;
 
 pub use self::error::PlotError;
@@ -189,8 +189,13 @@ fn render_figures(dir: &Path, run: &RunOutcome) -> Result<()> {
         .map_err(PlotError::plotting)?;
     log_plot(&dir.join("hs.svg"), &format!("{name}: h_s"), rows, |r| r.report.h_s)
         .map_err(PlotError::plotting)?;
-    velocity_plot(&dir.join("velocities.svg"), name, rows, run.scenario.controller.platform)
-        .map_err(PlotError::plotting)?;
+    velocity_plot(
+        &dir.join("velocities.svg"),
+        name,
+        rows,
+        &planar_velocities(run.scenario.controller.platform),
+    )
+    .map_err(PlotError::plotting)?;
     joints_plot(&dir.join("joints.svg"), name, rows).map_err(PlotError::plotting)?;
     Ok(())
 }
@@ -341,20 +346,34 @@ fn log_lines(
     Ok(())
 }
 
-fn velocity_plot(
+/// A platform velocity drawn against time: its label, colour and component.
+pub(crate) type VelocitySeries = (&'static str, RGBColor, fn(&PlatformCommand<f64>) -> f64);
+
+/// The paper's platform velocities of `platform`: `v` and `ω` (the car's `v_ξ`), and the
+/// omnidirectional platform's `v_lat`.
+fn planar_velocities(platform: PlatformKind) -> Vec<VelocitySeries> {
+    let mut series: Vec<VelocitySeries> = vec![("v (m/s)", EFFECTOR, |c| c.v)];
+    series.push(match platform {
+        PlatformKind::Car => ("v_ξ (1/(m·s))", SECOND, |c| c.v_xi),
+        PlatformKind::Unicycle | PlatformKind::Omni => ("ω (rad/s)", SECOND, |c| c.omega),
+    });
+    if platform == PlatformKind::Omni {
+        series.push(("v_lat (m/s)", ARM, |c| c.v_lat));
+    }
+    series
+}
+
+/// The platform velocities commanded over a run of either arm: each of `series`.
+pub(crate) fn velocity_plot<S: Space<f64>, const N: usize>(
     file: &Path,
     name: &str,
-    rows: &[Row],
-    platform: PlatformKind,
+    rows: &[Row<S, N>],
+    series: &[VelocitySeries],
 ) -> Result<(), Box<dyn std::error::Error + Send + Sync>> {
     let root: Area<'_> = SVGBackend::new(file, (W, H)).into_drawing_area();
     root.fill(&WHITE)?;
-    let second: (&str, fn(&Row) -> f64) = match platform {
-        PlatformKind::Car => ("v_ξ (1/(m·s))", |r| r.report.command.platform.v_xi),
-        PlatformKind::Unicycle | PlatformKind::Omni => ("ω (rad/s)", |r| r.report.command.platform.omega),
-    };
-    let v = |r: &Row| r.report.command.platform.v;
-    let (y0, y1) = bounds(rows.iter().flat_map(|r| [v(r), second.1(r)]));
+    let command = |r: &Row<S, N>| r.report.command.platform;
+    let (y0, y1) = bounds(rows.iter().flat_map(|r| series.iter().map(move |s| s.2(&command(r)))));
     let t1 = rows.last().map_or(1.0, |r| r.plant.t).max(1e-3);
     let mut chart = ChartBuilder::on(&root)
         .caption(format!("{name}: platform velocities"), ("sans-serif", 18))
@@ -363,22 +382,14 @@ fn velocity_plot(
         .y_label_area_size(48)
         .build_cartesian_2d(0.0..t1, y0..y1)?;
     chart.configure_mesh().x_desc("t (s)").draw()?;
-    chart
-        .draw_series(LineSeries::new(rows.iter().map(|r| (r.plant.t, v(r))), EFFECTOR.stroke_width(1)))?
-        .label("v (m/s)")
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], EFFECTOR));
-    chart
-        .draw_series(LineSeries::new(rows.iter().map(|r| (r.plant.t, second.1(r))), SECOND.stroke_width(1)))?
-        .label(second.0)
-        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], SECOND));
-    if platform == PlatformKind::Omni {
+    for &(label, colour, f) in series {
         chart
             .draw_series(LineSeries::new(
-                rows.iter().map(|r| (r.plant.t, r.report.command.platform.v_lat)),
-                ARM.stroke_width(1),
+                rows.iter().map(|r| (r.plant.t, f(&command(r)))),
+                colour.stroke_width(1),
             ))?
-            .label("v_lat (m/s)")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], ARM));
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], colour));
     }
     chart.configure_series_labels().background_style(WHITE.mix(0.85)).border_style(BLACK).draw()?;
     root.present()?;

@@ -8,8 +8,9 @@
 //! keeps the digests of reference runs (`runtime/tests/golden/digests.txt`), checked by a
 //! fresh process in `runtime/tests/golden.rs`; `summary.json` reports it as 16 hex digits.
 
+use companion_core::Space;
+
 use super::row::Row;
-use crate::domain::controller::JOINTS;
 
 /// FNV-1a's 64-bit offset basis.
 const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
@@ -39,21 +40,22 @@ impl TrajectoryDigest {
         self.bytes(&x.to_bits().to_le_bytes());
     }
 
-    /// Folds one step in: the plant's state and the command applied.
-    pub fn add(&mut self, row: &Row) {
+    /// Folds one step in: the plant's state and the command applied (of either arm: the
+    /// target is not folded in, the joints are as many as the arm has).
+    pub fn add<S: Space<f64>, const N: usize>(&mut self, row: &Row<S, N>) {
         let p = &row.plant;
         let c = &row.report.command;
         for x in [p.t, p.base.x, p.base.y, p.base.theta, p.steering] {
             self.number(x);
         }
-        for i in 0..JOINTS {
-            self.number(p.joints[i]);
+        for q in p.joints.iter() {
+            self.number(*q);
         }
         for x in [c.platform.v, c.platform.v_lat, c.platform.omega, c.platform.v_xi] {
             self.number(x);
         }
-        for i in 0..JOINTS {
-            self.number(c.joints[i]);
+        for u in c.joints.iter() {
+            self.number(*u);
         }
     }
 

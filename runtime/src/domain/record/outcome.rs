@@ -7,7 +7,8 @@ use super::row::Row;
 use super::summary::Summary;
 use crate::domain::scenario::Scenario;
 
-/// The outcome of one run: its scenario, summary and logged rows.
+/// The outcome of one run of the paper's arm: its scenario, summary and logged rows (a
+/// spatial arm's: `run::spatial::SpatialOutcome`, whose scenario adds the arm and target).
 #[derive(Debug)]
 pub struct RunOutcome {
     /// The scenario.

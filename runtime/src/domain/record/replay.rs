@@ -1,6 +1,6 @@
-//! The planar path's replay: each logged [`Row`] as a [`ReplayFrame`] of the paper's RPR
-//! arm, drawn in 3D from the arm's description as data (`Chain::rpr()`: the same geometry
-//! as the plant's `Rpr`, at height 0, the platform on the ground).
+//! A run's replay: each logged [`Row`] as a [`ReplayFrame`], the arm drawn in 3D from its
+//! description as data — a spatial arm's chain, or the paper's RPR arm as `Chain::rpr()`
+//! (the same geometry as the plant's `Rpr`, at height 0, the platform on the ground).
 //!
 //! The link frames come from the chain (URDF form, see `companion_core::chain`):
 //!
@@ -8,16 +8,17 @@
 //! base_from_link₁ = M · O₁ · J₁(q₁),   linkᵢ₋₁_from_linkᵢ = Oᵢ · Jᵢ(qᵢ),   link_N_from_effector = E
 //! ```
 //!
-//! and the tracking error from the row's poses, `e_p = (r*_ed)⁻¹ r_ed` with
-//! `r_ed = r_e⁻¹ r_d` (eq. 42), whose norm is the row's `ep_norm`.
+//! and the tracking error is the row's `e_p` (the plant's, whose norm is the row's `ep_norm`).
 
+use std::marker::PhantomData;
 use std::path::Path;
 
 use companion_core::nalgebra::SVector;
-use companion_core::{Chain, PlatformCommand, PlatformKind, Pose, Pose3};
+use companion_core::space::Vector as _;
+use companion_core::{Chain, Planar, PlatformCommand, PlatformKind, Pose3};
 
 use super::mcap::{McapRecorder, ReplayError, ReplayFrame, ReplayLayout, ReplaySummary};
-use super::row::Row;
+use super::row::{Row, Task};
 use crate::domain::controller::JOINTS;
 use crate::domain::scenario::Scenario;
 
@@ -62,49 +63,46 @@ pub fn platform_command(kind: PlatformKind, c: &PlatformCommand<f64>, out: &mut 
     platform_command_names(kind).len()
 }
 
-/// The replay file of a planar run: the RPR arm's layout and the MCAP writer.
+/// The replay file of a run of either arm: the arm's chain (the paper's RPR arm as
+/// `Chain::rpr()`, or a spatial arm's), its layout, and the MCAP writer.
 #[derive(Debug)]
-pub struct PlanarReplay {
+pub struct Replay<S: Task = Planar, const N: usize = JOINTS> {
     mcap: McapRecorder,
-    chain: Chain<f64, JOINTS>,
+    chain: Chain<f64, N>,
     kind: PlatformKind,
-    /// `r*_ed`: the desired target pose in the effector's frame.
-    star: Pose<f64>,
     status: String,
+    space: PhantomData<S>,
 }
 
-impl PlanarReplay {
-    /// Creates `path` for scenario `s` (see [`McapRecorder::create`]).
-    ///
-    /// # Errors
-    /// The file cannot be created.
-    pub fn create(path: &Path, s: &Scenario) -> Result<Self, ReplayError> {
-        let kind = s.controller.platform;
-        let names = |prefix: &str| (1..=JOINTS).map(|i| format!("{prefix}{i}")).collect();
-        let layout = ReplayLayout {
+impl<S: Task, const N: usize> Replay<S, N> {
+    /// The replay's layout for an arm of `N` joints on a platform of `kind`.
+    pub fn layout(kind: PlatformKind) -> ReplayLayout {
+        let names = |prefix: &str| (1..=N).map(|i| format!("{prefix}{i}")).collect();
+        ReplayLayout {
             links: names("link"),
             joints: names("q"),
             platform_command: platform_command_names(kind).iter().map(|s| (*s).to_string()).collect(),
-            e_p: ["x", "y", "theta"].iter().map(|s| (*s).to_string()).collect(),
-        };
-        Ok(Self {
-            mcap: McapRecorder::create(path, layout)?,
-            chain: Chain::rpr(),
-            kind,
-            star: s.controller.params::<f64>().primary.target_in_effector,
-            status: String::with_capacity(64),
-        })
+            e_p: S::ERROR_NAMES.iter().map(|s| (*s).to_string()).collect(),
+        }
+    }
+
+    /// Creates `path` for the arm `chain` on a platform of `kind` (see
+    /// [`McapRecorder::create`]).
+    ///
+    /// # Errors
+    /// The file cannot be created.
+    pub fn create(path: &Path, kind: PlatformKind, chain: Chain<f64, N>) -> Result<Self, ReplayError> {
+        let mcap = McapRecorder::create(path, Self::layout(kind))?;
+        Ok(Self { mcap, chain, kind, status: String::with_capacity(64), space: PhantomData })
     }
 
     /// Writes a logged row.
     ///
     /// # Errors
     /// Writing failed.
-    pub fn write(&mut self, row: &Row) -> Result<(), ReplayError> {
+    pub fn write(&mut self, row: &Row<S, N>) -> Result<(), ReplayError> {
         let p = &row.plant;
         let (links, effector) = link_frames(&self.chain, &p.joints);
-        let r_ed = p.end_effector.between(&p.target);
-        let e = self.star.between(&r_ed);
         let mut platform = [0.0; 3];
         let n = platform_command(self.kind, &row.report.command.platform, &mut platform);
         self.status.clear();
@@ -114,16 +112,27 @@ impl PlanarReplay {
             base: Pose3::from_planar(&p.base),
             links: &links,
             effector,
-            target: Pose3::from_planar(&p.target),
+            target: S::lift(&p.target),
             joints: p.joints.as_slice(),
             platform_command: &platform[..n],
             joint_command: row.report.command.joints.as_slice(),
-            e_p: &[e.x, e.y, e.theta],
+            e_p: p.e_p.as_slice(),
             ep_norm: p.ep_norm,
             h_s: row.report.h_s,
             status: &self.status,
         };
         self.mcap.write(&frame)
+    }
+
+    /// Writes every row and finishes the file.
+    ///
+    /// # Errors
+    /// Writing failed.
+    pub fn write_all(mut self, rows: &[Row<S, N>]) -> Result<ReplaySummary, ReplayError> {
+        for r in rows {
+            self.write(r)?;
+        }
+        self.finish()
     }
 
     /// The run never started: removes the file (see [`McapRecorder::discard`]).
@@ -140,9 +149,19 @@ impl PlanarReplay {
     }
 }
 
+impl Replay {
+    /// Creates `path` for a run of the paper's arm in scenario `s`.
+    ///
+    /// # Errors
+    /// The file cannot be created.
+    pub fn for_scenario(path: &Path, s: &Scenario) -> Result<Self, ReplayError> {
+        Self::create(path, s.controller.platform, Chain::rpr())
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use companion_core::{Arm, Rpr};
+    use companion_core::{Arm, Pose, Rpr};
 
     use super::*;
 

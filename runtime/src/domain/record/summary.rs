@@ -1,12 +1,13 @@
-//! The figures of `summary.json`, accumulated over every step of a run.
+//! The figures of `summary.json`, accumulated over every step of a run, for either arm: one
+//! [`Summary`] and one [`SummaryAccumulator`]; a spatial arm's run adds its [`ArmFigures`].
 
+use companion_core::space::Vector as _;
 use serde::Serialize;
 
 use super::digest::TrajectoryDigest;
-use super::row::CommandSource;
-use super::row::Row;
-use super::verdict::{Failure, Rejections};
-use crate::domain::controller::JOINTS;
+use super::row::{CommandSource, Row, Task};
+use super::verdict::{rejection_failure, Failure, Rejections};
+use crate::domain::arm::MAX_JOINTS;
 
 /// How long after a held or stopped period a step is not counted in the maximum "clear of
 /// holds" (s): a held command's disturbance decays over the law's time constants.
@@ -39,6 +40,52 @@ impl ClearOfHolds {
     }
 }
 
+/// How many steps' commands came from where: the controller's answer to the step, the last
+/// one held after a missed deadline, the robot stopped (real-time HIL; in `sim` and lockstep
+/// every command is fresh).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct CommandSources {
+    /// The answer to the step's own measurement.
+    pub fresh: u64,
+    /// The previous command, held.
+    pub held: u64,
+    /// The safe zero command.
+    pub stopped: u64,
+}
+
+impl CommandSources {
+    /// Counts one step's command.
+    #[inline]
+    pub fn count(&mut self, source: CommandSource) {
+        match source {
+            CommandSource::Fresh => self.fresh += 1,
+            CommandSource::Held => self.held += 1,
+            CommandSource::Stopped => self.stopped += 1,
+        }
+    }
+}
+
+/// What a spatial arm's `summary.json` adds (§5): the arm, the six components of `e_p`, the
+/// joint nearest its limit and the verdict. (The paper's arm's `summary.json` keeps its own
+/// keys, which its figures and the Python package read.)
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ArmFigures {
+    /// The arm's name.
+    pub arm: String,
+    /// Joints.
+    pub joints: usize,
+    /// `e_p` at the last step.
+    pub final_e_p: Vec<f64>,
+    /// The largest `|e_p,i|` for `t ≥ 20 s`, per component.
+    pub max_abs_e_p_after_20s: Vec<f64>,
+    /// The smallest of the joints' margins (rad or m).
+    pub smallest_joint_margin: f64,
+    /// Which joint it is (from 1).
+    pub smallest_margin_joint: usize,
+    /// `ok`, or `failed` with the reasons in `failures`.
+    pub verdict: String,
+}
+
 /// The run's figures (`summary.json`). "After 20 s" means `t ≥ 20 s`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct Summary {
@@ -53,7 +100,7 @@ pub struct Summary {
     #[serde(rename = "fraction_ep_below_1e-3_after_20s")]
     pub fraction_ep_below_1e_3_after_20s: f64,
     /// Per joint, the smallest distance to the nearer limit over the run (rad or m).
-    pub min_joint_margin: [f64; JOINTS],
+    pub min_joint_margin: Vec<f64>,
     /// The platform's path length (m).
     pub path_length: f64,
     /// The platform's path length for `t ≥ 20 s` (m).
@@ -115,6 +162,11 @@ pub struct Summary {
     pub ended_early: bool,
     /// Why the run failed (empty: it did what a run must; see `record::verdict`).
     pub failures: Vec<Failure>,
+    /// Where the steps' commands came from.
+    pub command_sources: CommandSources,
+    /// A spatial arm's figures (absent for the paper's arm).
+    #[serde(flatten)]
+    pub arm: Option<ArmFigures>,
     /// HIL runs: the link between the plant and the controller (absent from `sim`'s).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub link: Option<LinkRecord>,
@@ -138,10 +190,22 @@ pub const SIGN_SPEED: f64 = 1e-3;
 /// maneuver (m).
 pub const MANEUVER_DISTANCE: f64 = 0.01;
 
-/// Accumulates the summary over every step.
+/// Accumulates the summary over every step, of either arm (nothing allocates in
+/// [`add`](Self::add)).
 #[derive(Clone, Debug)]
 pub struct SummaryAccumulator {
     s: Summary,
+    /// The arm's name, for a spatial arm's figures.
+    arm: Option<String>,
+    /// Joints.
+    joints: usize,
+    /// Per joint, the smallest margin so far.
+    margins: [f64; MAX_JOINTS],
+    /// `e_p` at the last finite step, and its largest `|e_p,i|` after 20 s.
+    final_e_p: [f64; 6],
+    max_abs_e_p: [f64; 6],
+    /// How many components `e_p` has (3 in the plane, 6 in space).
+    error_dim: usize,
     after20: u64,
     below: u64,
     last_sign: i8,
@@ -154,25 +218,38 @@ pub struct SummaryAccumulator {
     prev_v: f64,
     direction: i8,
     extremum: f64,
-    lower: [f64; JOINTS],
-    upper: [f64; JOINTS],
+    lower: [f64; MAX_JOINTS],
+    upper: [f64; MAX_JOINTS],
     digest: TrajectoryDigest,
     clear: ClearOfHolds,
 }
 
 impl SummaryAccumulator {
-    /// A new accumulator for joints with limits `lower`, `upper`.
-    pub fn new(name: &str, lower: [f64; JOINTS], upper: [f64; JOINTS]) -> Self {
+    /// A new accumulator for joints with limits `lower`, `upper` (as many as the arm has, at
+    /// most [`MAX_JOINTS`]).
+    pub fn new(name: &str, lower: &[f64], upper: &[f64]) -> Self {
+        let joints = lower.len().min(upper.len()).min(MAX_JOINTS);
+        let limits = |from: &[f64]| {
+            let mut a = [0.0; MAX_JOINTS];
+            a[..joints].copy_from_slice(&from[..joints]);
+            a
+        };
         let s = Summary {
             scenario: name.to_string(),
-            min_joint_margin: [f64::INFINITY; JOINTS],
             max_saturation: 1.0,
             max_joint_scale: 1.0,
             joint_guard_steps: 0,
+            rejections: Rejections::for_joints(joints),
             ..Summary::default()
         };
         Self {
             s,
+            arm: None,
+            joints,
+            margins: [f64::INFINITY; MAX_JOINTS],
+            final_e_p: [0.0; 6],
+            max_abs_e_p: [0.0; 6],
+            error_dim: 0,
             after20: 0,
             below: 0,
             last_sign: 0,
@@ -183,24 +260,31 @@ impl SummaryAccumulator {
             prev_v: 0.0,
             direction: 0,
             extremum: 0.0,
-            lower,
-            upper,
+            lower: limits(lower),
+            upper: limits(upper),
             digest: TrajectoryDigest::default(),
             clear: ClearOfHolds::default(),
         }
     }
 
+    /// The same accumulator for a spatial arm named `arm`: its summary adds [`ArmFigures`].
+    #[must_use]
+    pub fn with_arm(mut self, arm: &str) -> Self {
+        self.arm = Some(arm.to_string());
+        self
+    }
+
     /// Adds one step.
     ///
-    /// Reads only the row's time, platform pose and joints and its report: the in-process
-    /// loop (`sim::run_loop`) skips the end effector's pose on steps
-    /// that are not logged.
-    pub fn add(&mut self, row: &Row) {
+    /// Reads only the row's time, platform pose, joints and error and its report: the loop
+    /// skips the end effector's pose on steps that are not logged.
+    pub fn add<S: Task, const N: usize>(&mut self, row: &Row<S, N>) {
         let s = &mut self.s;
         let p = &row.plant;
         let r = &row.report;
         self.digest.add(row);
         s.steps += 1;
+        s.command_sources.count(row.source);
         if let Some(e) = r.error {
             s.rejected_steps += 1;
             s.rejections.count(e);
@@ -222,14 +306,22 @@ impl SummaryAccumulator {
         // the controller accepted the step.
         let ep = p.ep_norm;
         self.clear.add(p.t, row.source, ep);
+        let e_p = p.e_p.as_slice();
+        self.error_dim = e_p.len().min(6);
         if ep.is_finite() {
             s.final_ep_norm = ep;
+            for (f, e) in self.final_e_p.iter_mut().zip(e_p) {
+                *f = *e;
+            }
             if ep >= 1e-3 {
                 s.ep_settling_time_s = p.t;
             }
             if p.t >= 20.0 {
                 self.after20 += 1;
                 s.max_ep_norm_after_20s = s.max_ep_norm_after_20s.max(ep);
+                for (m, e) in self.max_abs_e_p.iter_mut().zip(e_p) {
+                    *m = m.max(e.abs());
+                }
                 if ep < 1e-3 {
                     self.below += 1;
                 }
@@ -238,9 +330,9 @@ impl SummaryAccumulator {
         if r.h_s.is_finite() {
             s.final_h_s = r.h_s;
         }
-        for i in 0..JOINTS {
+        for i in 0..N.min(self.joints) {
             let m = (p.joints[i] - self.lower[i]).min(self.upper[i] - p.joints[i]);
-            s.min_joint_margin[i] = s.min_joint_margin[i].min(m);
+            self.margins[i] = self.margins[i].min(m);
         }
         let v = r.command.platform.v;
         if v.abs() > SIGN_SPEED {
@@ -292,9 +384,30 @@ impl SummaryAccumulator {
         }
     }
 
-    /// The summary so far, with the wall time.
+    /// The summary so far, with the wall time (a run that ended: see [`Summary::judge`]).
     pub fn finish(&self, wall_time_s: f64) -> Summary {
         let mut s = self.s.clone();
+        let margins = &self.margins[..self.joints];
+        s.min_joint_margin = margins.to_vec();
+        let dim = self.error_dim;
+        s.arm = self.arm.as_ref().map(|arm| {
+            let (j, m) = margins.iter().copied().enumerate().fold((0, f64::INFINITY), |a, (i, m)| {
+                if m < a.1 {
+                    (i, m)
+                } else {
+                    a
+                }
+            });
+            ArmFigures {
+                arm: arm.clone(),
+                joints: self.joints,
+                final_e_p: self.final_e_p[..dim].to_vec(),
+                max_abs_e_p_after_20s: self.max_abs_e_p[..dim].to_vec(),
+                smallest_joint_margin: m,
+                smallest_margin_joint: j + 1,
+                verdict: String::new(),
+            }
+        });
         if self.after20 > 0 {
             s.fraction_ep_below_1e_3_after_20s = self.below as f64 / self.after20 as f64;
         } else {
@@ -309,7 +422,33 @@ impl SummaryAccumulator {
             s.rms_v = (self.sum_v2 / s.steps as f64).sqrt();
             s.rms_omega = (self.sum_w2 / s.steps as f64).sqrt();
         }
+        s.set_verdict();
         s
+    }
+}
+
+impl Summary {
+    /// The verdict of a run that ended (early if `ended_early`: SIGINT/SIGTERM, a lost peer)
+    /// held to `max_rejected`: the law's rejections beyond it are a failure.
+    pub fn judge(&mut self, ended_early: bool, max_rejected: f64) {
+        self.ended_early = ended_early;
+        let failed = rejection_failure(&self.rejections, self.steps, self.first_rejection_at_s, max_rejected);
+        self.failures.extend(failed);
+        self.set_verdict();
+    }
+
+    /// Adds a reason the run failed (e.g. the HIL plant's missed deadlines).
+    pub fn fail(&mut self, f: Failure) {
+        self.failures.push(f);
+        self.set_verdict();
+    }
+
+    /// A spatial arm's verdict: `ok` for a run that did what a run must, else `failed`.
+    fn set_verdict(&mut self) {
+        let ok = self.failures.is_empty() && !self.ended_early;
+        if let Some(a) = &mut self.arm {
+            a.verdict = if ok { "ok" } else { "failed" }.to_string();
+        }
     }
 }
 

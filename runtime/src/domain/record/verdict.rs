@@ -4,9 +4,58 @@
 //! its exit code; it never looks like a success.
 
 use companion_core::StepError;
-use serde::Serialize;
+use serde::ser::SerializeSeq;
+use serde::{Serialize, Serializer};
 
+use crate::domain::arm::MAX_JOINTS;
 use crate::domain::controller::JOINTS;
+
+/// A count per joint of an arm of up to [`MAX_JOINTS`] joints: `Copy`, never allocating
+/// (it is counted on the hot path), written as a list of one count per joint.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct JointCounts {
+    counts: [u64; MAX_JOINTS],
+    joints: u8,
+}
+
+impl JointCounts {
+    /// Zero for each of `joints` joints (at most [`MAX_JOINTS`]).
+    pub fn zeros(joints: usize) -> Self {
+        Self { counts: [0; MAX_JOINTS], joints: u8::try_from(joints.min(MAX_JOINTS)).unwrap_or(0) }
+    }
+
+    /// The counts, one per joint.
+    pub fn as_slice(&self) -> &[u64] {
+        &self.counts[..usize::from(self.joints)]
+    }
+
+    /// Counts one for joint `j` (from 0); a joint beyond the arm's (a controller told of
+    /// another arm) widens the list, one beyond [`MAX_JOINTS`] is not counted.
+    #[inline]
+    pub fn count(&mut self, j: usize) {
+        if let Some(c) = self.counts.get_mut(j) {
+            *c += 1;
+            self.joints = self.joints.max(u8::try_from(j + 1).unwrap_or(u8::MAX));
+        }
+    }
+}
+
+impl Default for JointCounts {
+    /// The paper's arm's three joints.
+    fn default() -> Self {
+        Self::zeros(JOINTS)
+    }
+}
+
+impl Serialize for JointCounts {
+    fn serialize<S: Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        let mut seq = serializer.serialize_seq(Some(self.as_slice().len()))?;
+        for c in self.as_slice() {
+            seq.serialize_element(c)?;
+        }
+        seq.end()
+    }
+}
 
 /// The steps the law rejected (it answered with the safe zero command), by reason.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
@@ -15,8 +64,8 @@ pub struct Rejections {
     pub non_finite_measurement: u64,
     /// The time step was not finite, `≤ 0` or above `max_time_step`.
     pub bad_time_step: u64,
-    /// Joint `i` (from 1) at or beyond one of its limits.
-    pub joint_at_limit: [u64; JOINTS],
+    /// Joint `i` (from 1) at or beyond one of its limits, one count per joint.
+    pub joint_at_limit: JointCounts,
     /// The arm at a singular configuration.
     pub singular_arm: u64,
     /// `∂e_m/∂q` could not be inverted.
@@ -30,17 +79,18 @@ pub struct Rejections {
 }
 
 impl Rejections {
+    /// None yet, for an arm of `joints` joints.
+    pub fn for_joints(joints: usize) -> Self {
+        Self { joint_at_limit: JointCounts::zeros(joints), ..Self::default() }
+    }
+
     /// Counts one rejection.
     #[inline]
     pub fn count(&mut self, e: StepError) {
         match e {
             StepError::NonFinite(_) => self.non_finite_measurement += 1,
             StepError::BadTimeStep => self.bad_time_step += 1,
-            StepError::JointAtLimit(j) => {
-                if let Some(c) = self.joint_at_limit.get_mut(usize::from(j)) {
-                    *c += 1;
-                }
-            }
+            StepError::JointAtLimit(j) => self.joint_at_limit.count(usize::from(j)),
             StepError::SingularArm => self.singular_arm += 1,
             StepError::SingularTaskJacobian => self.singular_task_jacobian += 1,
             StepError::BadDelay => self.bad_delay += 1,
@@ -53,7 +103,7 @@ impl Rejections {
     pub fn total(&self) -> u64 {
         self.non_finite_measurement
             + self.bad_time_step
-            + self.joint_at_limit.iter().sum::<u64>()
+            + self.joint_at_limit.as_slice().iter().sum::<u64>()
             + self.singular_arm
             + self.singular_task_jacobian
             + self.bad_delay
@@ -72,7 +122,7 @@ impl Rejections {
         };
         add(self.non_finite_measurement, "a measured value is not finite".to_string());
         add(self.bad_time_step, StepError::BadTimeStep.to_string());
-        for (j, &n) in self.joint_at_limit.iter().enumerate() {
+        for (j, &n) in self.joint_at_limit.as_slice().iter().enumerate() {
             add(n, StepError::JointAtLimit(u8::try_from(j).unwrap_or(u8::MAX)).to_string());
         }
         add(self.singular_arm, StepError::SingularArm.to_string());
@@ -245,11 +295,23 @@ mod tests {
         r.count(StepError::JointAtLimit(1));
         r.count(StepError::BadTimeStep);
         r.count(StepError::NonFinite(Field::Joints));
-        assert_eq!((r.total(), r.joint_at_limit, r.bad_time_step), (4, [0, 2, 0], 1));
+        assert_eq!((r.total(), r.joint_at_limit.as_slice(), r.bad_time_step), (4, &[0, 2, 0][..], 1));
         let d = r.describe();
         assert!(d.starts_with("joint 2 is at or beyond its limit: 2; "), "{d}");
         assert!(d.contains("time step is not finite, <= 0 or above the maximum: 1"), "{d}");
         assert!(d.contains("a measured value is not finite: 1"), "{d}");
+    }
+
+    #[test]
+    fn joint_counts_are_one_per_joint_of_the_arm() {
+        let mut r = Rejections::for_joints(7);
+        r.count(StepError::JointAtLimit(6));
+        assert_eq!(serde_json::to_string(&r.joint_at_limit).unwrap(), "[0,0,0,0,0,0,1]");
+        // A joint beyond the arm's widens the list; one beyond every arm is not counted.
+        let mut r = Rejections::default();
+        r.count(StepError::JointAtLimit(4));
+        r.count(StepError::JointAtLimit(200));
+        assert_eq!((r.joint_at_limit.as_slice(), r.total()), (&[0, 0, 0, 0, 1][..], 1));
     }
 
     #[test]

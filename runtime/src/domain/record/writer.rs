@@ -15,17 +15,22 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use std::marker::PhantomData;
+
+use companion_core::Planar;
+
 use super::error::RecordError;
 use super::recorder::RowSink;
-use super::row::Row;
+use super::row::{Row, Task};
+use crate::domain::controller::JOINTS;
 
 /// One row on its way to the writer thread.
 #[derive(Clone, Copy, Debug)]
-pub struct LogItem {
+pub struct LogItem<S: Task = Planar, const N: usize = JOINTS> {
     /// The step.
     pub n: u64,
     /// Its row.
-    pub row: Row,
+    pub row: Row<S, N>,
     /// Whether it is the last step.
     pub last: bool,
 }
@@ -35,23 +40,25 @@ const IDLE: Duration = Duration::from_millis(2);
 /// How long a waiting producer sleeps when the ring is full.
 const BACKOFF: Duration = Duration::from_micros(50);
 
-/// A [`RowSink`] running on its own thread.
+/// A [`RowSink`] `K` of rows of an arm of `N` joints (targets in `S`) running on its own
+/// thread.
 #[derive(Debug)]
-pub struct RecordWriter<S> {
-    tx: rtrb::Producer<LogItem>,
+pub struct RecordWriter<K, S: Task = Planar, const N: usize = JOINTS> {
+    tx: rtrb::Producer<LogItem<S, N>>,
     done: Arc<AtomicBool>,
-    thread: Option<JoinHandle<Result<S, RecordError>>>,
+    thread: Option<JoinHandle<Result<K, RecordError>>>,
     log_every: u64,
+    space: PhantomData<S>,
 }
 
-impl<S: RowSink + Send + 'static> RecordWriter<S> {
+impl<K: RowSink<S, N> + Send + 'static, S: Task, const N: usize> RecordWriter<K, S, N> {
     /// Starts the thread with a ring of `capacity` rows; it flushes the file every
     /// `flush_every` (and at the end).
     ///
     /// # Errors
     /// The thread cannot be started.
-    pub fn spawn(mut recorder: S, capacity: usize, flush_every: Duration) -> Result<Self, RecordError> {
-        let (tx, mut rx) = rtrb::RingBuffer::<LogItem>::new(capacity);
+    pub fn spawn(mut recorder: K, capacity: usize, flush_every: Duration) -> Result<Self, RecordError> {
+        let (tx, mut rx) = rtrb::RingBuffer::<LogItem<S, N>>::new(capacity);
         let done = Arc::new(AtomicBool::new(false));
         let finish = Arc::clone(&done);
         let log_every = recorder.log_every();
@@ -80,13 +87,13 @@ impl<S: RowSink + Send + 'static> RecordWriter<S> {
                 }
             })
             .map_err(RecordError::Spawn)?;
-        Ok(Self { tx, done, thread: Some(thread), log_every })
+        Ok(Self { tx, done, thread: Some(thread), log_every, space: PhantomData })
     }
 
     /// Hands a row to the thread without waiting; `false` if the ring is full (the row is
     /// dropped). No allocation, no lock, no system call.
     #[inline]
-    pub fn try_push(&mut self, item: LogItem) -> bool {
+    pub fn try_push(&mut self, item: LogItem<S, N>) -> bool {
         self.tx.push(item).is_ok()
     }
 
@@ -94,24 +101,24 @@ impl<S: RowSink + Send + 'static> RecordWriter<S> {
     ///
     /// # Errors
     /// Writing the file failed, or the thread panicked.
-    pub fn finish(mut self) -> Result<S, RecordError> {
+    pub fn finish(mut self) -> Result<K, RecordError> {
         self.join()
     }
 
-    fn join(&mut self) -> Result<S, RecordError> {
+    fn join(&mut self) -> Result<K, RecordError> {
         self.done.store(true, Ordering::Release);
         let thread = self.thread.take().ok_or(RecordError::FailedEarlier)?;
         thread.join().map_err(|_| RecordError::Panicked)?
     }
 }
 
-impl<S: RowSink + Send + 'static> RowSink for RecordWriter<S> {
+impl<K: RowSink<S, N> + Send + 'static, S: Task, const N: usize> RowSink<S, N> for RecordWriter<K, S, N> {
     fn log_every(&self) -> u64 {
         self.log_every
     }
 
     /// Hands the row to the thread, waiting while the ring is full.
-    fn record(&mut self, n: u64, row: &Row, last: bool) -> Result<(), RecordError> {
+    fn record(&mut self, n: u64, row: &Row<S, N>, last: bool) -> Result<(), RecordError> {
         let mut item = LogItem { n, row: *row, last };
         loop {
             match self.tx.push(item) {
@@ -130,7 +137,7 @@ impl<S: RowSink + Send + 'static> RowSink for RecordWriter<S> {
     }
 }
 
-impl<S> Drop for RecordWriter<S> {
+impl<K, S: Task, const N: usize> Drop for RecordWriter<K, S, N> {
     fn drop(&mut self) {
         self.done.store(true, Ordering::Release);
     }
@@ -140,7 +147,7 @@ impl<S> Drop for RecordWriter<S> {
 mod tests {
     use std::path::{Path, PathBuf};
 
-    use companion_core::nalgebra::SVector;
+    use companion_core::nalgebra::{SVector, Vector3};
     use companion_core::{Command, PlatformKind, Pose, StepError};
 
     use super::*;
@@ -172,6 +179,8 @@ mod tests {
             joints: SVector::<f64, JOINTS>::new(0.1, 0.35 + 1e-5 * x, -0.2),
             end_effector: Pose::new(1.0 / 3.0, x * 1e-7, -x),
             target: Pose::new(2.5, 1.0, 0.0),
+            target_velocity: Vector3::new(0.0, -0.157, 0.0),
+            e_p: Vector3::new(1.0 / (x + 3.0), 0.0, 0.0),
             ep_norm: 1.0 / (x + 3.0),
         };
         Row { plant, report, source: CommandSource::Fresh }
@@ -185,7 +194,7 @@ mod tests {
     }
 
     fn recorder(d: &Path, kind: PlatformKind) -> Recorder {
-        let summary = SummaryAccumulator::new("test", [-1.0, 0.0, -1.5], [1.0, 0.7, 1.5]);
+        let summary = SummaryAccumulator::new("test", &[-1.0, 0.0, -1.5], &[1.0, 0.7, 1.5]);
         Recorder { log: Log::create(d, kind, 3, 0).expect("creating the CSV"), summary }
     }
 

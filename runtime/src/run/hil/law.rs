@@ -3,13 +3,13 @@
 //! the paper's planar law ([`PlanarLaw`]) or the spatial law of §5 for an arm of `N` joints
 //! ([`SpatialLaw`]). The loop ([`super::serve`]) is the same for both.
 
-use companion_core::{Manipulator, Measurement, Planar, Spatial, SpatialArm, HISTORY};
+use companion_core::{Manipulator, Planar, Spatial, SpatialArm, HISTORY};
 
 use super::handshake;
 use crate::domain::arm::SpatialArmSpec;
+pub use crate::domain::controller::Law;
 use crate::domain::controller::{
-    boxed_spatial_controller, AnyController, ControllerSpec, SpatialControllerError, SpatialStep, StepReport,
-    JOINTS,
+    boxed_spatial_controller, AnyController, ControllerSpec, SpatialControllerError, SpatialStep, JOINTS,
 };
 use crate::domain::scenario::ScenarioError;
 use crate::transport::wire::target::WireSpace;
@@ -25,27 +25,6 @@ pub enum LawError {
     /// The spatial law.
     #[error(transparent)]
     Spatial(#[from] SpatialControllerError),
-}
-
-/// One controller step on an `f64` measurement: the command to hold for `dt` seconds, taking
-/// effect `delay` seconds after the measurement.
-pub trait Law<const N: usize, S: WireSpace> {
-    /// The step.
-    fn step(&mut self, meas: &Measurement<f64, N, S>, dt: f64, delay: f64) -> StepReport<N>;
-}
-
-impl Law<JOINTS, Planar> for AnyController {
-    #[inline]
-    fn step(&mut self, meas: &Measurement<f64, JOINTS>, dt: f64, delay: f64) -> StepReport {
-        AnyController::step(self, meas, dt, delay)
-    }
-}
-
-impl<const N: usize> Law<N, Spatial> for Box<dyn SpatialStep<N> + Send> {
-    #[inline]
-    fn step(&mut self, meas: &Measurement<f64, N, Spatial>, dt: f64, delay: f64) -> StepReport<N> {
-        self.as_mut().step(meas, dt, delay)
-    }
 }
 
 /// What the controller serves: its identity, and the law for a plant's announcement.

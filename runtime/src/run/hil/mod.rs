@@ -20,13 +20,13 @@
 //!
 //! `--arm rpr` (the default) is the paper's planar arm (§4); `--arm ur5|panda|FILE` a spatial
 //! arm of 6 to 8 joints (§5), the same run as `companion sim --arm` ([`HilScenario`]). The
-//! loops are the same for every arm: the plant's loop drives a [`robot::Robot`] (the planar
-//! plant and its rows, or the spatial plant and its [`crate::domain::record::spatial::SpatialRecord`]s),
-//! the controller serves a [`law::Served`] (the planar law, or the spatial law for `N`
-//! joints). Both roles announce the arm's joint count, target space and hash; a plant and a
-//! controller with different arms refuse each other by name. Lockstep runs of a spatial arm
-//! go through `companion sim --arm`'s own loop ([`crate::run::spatial::execute`]) and are
-//! byte-identical to it. `--chaos` and `--delay` are for the planar arm.
+//! loops and the plant's run are the same for every arm: the plant drives a
+//! [`crate::run::robot::Robot`] (the planar plant, or the spatial one) and records its
+//! [`crate::domain::record::Row`]s, the controller serves a [`law::Served`] (the planar law, or
+//! the spatial law for `N` joints). Both roles announce the arm's joint count, target space
+//! and hash; a plant and a controller with different arms refuse each other by name. Lockstep
+//! runs go through `companion sim`'s own loop ([`crate::run::sim::run_loop`]) and are
+//! byte-identical to it, with either arm. `--chaos` and `--delay` work with every arm.
 //!
 //! ## Modes
 //!
@@ -83,7 +83,7 @@
 //! [`config`] (typed options and the run's scenario), [`end`] (how a run ended), [`stats`]
 //! (what is counted), [`hold`] (hold, then stop), [`messages`] (the one header builder,
 //! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the three wait
-//! modes), [`robot`] (what the plant's loop drives), [`law`] (what the controller serves);
+//! modes), [`law`] (what the controller serves);
 //! [`plant_loop`] (real time and lockstep), [`serve`] (the controller's loop), [`fault`]
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
 //! and [`control`] (the two processes).
@@ -101,7 +101,6 @@ pub mod misses;
 pub mod plant;
 pub mod plant_loop;
 pub mod report;
-pub mod robot;
 pub mod serve;
 pub mod stats;
 pub mod wait;

@@ -1,9 +1,11 @@
 //! The plant process: publishes measurements, applies commands, owns time, writes the run's
 //! files (`timeseries.csv`, `summary.json`, `scenario.json`, `latency.json`, plots).
 
+use std::path::Path;
 use std::time::{Duration, Instant};
 
-use companion_core::{Manipulator, Spatial, SpatialArm};
+use companion_core::{Chain, Manipulator, Space, Spatial, SpatialArm};
+use companion_plant::Simulated;
 
 use super::chaos::{Agent, ChaosError, Plan};
 use super::config::{HilConfig, HilScenario};
@@ -12,39 +14,38 @@ use super::handshake::controller_hash;
 use super::messages::Stamp;
 use super::plant_loop::{run_real_time, Lockstep, PlantSide};
 use super::report::{self, LatencyReport};
-use super::robot::{PlanarRobot, SpatialRobot};
 use super::stats::{LiveFigures, PlantStats};
 use crate::domain::arm::ArmError;
 use crate::domain::controller::SpatialControllerError;
 use crate::domain::observe::{Causes, Observer};
 use crate::domain::plant_setup::PlantSetupError;
+use crate::domain::plots::spatial::SpatialFigures;
+use crate::domain::plots::PlotError;
 use crate::domain::record::error::RecordError;
-use crate::domain::record::mcap::McapRecorder;
 use crate::domain::record::mcap::ReplayError;
 use crate::domain::record::output::OutputError;
-use crate::domain::record::spatial::{SpatialAccumulator, SpatialRecord};
-use crate::domain::record::verdict::{deadline_failures, rejection_failure, DeadlineFigures};
+use crate::domain::record::recorder::{expected_rows, summary_for, Log};
+use crate::domain::record::verdict::{deadline_failures, DeadlineFigures};
 use crate::domain::record::{
-    write_summary, Failure, LogItem, OutputDir, PlanarReplay, RecordWriter, Recorder, Row, RowSink,
-    RunOutcome,
+    write_summary, Failure, LogItem, OutputDir, RecordWriter, Recorder, Replay, Row, RowSink, RunOutcome,
+    Summary, SummaryAccumulator, Task,
 };
 use crate::domain::scenario::Scenario;
+use crate::run::robot::Robot;
 use crate::run::sim::{self, LoopEnd, LoopError};
-use crate::run::spatial::stream::{SpatialStream, StreamError};
-use crate::run::spatial::{self, SpatialOutcome, SpatialRunError, SpatialScenario};
+use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
 use crate::sys::clock::MonotonicClock;
 use crate::sys::lock::NameLock;
 use crate::sys::lock::{DemoName, LockError, NameInUse, Role};
 use crate::transport::error::{OpenError, StartError};
 use crate::transport::link::Link as _;
+use crate::transport::wire::target::WireSpace;
 use crate::transport::wire::{canonical, flags, platform};
 use crate::transport::{self, PlantEndpoint};
 
-/// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz), allocated once.
+/// The ring between the loop and the writer: 32768 rows (33 s at 1 kHz; 0.5 kB each with a
+/// spatial arm of 6 joints), allocated once.
 const LOG_RING: usize = 1 << 15;
-/// The ring of a spatial run's logged rows (1.3 kB each), allocated once; the writer thread
-/// empties it every few milliseconds.
-const SPATIAL_RING: usize = 1 << 12;
 /// How often the writer thread flushes `timeseries.csv`.
 const FLUSH_EVERY: Duration = Duration::from_millis(50);
 
@@ -63,9 +64,6 @@ pub enum PlantRunError {
         /// The parent's pid.
         parent: i32,
     },
-    /// `--chaos` with a spatial arm.
-    #[error("--chaos runs the paper's planar arm; it cannot be combined with a spatial --arm")]
-    ChaosSpatial,
     /// The chaos plan or its thread.
     #[error(transparent)]
     Chaos(#[from] ChaosError),
@@ -96,9 +94,6 @@ pub enum PlantRunError {
     /// The replay file (`--mcap`) failed.
     #[error(transparent)]
     Replay(#[from] ReplayError),
-    /// A spatial run's rows cannot be streamed.
-    #[error(transparent)]
-    Stream(#[from] StreamError),
     /// The loop failed: the transport, or a step the plant refused.
     #[error(transparent)]
     Loop(#[from] LoopError),
@@ -121,30 +116,10 @@ impl PlantRunError {
 pub struct PlantOutcome {
     /// How it ended.
     pub end: PlantEnd,
-    /// The run's summary (with its failures) and logged rows (the rows only when plots were
-    /// drawn).
-    pub run: PlantRun,
+    /// The run's summary (`summary.json`, with its failures), of either arm.
+    pub summary: Summary,
     /// `latency.json`.
     pub latency: LatencyReport,
-}
-
-/// The run a plant recorded: the paper's arm or a spatial one.
-#[derive(Debug)]
-pub enum PlantRun {
-    /// The planar run (as `companion sim`'s).
-    Planar(RunOutcome),
-    /// The spatial run (as `companion sim --arm`'s).
-    Spatial(SpatialOutcome),
-}
-
-impl PlantRun {
-    /// Why the run failed (empty: it did what a run must).
-    pub fn failures(&self) -> &[Failure] {
-        match self {
-            Self::Planar(r) => &r.summary.failures,
-            Self::Spatial(r) => &r.summary.failures,
-        }
-    }
 }
 
 /// Who holds the plant's role of the demo's name.
@@ -188,10 +163,10 @@ pub fn run(
     s: &HilScenario,
     live: &LiveFigures,
     observer: &dyn Observer,
-    lock: &PlantLock,
+    _lock: &PlantLock,
 ) -> Result<PlantOutcome, PlantRunError> {
     match s {
-        HilScenario::Planar(s) => run_planar(cfg, s, live, observer, lock),
+        HilScenario::Planar(s) => run_planar(cfg, s, live, observer),
         HilScenario::Spatial(ss) => match ss.arm.joints() {
             6 => run_spatial::<6>(cfg, ss, live, observer),
             7 => run_spatial::<7>(cfg, ss, live, observer),
@@ -356,6 +331,17 @@ impl RunContext<'_> {
     }
 }
 
+/// `--chaos`: the thread by which this process stops the controller (its parent) on the
+/// plan's schedule, started before the loop takes a real-time priority.
+fn chaos_agent(plan: Option<Plan>, cfg: &HilConfig) -> Result<Option<Agent>, ChaosError> {
+    match (plan, cfg.chaos) {
+        (Some(p), Some(c)) => {
+            Agent::spawn(p.stops_by(Role::Plant), crate::sys::process::parent_pid(), c.epoch_ns).map(Some)
+        }
+        _ => Ok(None),
+    }
+}
+
 /// The real-time setup of the plant's loop thread, if asked for (its warning to `observer`).
 fn apply_rt(cfg: &HilConfig, observer: &dyn Observer) -> Option<crate::sys::rt::RtReport> {
     let rt = cfg.rt_config(Role::Plant)?;
@@ -387,56 +373,116 @@ fn after_loop(ep: &PlantEndpoint, stats: &PlantStats, end: &PlantEnd, observer: 
     }
 }
 
-/// The plant of the paper's arm.
+/// What the plant's run of one arm is built from, before anything is written: its plant and
+/// `r*_ed`, its chain (the replay draws it; the paper's arm as `Chain::rpr()`), its arm hash
+/// and its summary.
+struct Arm<P: Simulated<N>, const N: usize> {
+    plant: P,
+    star: <P::Space as Space<f64>>::Pose,
+    chain: Chain<f64, N>,
+    arm_hash: u64,
+    summary: SummaryAccumulator,
+}
+
+/// The plant of the paper's arm: [`run_arm`] with its plant, its `scenario.json` and the
+/// paper's figures.
 fn run_planar(
     cfg: &HilConfig,
     s: &Scenario,
     live: &LiveFigures,
     observer: &dyn Observer,
-    _lock: &PlantLock,
 ) -> Result<PlantOutcome, PlantRunError> {
+    let arm = Arm {
+        plant: sim::build_plant(s)?,
+        star: s.controller.params::<f64>().primary.target_in_effector,
+        chain: Chain::rpr(),
+        arm_hash: super::handshake::arm_hash(),
+        summary: summary_for(s),
+    };
+    let files = |dir: &Path, summary: &Summary| write_summary(dir, s, summary);
+    let plots = |dir: &Path, summary: &Summary, rows: Vec<Row>| {
+        let run = RunOutcome { scenario: s.clone(), summary: summary.clone(), rows };
+        crate::domain::plots::render_run(dir, &run)
+    };
+    run_arm(cfg, s, arm, live, observer, files, plots)
+}
+
+/// The plant of a spatial arm of `N` joints (§5): the spatial plant of `companion sim --arm`,
+/// its `scenario.json` and figures.
+fn run_spatial<const N: usize>(
+    cfg: &HilConfig,
+    ss: &SpatialScenario,
+    live: &LiveFigures,
+    observer: &dyn Observer,
+) -> Result<PlantOutcome, PlantRunError>
+where
+    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    let chain = ss.arm.chain::<f64, N>()?;
+    let star = spatial::target_in_effector::<N>(ss)?;
+    let arm = Arm {
+        plant: spatial::build_plant(ss, &chain, &star)?,
+        star,
+        chain,
+        arm_hash: canonical::arm_hash(&chain),
+        summary: spatial::summary_for(ss, &chain),
+    };
+    let files = |dir: &Path, summary: &Summary| spatial::write_summary_files(ss, summary, &star, dir);
+    let plots = |dir: &Path, summary: &Summary, rows: Vec<Row<Spatial, N>>| {
+        let figures = SpatialFigures { name: &ss.name, rows: &rows, summary, chain: &chain };
+        crate::domain::plots::spatial::render(dir, &figures)
+    };
+    run_arm(cfg, &ss.base, arm, live, observer, files, plots)
+}
+
+/// The plant of either arm: waits for the controller, runs the loop (real time or lockstep)
+/// on `arm`'s robot, records its rows (the CSV and, with `--mcap`, the replay, by a thread of
+/// their own in real time), and writes the run's files: `files` writes `summary.json` and
+/// `scenario.json`, `plots` the figures (unless `--no-plots`).
+fn run_arm<P, const N: usize>(
+    cfg: &HilConfig,
+    s: &Scenario,
+    arm: Arm<P, N>,
+    live: &LiveFigures,
+    observer: &dyn Observer,
+    files: impl FnOnce(&Path, &Summary) -> Result<(), RecordError>,
+    plots: impl FnOnce(&Path, &Summary, Vec<Row<P::Space, N>>) -> Result<(), PlotError>,
+) -> Result<PlantOutcome, PlantRunError>
+where
+    P: Simulated<N>,
+    P::Space: Task + WireSpace,
+{
     let timing = cfg.timing;
-    let mut plant = sim::build_plant(s)?;
-    let target_in_effector = s.controller.params::<f64>().primary.target_in_effector;
+    let Arm { mut plant, star, chain, arm_hash, summary } = arm;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
-    let opened = open(cfg, s, super::handshake::arm_hash())?;
+    let opened = open(cfg, s, arm_hash)?;
+    let kind = s.controller.platform;
     let (opened, replay) =
-        opened.join(cfg, observer, |p| PlanarReplay::create(p, s), PlanarReplay::discard)?;
+        opened.join(cfg, observer, |p| Replay::<P::Space, N>::create(p, kind, chain), Replay::discard)?;
     let steps = s.steps();
     let Opened { mut ep, stamp, out } = opened;
     let dir = out.path();
-    let mut recorder = Recorder::for_scenario(s, dir)?;
-    recorder.log = recorder.log.with_replay(replay);
-    // `--chaos`: this process stops the controller (its parent) on the plan's schedule; the
-    // thread starts before the loop takes a real-time priority.
-    let agent = match (plan, cfg.chaos) {
-        (Some(p), Some(c)) => {
-            Some(Agent::spawn(p.stops_by(Role::Plant), crate::sys::process::parent_pid(), c.epoch_ns)?)
-        }
-        _ => None,
-    };
+    let log = Log::<P::Space, N>::create(dir, kind, s.log_every, expected_rows(s))?.with_replay(replay);
+    let mut recorder = Recorder { log, summary };
+    let agent = chaos_agent(plan, cfg)?;
     let clock = MonotonicClock;
     let mut stats = PlantStats::default();
     let wall = Instant::now();
+    let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+    let side =
+        PlantSide { clock: &clock, link: &mut ep, timing, stamp, stats: &mut stats, live, last_sent: None };
     let rt_report;
     let end = if timing.lockstep {
+        // (Its warning after the loop: the lockstep progress bar is drawn meanwhile.)
         rt_report = cfg.rt_config(Role::Plant).map(|rt| crate::sys::rt::apply(&rt));
-        let side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
         let mut ex = Lockstep { side, steps, delay: s.delay };
-        let r = sim::run_loop(s, &mut plant, &mut ex, &mut recorder, observer);
-        let end = match r {
-            Ok(LoopEnd::Completed) => PlantEnd::Completed,
-            Ok(LoopEnd::Interrupted { last }) => PlantEnd::Interrupted { cycle: last },
-            Ok(LoopEnd::Ended(end)) => end,
-            Err(e) => return Err(e.into()),
+        let r = sim::run_loop(s, &mut robot, &mut ex, &mut recorder, observer);
+        crate::sys::rt::reset_thread();
+        let end = match r? {
+            LoopEnd::Completed => PlantEnd::Completed,
+            LoopEnd::Interrupted { last } => PlantEnd::Interrupted { cycle: last },
+            LoopEnd::Ended(end) => end,
         };
         recorder.flush()?;
         if let Some(w) = rt_report.as_ref().and_then(|r| r.warning("plant")) {
@@ -447,17 +493,9 @@ fn run_planar(
         // The writer thread first, so that it does not inherit the real-time CPU and priority.
         let mut writer = RecordWriter::spawn(recorder, LOG_RING, FLUSH_EVERY)?;
         rt_report = apply_rt(cfg, observer);
-        let mut sink = |n: u64, row: &Row, last: bool| writer.try_push(LogItem { n, row: *row, last });
-        let mut side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
-        let mut robot = PlanarRobot { plant: &mut plant, target_in_effector };
+        let mut sink =
+            |n: u64, row: &Row<P::Space, N>, last: bool| writer.try_push(LogItem { n, row: *row, last });
+        let mut side = side;
         let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
         crate::sys::rt::reset_thread();
         live.finish();
@@ -473,139 +511,17 @@ fn run_planar(
     let wall_s = wall.elapsed().as_secs_f64();
     let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
     let mut summary = recorder.summary.finish(wall_s);
-    summary.ended_early = end != PlantEnd::Completed;
-    summary.failures.extend(rejection_failure(
-        &summary.rejections,
-        summary.steps,
-        summary.first_rejection_at_s,
-        cfg.acceptance.max_rejected,
-    ));
-    summary.failures.extend(ctx.real_time_failures());
-    summary.link = Some(ctx.link_record());
-    write_summary(dir, s, &summary)?;
-    let latency = ctx.write_latency(&summary.failures, chaos_stops, ep.link_counts())?;
-    let rows = if cfg.no_plots { Vec::new() } else { std::mem::take(&mut recorder.log.rows) };
-    let run = RunOutcome { scenario: s.clone(), summary, rows };
-    if !cfg.no_plots {
-        if let Err(e) = crate::domain::plots::render_run(dir, &run) {
-            observer.warn(&format!("plots: {}", Causes(&e)));
-        }
-    }
-    Ok(PlantOutcome { end, run: PlantRun::Planar(run), latency })
-}
-
-/// The plant of a spatial arm of `N` joints (§5): the spatial plant of `companion sim --arm`,
-/// its rows the [`SpatialRecord`]s of every `--log-every`-th step (in real time written as
-/// the run goes by a thread of its own, [`SpatialStream`]).
-fn run_spatial<const N: usize>(
-    cfg: &HilConfig,
-    ss: &SpatialScenario,
-    live: &LiveFigures,
-    observer: &dyn Observer,
-) -> Result<PlantOutcome, PlantRunError>
-where
-    SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
-    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
-{
-    let s = &ss.base;
-    let timing = cfg.timing;
-    if cfg.chaos.is_some() {
-        return Err(PlantRunError::ChaosSpatial);
-    }
-    let chain = ss.arm.chain::<f64, N>()?;
-    let star = spatial::target_in_effector::<N>(ss)?;
-    let mut plant = spatial::build_plant(ss, &chain, &star)?;
-    let opened = open(cfg, s, canonical::arm_hash(&chain))?;
-    let layout = spatial::replay::layout(ss);
-    let (opened, mcap) =
-        opened.join(cfg, observer, |p| McapRecorder::create(p, layout), McapRecorder::discard)?;
-    let Opened { mut ep, stamp, out } = opened;
-    let dir = out.path();
-    let steps = s.steps();
-    let max_rejected = cfg.acceptance.max_rejected;
-    let clock = MonotonicClock;
-    let mut stats = PlantStats::default();
-    let wall = Instant::now();
-    let rt_report;
-    let (mut outcome, end) = if timing.lockstep {
-        rt_report = apply_rt(cfg, observer);
-        let side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
-        let mut ex = Lockstep { side, steps, delay: 0.0 };
-        let (outcome, failed) =
-            spatial::execute(ss, &mut plant, &star, &mut ex, dir, observer, max_rejected)?;
-        let end = match failed {
-            None if outcome.summary.ended_early => PlantEnd::Interrupted { cycle: outcome.summary.steps },
-            None => PlantEnd::Completed,
-            Some(spatial::Halt::Ended(end)) => end,
-            Some(spatial::Halt::Failed(e)) => return Err(e.into()),
-        };
-        crate::sys::rt::reset_thread();
-        (outcome, end)
-    } else {
-        let (lower, upper) = spatial::limits(&chain);
-        let mut acc = SpatialAccumulator::new(&ss.name, ss.arm.name(), &lower, &upper);
-        let every = s.log_every.max(1);
-        let expected = usize::try_from(steps / every + 2).unwrap_or(0);
-        // The writer thread first, so that it does not inherit the real-time CPU and priority.
-        let mut stream = SpatialStream::spawn(dir, N, SPATIAL_RING, expected)?;
-        rt_report = apply_rt(cfg, observer);
-        let mut sink = |n: u64, row: &SpatialRecord, last: bool| {
-            acc.add(row);
-            !(n % every == 0 || last) || stream.try_push(row)
-        };
-        let mut side = PlantSide {
-            clock: &clock,
-            link: &mut ep,
-            timing,
-            stamp,
-            stats: &mut stats,
-            live,
-            last_sent: None,
-        };
-        let mut robot = SpatialRobot { plant: &mut plant, target_in_effector: star };
-        let r = run_real_time(&mut side, &mut robot, steps, &mut sink);
-        crate::sys::rt::reset_thread();
-        live.finish();
-        let records = stream.finish()?;
-        let end = r?;
-        let summary = acc.finish(wall.elapsed().as_secs_f64(), end != PlantEnd::Completed, max_rejected);
-        let outcome = SpatialOutcome {
-            scenario: ss.clone(),
-            summary,
-            records,
-            limits: lower.into_iter().zip(upper).collect(),
-        };
-        (outcome, end)
-    };
-    live.finish();
-    after_loop(&ep, &stats, &end, observer);
-    let wall_s = wall.elapsed().as_secs_f64();
-    let ctx = RunContext { cfg, s, dir, observer, stats: &stats, rt: rt_report.as_ref(), end, wall_s };
-    outcome.summary.wall_time_s = wall_s;
-    outcome.summary.link = Some(ctx.link_record());
+    summary.judge(end != PlantEnd::Completed, cfg.acceptance.max_rejected);
     for f in ctx.real_time_failures() {
-        outcome.summary.fail(f);
+        summary.fail(f);
     }
-    // timeseries.csv is on disk (written by the lockstep loop, or streamed in real time); the
-    // summary again, with the wall time and the real-time verdict.
-    spatial::write_summary_files(&outcome, &star, dir)?;
-    if let Some(m) = mcap {
-        let r = spatial::replay::write(m, s.controller.platform, &outcome.records)?;
-        observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
-    }
-    let latency = ctx.write_latency(&outcome.summary.failures, Vec::new(), ep.link_counts())?;
+    summary.link = Some(ctx.link_record());
+    files(dir, &summary)?;
+    let latency = ctx.write_latency(&summary.failures, chaos_stops, ep.link_counts())?;
     if !cfg.no_plots {
-        if let Err(e) = crate::domain::plots::spatial::render(dir, &outcome.figures()) {
+        if let Err(e) = plots(dir, &summary, std::mem::take(&mut recorder.log.rows)) {
             observer.warn(&format!("plots: {}", Causes(&e)));
         }
     }
-    Ok(PlantOutcome { end, run: PlantRun::Spatial(outcome), latency })
+    Ok(PlantOutcome { end, summary, latency })
 }

@@ -25,7 +25,8 @@
 use std::ops::ControlFlow;
 use std::sync::atomic::Ordering;
 
-use companion_core::{Command, Measurement, Pose, Spatial};
+use companion_core::{Command, Measurement, Pose};
+use companion_plant::Simulated;
 
 use super::config::Timing;
 use super::config::WaitMode;
@@ -33,14 +34,13 @@ use super::end::PlantEnd;
 use super::hold::HoldPolicy;
 use super::messages::{report_of, Stamp};
 use super::misses::{MissLedger, Period};
-use super::robot::Robot;
 use super::stats::{LiveFigures, PlantStats};
 use super::wait::Idler;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::domain::controller::{StepReport, JOINTS};
-use crate::domain::record::CommandSource;
+use crate::domain::record::{CommandSource, Row, Task};
+use crate::run::robot::Robot;
 use crate::run::sim::{Exchange, LoopError};
-use crate::run::spatial::SpatialExchange;
 use crate::sys::clock::Clock;
 use crate::sys::signals::termination_requested;
 use crate::transport::link::{LinkError, PlantLink};
@@ -525,12 +525,15 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
 ///
 /// # Errors
 /// A transport failure, or a step the plant refused.
-pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
+pub fn run_real_time<C: Clock, L: PlantLink, P: Simulated<N>, const N: usize>(
     side: &mut PlantSide<'_, C, L>,
-    plant: &mut R,
+    plant: &mut Robot<'_, P, N>,
     steps: u64,
-    sink: &mut impl FnMut(u64, &R::Row, bool) -> bool,
-) -> Result<PlantEnd, LoopError> {
+    sink: &mut impl FnMut(u64, &Row<P::Space, N>, bool) -> bool,
+) -> Result<PlantEnd, LoopError>
+where
+    P::Space: Task + WireSpace,
+{
     let runqueue_before = crate::sys::rt::runqueue_wait_ns();
     let mut cy = Cycle::<N>::new(&side.timing, steps, side.clock.now_ns());
     let mut answered_last;
@@ -541,7 +544,7 @@ pub fn run_real_time<C: Clock, L: PlantLink, const N: usize, R: Robot<N>>(
         let heard = side.await_command(&mut cy, n, released.deadline)?;
         answered_last = heard.fresh.is_some();
         let applied = side.apply(&mut cy, n, released, heard, plant.time());
-        let row = plant.row(&applied.report, applied.source);
+        let row = plant.row(&applied.report, applied.source, true);
         let last = n == cy.last_step;
         let kept = sink(n, &row, last);
         side.account(&cy, n, applied.source, kept);
@@ -639,25 +642,13 @@ impl<C: Clock, L: PlantLink> Lockstep<'_, C, L> {
     }
 }
 
-impl<C: Clock, L: PlantLink> Exchange for Lockstep<'_, C, L> {
+impl<C: Clock, L: PlantLink, const N: usize, S: WireSpace> Exchange<N, S> for Lockstep<'_, C, L> {
     type End = PlantEnd;
 
     fn exchange(
         &mut self,
         n: u64,
-        meas: &Measurement<f64, JOINTS>,
-    ) -> Result<ControlFlow<PlantEnd, StepReport>, LinkError> {
-        self.exchange_any(n, meas)
-    }
-}
-
-impl<C: Clock, L: PlantLink, const N: usize> SpatialExchange<N> for Lockstep<'_, C, L> {
-    type End = PlantEnd;
-
-    fn exchange(
-        &mut self,
-        n: u64,
-        meas: &Measurement<f64, N, Spatial>,
+        meas: &Measurement<f64, N, S>,
     ) -> Result<ControlFlow<PlantEnd, StepReport<N>>, LinkError> {
         self.exchange_any(n, meas)
     }

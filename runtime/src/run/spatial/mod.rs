@@ -1,46 +1,42 @@
 //! Spatial runs (`companion sim --arm ur5|panda|FILE`, §5): the spatial law on a
-//! [`SpatialPlant`] in one process — deterministic, like the planar [`sim`](crate::run::sim).
+//! [`SpatialPlant`] in one process — the same loop and records as the paper's arm
+//! ([`sim::simulate`](crate::run::sim::simulate)), deterministic.
 //!
 //! A [`SpatialScenario`] is a planar [`Scenario`] (platform, run (a)–(d), scalar type,
-//! period, duration, logging, config overrides of the platform law, plant imperfections)
-//! plus the arm ([`SpatialArmSpec`]) and the spatial target. [`run_spatial`] builds and
-//! checks everything — arm, law, plant, the target's height against the arm's reach — before
-//! it writes anything, then runs steps `0..=steps` and writes `timeseries.csv`,
-//! `summary.json` and `scenario.json` into the run's folder; the plots are the CLI's
-//! choice (`plots::spatial`).
+//! period, duration, logging, pure delay, config overrides of the platform law, plant
+//! imperfections) plus the arm ([`SpatialArmSpec`]) and the spatial target. [`run_spatial`]
+//! builds and checks everything — arm, law, plant, the target's height against the arm's
+//! reach — before it writes anything, then runs steps `0..=steps` and writes
+//! `timeseries.csv`, `summary.json` and `scenario.json` into the run's folder (and, asked
+//! for, the replay file); the plots are the caller's choice ([`SpatialOutcome::render`]).
 //!
 //! A target outside the reachable workspace is not an error once the run has started: the
 //! law stays finite (it damps near singular configurations and refuses steps at them), and
 //! the summary reports the joint margins and the rejected steps.
 
-pub mod replay;
-pub mod stream;
-
-use std::convert::Infallible;
-use std::ops::ControlFlow;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
-use companion_core::{Chain, Manipulator, Measurement, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
+use companion_core::{Chain, Manipulator, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::{
-    vertical_reach, Imperfections, LiftedTrajectory, PaperTrajectory, PlantConfig, PlantError,
-    SpatialInitial, SpatialPiecewise, SpatialPlant, SpatialTarget, TrajectoryError,
+    vertical_reach, Imperfections, InitialConditions, LiftedTrajectory, PaperTrajectory, PiecewiseTrajectory,
+    PlantConfig, PlantError, SpatialPlant, SpatialTarget, TrajectoryError,
 };
 
-use crate::domain::arm::{ArmError, SpatialArmSpec, MAX_JOINTS};
+use crate::domain::arm::{ArmError, SpatialArmSpec};
 use crate::domain::controller::{
-    boxed_spatial_controller, planar_only_keys, SpatialControllerError, SpatialStep, StepReport,
-    TARGET_DISTANCE,
+    boxed_spatial_controller, planar_only_keys, SpatialControllerError, TARGET_DISTANCE,
 };
 use crate::domain::observe::Observer;
 use crate::domain::plant_setup::matched_steering;
 use crate::domain::plots::spatial::SpatialFigures;
-use crate::domain::record::spatial::{write_csv, SpatialAccumulator, SpatialRecord, SpatialSummary};
-use crate::domain::record::CommandSource;
+use crate::domain::plots::PlotError;
+use crate::domain::record::error::RecordError;
+use crate::domain::record::mcap::ReplayError;
+use crate::domain::record::recorder::{expected_rows, Log};
+use crate::domain::record::{Replay, ReplaySummary, Row, Summary, SummaryAccumulator};
 use crate::domain::scenario::Scenario;
-use crate::run::sim::LoopError;
-use crate::transport::link::LinkError;
+use crate::run::sim::{simulate, LoopError, Robot};
 
 /// The target of a spatial run.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -141,41 +137,17 @@ pub enum SpatialRunError {
     /// The loop failed: the exchange (HIL: the transport), or a step the plant refused.
     #[error(transparent)]
     Loop(#[from] LoopError),
-    /// A folder or `timeseries.csv` cannot be created.
-    #[error("creating {}", path.display())]
-    Create {
-        /// The folder or file.
-        path: PathBuf,
-        /// The operating system's error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// `timeseries.csv` cannot be written.
-    #[error("writing {}", path.display())]
-    Csv {
-        /// The file.
-        path: PathBuf,
-        /// The CSV writer's error.
-        #[source]
-        source: csv::Error,
-    },
-    /// `summary.json` or `scenario.json` cannot be written.
-    #[error("writing {}", path.display())]
-    Json {
-        /// The file.
-        path: PathBuf,
-        /// The operating system's error.
-        #[source]
-        source: std::io::Error,
-    },
-    /// The summary or the scenario cannot be put as JSON.
+    /// The run's files cannot be written.
     #[error(transparent)]
-    Serialize(#[from] serde_json::Error),
+    Record(#[from] RecordError),
+    /// The replay file (`--mcap`) cannot be created.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
 }
 
 impl SpatialScenario {
-    /// A spatial scenario, checked for what spatial runs do not support: a delay, measurement
-    /// noise, `[controller]` keys of the planar arm.
+    /// A spatial scenario, checked for what spatial runs do not support: measurement noise, a
+    /// scenario's own start, `[controller]` keys of the planar arm.
     ///
     /// # Errors
     /// [`SpatialError`] naming the flag or key.
@@ -184,9 +156,6 @@ impl SpatialScenario {
         arm: SpatialArmSpec,
         target: SpatialTargetChoice,
     ) -> Result<Self, SpatialError> {
-        if base.delay != 0.0 {
-            return Err(SpatialError::Unsupported("--delay"));
-        }
         if base.plant.noise.is_some() {
             return Err(SpatialError::Unsupported("measurement noise (--noise, [plant].noise)"));
         }
@@ -215,46 +184,91 @@ impl SpatialScenario {
     }
 }
 
-/// What a spatial run gives back: its summary and the logged records.
+/// A spatial run's logged rows, whatever its joint count (the row's type carries it; an enum
+/// where the joint count is known only at run time, after the arm is read).
+#[derive(Clone, Debug)]
+pub enum SpatialRows {
+    /// Six joints.
+    Six(Vec<Row<Spatial, 6>>),
+    /// Seven joints.
+    Seven(Vec<Row<Spatial, 7>>),
+    /// Eight joints.
+    Eight(Vec<Row<Spatial, 8>>),
+}
+
+impl From<Vec<Row<Spatial, 6>>> for SpatialRows {
+    fn from(rows: Vec<Row<Spatial, 6>>) -> Self {
+        Self::Six(rows)
+    }
+}
+
+impl From<Vec<Row<Spatial, 7>>> for SpatialRows {
+    fn from(rows: Vec<Row<Spatial, 7>>) -> Self {
+        Self::Seven(rows)
+    }
+}
+
+impl From<Vec<Row<Spatial, 8>>> for SpatialRows {
+    fn from(rows: Vec<Row<Spatial, 8>>) -> Self {
+        Self::Eight(rows)
+    }
+}
+
+/// What a spatial run gives back: its summary and the logged rows. (Beside the paper's
+/// arm's `RunOutcome` because its scenario adds the arm and the target and its rows' joint
+/// count is known only at run time.)
 #[derive(Clone, Debug)]
 pub struct SpatialOutcome {
     /// The scenario.
     pub scenario: SpatialScenario,
     /// The figures.
-    pub summary: SpatialSummary,
+    pub summary: Summary,
     /// The logged steps.
-    pub records: Vec<SpatialRecord>,
-    /// The joints' limits `(lower, upper)`, for the plots.
-    pub limits: Vec<(f64, f64)>,
+    pub rows: SpatialRows,
 }
 
 impl SpatialOutcome {
-    /// What the figures are drawn from.
-    pub fn figures(&self) -> SpatialFigures<'_> {
-        SpatialFigures {
-            name: &self.scenario.name,
-            records: &self.records,
-            summary: &self.summary,
-            limits: &self.limits,
+    /// Renders the run's figures and `index.html` into `dir`.
+    ///
+    /// # Errors
+    /// The arm cannot be built again (it was), or writing a file failed.
+    pub fn render(&self, dir: &Path) -> Result<(), PlotError> {
+        fn draw<const N: usize>(
+            o: &SpatialOutcome,
+            rows: &[Row<Spatial, N>],
+            dir: &Path,
+        ) -> Result<(), PlotError> {
+            let chain = o.scenario.arm.chain::<f64, N>().map_err(PlotError::plotting)?;
+            let figures = SpatialFigures { name: &o.scenario.name, rows, summary: &o.summary, chain: &chain };
+            crate::domain::plots::spatial::render(dir, &figures)
+        }
+        match &self.rows {
+            SpatialRows::Six(r) => draw(self, r, dir),
+            SpatialRows::Seven(r) => draw(self, r, dir),
+            SpatialRows::Eight(r) => draw(self, r, dir),
         }
     }
 }
 
-/// Builds and checks a spatial scenario, runs it, and writes its files into `dir`; rejected
-/// steps beyond `max_rejected` (a fraction) make the summary's verdict `failed`.
+/// Builds and checks a spatial scenario, runs it, and writes its files into `dir` (and, with
+/// `mcap`, the replay file, created before anything else is written: a path that cannot be
+/// written stops the run); rejected steps beyond `max_rejected` (a fraction) make the
+/// summary's verdict `failed`.
 ///
 /// # Errors
-/// A bad arm, parameter, target or plant (before anything is written), or an I/O failure.
+/// A bad arm, parameter, target, plant or replay path (before anything is written), or an I/O
+/// failure.
 pub fn run_spatial(
     s: &SpatialScenario,
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome, SpatialRunError> {
+    mcap: Option<&Path>,
+) -> Result<(SpatialOutcome, Option<ReplaySummary>), SpatialRunError> {
     match s.arm.joints() {
-        6 => run_n::<6>(s, dir, observer, max_rejected),
-        7 => run_n::<7>(s, dir, observer, max_rejected),
-        8 => run_n::<8>(s, dir, observer, max_rejected),
+        6 => run_n::<6>(s, dir, observer, max_rejected, mcap),
+        7 => run_n::<7>(s, dir, observer, max_rejected, mcap),
+        8 => run_n::<8>(s, dir, observer, max_rejected, mcap),
         n => Err(ArmError::JointCount { found: n }.into()),
     }
 }
@@ -265,22 +279,34 @@ fn run_n<const N: usize>(
     dir: &Path,
     observer: &dyn Observer,
     max_rejected: f64,
-) -> Result<SpatialOutcome, SpatialRunError>
+    mcap: Option<&Path>,
+) -> Result<(SpatialOutcome, Option<ReplaySummary>), SpatialRunError>
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+    SpatialRows: From<Vec<Row<Spatial, N>>>,
 {
     let chain = s.arm.chain::<f64, N>()?;
-    let mut controller = boxed_spatial_controller::<N>(&s.base.controller, &s.arm)?;
+    let controller = boxed_spatial_controller::<N>(&s.base.controller, &s.arm)?;
     let star = controller.target_in_effector();
-    let mut exchange = InProcess { controller: controller.as_mut(), dt: s.base.dt };
     let mut plant = build_plant(s, &chain, &star)?;
-    let (outcome, failed) = execute(s, &mut plant, &star, &mut exchange, dir, observer, max_rejected)?;
-    match failed {
-        None => Ok(outcome),
-        Some(Halt::Failed(e)) => Err(e.into()),
-        Some(Halt::Ended(never)) => match never {},
-    }
+    let kind = s.base.controller.platform;
+    let replay = mcap.map(|p| Replay::<Spatial, N>::create(p, kind, chain)).transpose()?;
+    let log =
+        Log::<Spatial, N>::create(dir, kind, s.base.log_every, expected_rows(&s.base))?.with_replay(replay);
+    let mut robot = Robot { plant: &mut plant, target_in_effector: star };
+    let run = simulate(&s.base, &mut robot, controller, log, summary_for(s, &chain), observer, max_rejected)?;
+    write_summary_files(s, &run.summary, &star, dir)?;
+    let outcome = SpatialOutcome { scenario: s.clone(), summary: run.summary, rows: run.rows.into() };
+    Ok((outcome, run.replay))
+}
+
+/// The summary of spatial scenario `s` for the arm `chain` (its name, the arm and its joint
+/// limits), empty.
+pub fn summary_for<const N: usize>(s: &SpatialScenario, chain: &Chain<f64, N>) -> SummaryAccumulator {
+    let lower: Vec<f64> = chain.joints.iter().map(|j| j.lower).collect();
+    let upper: Vec<f64> = chain.joints.iter().map(|j| j.upper).collect();
+    SummaryAccumulator::new(&s.name, &lower, &upper).with_arm(s.arm.name())
 }
 
 /// Checks that `s` can run: the arm, the law's parameters, the target (its file, its height
@@ -303,57 +329,6 @@ pub fn check(s: &SpatialScenario) -> Result<(), SpatialRunError> {
         7 => n::<7>(s),
         8 => n::<8>(s),
         j => Err(ArmError::JointCount { found: j }.into()),
-    }
-}
-
-/// Turns a spatial measurement into the controller's report: in this process, or over the
-/// wire (the HIL plant's lockstep exchange), so that both write the same bytes.
-pub trait SpatialExchange<const N: usize> {
-    /// Why an exchange may end the run early, as a value (as [`Exchange::End`]).
-    ///
-    /// [`Exchange::End`]: crate::run::sim::Exchange::End
-    type End;
-
-    /// The report for the measurement of step `n`, or the end of the run.
-    ///
-    /// # Errors
-    /// The exchange itself failed (HIL: the transport).
-    fn exchange(
-        &mut self,
-        n: u64,
-        meas: &Measurement<f64, N, Spatial>,
-    ) -> Result<ControlFlow<Self::End, StepReport<N>>, LinkError>;
-}
-
-/// Why [`execute`] stopped before its last step (its records up to there are kept and
-/// written).
-#[derive(Debug)]
-pub enum Halt<X> {
-    /// The exchange ended the run ([`SpatialExchange::End`]).
-    Ended(X),
-    /// The exchange or the plant failed.
-    Failed(LoopError),
-}
-
-/// What [`execute`] gives back: the run's outcome, and why it stopped early if it did.
-pub type Executed<X> = (SpatialOutcome, Option<Halt<X>>);
-
-/// The controller in this process.
-struct InProcess<'c, const N: usize> {
-    controller: &'c mut (dyn SpatialStep<N> + Send),
-    dt: f64,
-}
-
-impl<const N: usize> SpatialExchange<N> for InProcess<'_, N> {
-    type End = Infallible;
-
-    #[inline]
-    fn exchange(
-        &mut self,
-        _n: u64,
-        meas: &Measurement<f64, N, Spatial>,
-    ) -> Result<ControlFlow<Infallible, StepReport<N>>, LinkError> {
-        Ok(ControlFlow::Continue(self.controller.step(meas, self.dt, 0.0)))
     }
 }
 
@@ -387,7 +362,7 @@ pub fn build_plant<const N: usize>(
     let (target, joints) = match &s.target {
         SpatialTargetChoice::Lifted(t) => (SpatialTarget::Lifted(LiftedTrajectory::new(*t, height)), home),
         SpatialTargetChoice::File(path) => {
-            let p = SpatialPiecewise::load(path)
+            let p = PiecewiseTrajectory::<Spatial>::load(path)
                 .map_err(|source| SpatialRunError::TargetFile { path: path.clone(), source })?;
             let q = match p.initial_joints() {
                 None => home,
@@ -426,170 +401,33 @@ pub fn build_plant<const N: usize>(
         seed: p.seed.unwrap_or(1),
     };
     let config = PlantConfig::new(s.base.controller.platform).with_imperfections(imperfections);
-    let initial = SpatialInitial { base: Pose::identity(), steering, joints, r_bd };
+    let initial = InitialConditions::<N, Spatial> {
+        steering,
+        ..InitialConditions::<N, Spatial>::in_space(Pose::identity(), r_bd, joints)
+    };
     SpatialPlant::new(config, *chain, &initial, target).map_err(SpatialRunError::Plant)
 }
 
-/// How often the loop reports progress and looks for SIGINT/SIGTERM (steps).
-const PROGRESS_EVERY: u64 = 4096;
-
-/// The record of the plant's current step and the controller's report; the frames only when
-/// `frames` (logged steps).
-pub(crate) fn record_of<const N: usize>(
-    plant: &SpatialPlant<N>,
-    star: &Pose3<f64>,
-    report: &StepReport<N>,
-    source: CommandSource,
-    frames: bool,
-) -> SpatialRecord {
-    let st = plant.truth();
-    let mut q = [0.0; MAX_JOINTS];
-    let mut rates = [0.0; MAX_JOINTS];
-    q[..N].copy_from_slice(st.joints.as_slice());
-    rates[..N].copy_from_slice(report.command.joints.as_slice());
-    let mut links = [Pose3::identity(); MAX_JOINTS];
-    let mut effector = Pose3::identity();
-    if frames {
-        let (l, e) = plant.frames();
-        links[..N].copy_from_slice(&l);
-        effector = e;
-    }
-    let e_p = plant.tracking_error(star);
-    SpatialRecord {
-        t: st.t,
-        joints: N,
-        base: Pose3::from_planar(&st.base),
-        heading: st.base.theta,
-        steering: st.steering,
-        q,
-        links,
-        effector,
-        target: st.target,
-        target_twist: st.target_velocity,
-        command: report.command.platform,
-        joint_rates: rates,
-        e_p,
-        ep_norm: e_p.norm(),
-        h_s: report.h_s,
-        joint_scale: report.joint_scale,
-        saturation: report.saturation,
-        error: report.error,
-        source,
-    }
-}
-
-/// Runs steps `0..=steps` of `plant` (built by [`build_plant`] for `r*_ed` = `star`):
-/// measure, exchange, record, advance (the planar loop's order), and writes the run's files
-/// into `dir`. The loop of `companion sim --arm` and of the lockstep HIL plant.
-///
-/// A failed exchange (the HIL controller lost) or a step the plant refused ends the loop
-/// early: the files are written up to that step, and the error comes back beside the
-/// outcome (whose summary says the run ended early).
+/// Writes a spatial run's `summary.json` and `scenario.json` into `dir`; `star` is the
+/// controller's `r*_ed` (its `timeseries.csv` written as the run went).
 ///
 /// # Errors
 /// An I/O failure.
-pub fn execute<const N: usize, X: SpatialExchange<N>>(
+pub fn write_summary_files(
     s: &SpatialScenario,
-    plant: &mut SpatialPlant<N>,
+    summary: &Summary,
     star: &Pose3<f64>,
-    exchange: &mut X,
     dir: &Path,
-    observer: &dyn Observer,
-    max_rejected: f64,
-) -> Result<Executed<X::End>, SpatialRunError> {
-    let (lower, upper) = limits(plant.chain());
-    let mut acc = SpatialAccumulator::new(&s.name, s.arm.name(), &lower, &upper);
-    let steps = s.steps();
-    let every = s.base.log_every.max(1);
-    let mut records = Vec::new();
-    let start = Instant::now();
-    let mut ended_early = false;
-    let mut failed = None;
-    for n in 0..=steps {
-        let meas = plant.measure();
-        let report = match exchange.exchange(n, &meas) {
-            Ok(ControlFlow::Continue(r)) => r,
-            Ok(ControlFlow::Break(end)) => {
-                failed = Some(Halt::Ended(end));
-                break;
-            }
-            Err(e) => {
-                failed = Some(Halt::Failed(e.into()));
-                break;
-            }
-        };
-        let interrupted =
-            n % PROGRESS_EVERY == 0 && n < steps && crate::sys::signals::termination_requested();
-        let last = n == steps || interrupted;
-        let logged = n % every == 0 || last;
-        let rec = record_of(plant, star, &report, CommandSource::Fresh, logged);
-        acc.add(&rec);
-        if logged {
-            records.push(rec);
-        }
-        if interrupted {
-            ended_early = true;
-            break;
-        }
-        if n < steps {
-            if let Err(e) = plant.try_advance(&report.command, s.base.dt) {
-                failed = Some(Halt::Failed(e.into()));
-                break;
-            }
-        }
-        if n % PROGRESS_EVERY == 0 {
-            observer.advance(PROGRESS_EVERY.min(steps + 1 - n));
-        }
-    }
-    let summary = acc.finish(start.elapsed().as_secs_f64(), ended_early || failed.is_some(), max_rejected);
-    let outcome = SpatialOutcome {
-        scenario: s.clone(),
-        summary,
-        records,
-        limits: lower.into_iter().zip(upper).collect(),
+) -> Result<(), RecordError> {
+    let write = |name: &str, text: String| {
+        let path = dir.join(name);
+        std::fs::write(&path, text + "\n").map_err(|source| RecordError::Json { path, source })
     };
-    write_files(&outcome, star, dir)?;
-    Ok((outcome, failed))
-}
-
-/// The joints' lower and upper limits.
-pub fn limits<const N: usize>(chain: &Chain<f64, N>) -> (Vec<f64>, Vec<f64>) {
-    (chain.joints.iter().map(|j| j.lower).collect(), chain.joints.iter().map(|j| j.upper).collect())
-}
-
-/// Writes a spatial run's `timeseries.csv`, `summary.json` and `scenario.json` into `dir`
-/// (created if missing); `star` is the controller's `r*_ed`.
-///
-/// # Errors
-/// An I/O failure.
-pub fn write_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<(), SpatialRunError> {
-    std::fs::create_dir_all(dir)
-        .map_err(|source| SpatialRunError::Create { path: dir.to_path_buf(), source })?;
-    let csv = dir.join("timeseries.csv");
-    let file = match std::fs::File::create(&csv) {
-        Ok(f) => f,
-        Err(source) => return Err(SpatialRunError::Create { path: csv, source }),
-    };
-    write_csv(std::io::BufWriter::new(file), &o.records)
-        .map_err(|source| SpatialRunError::Csv { path: csv, source })?;
-    write_summary_files(o, star, dir)
-}
-
-/// Writes a spatial run's `summary.json` and `scenario.json` into `dir` (its
-/// `timeseries.csv` written as the run went: [`stream`]).
-///
-/// # Errors
-/// An I/O failure.
-pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) -> Result<(), SpatialRunError> {
-    let s = &o.scenario;
-    let path = dir.join("summary.json");
-    std::fs::write(&path, serde_json::to_string_pretty(&o.summary)? + "\n")
-        .map_err(|source| SpatialRunError::Json { path, source })?;
-    let path = dir.join("scenario.json");
+    write("summary.json", serde_json::to_string_pretty(summary)?)?;
     let described = serde_json::json!({
         "name": s.name,
         "arm": s.arm.name(),
-        "joints": o.limits.len(),
+        "joints": s.arm.joints(),
         "target": match &s.target {
             SpatialTargetChoice::Lifted(t) => format!("lifted trajectory {}", crate::domain::scenario::trajectory_number(*t)),
             SpatialTargetChoice::File(p) => p.display().to_string(),
@@ -597,7 +435,5 @@ pub fn write_summary_files(o: &SpatialOutcome, star: &Pose3<f64>, dir: &Path) ->
         "target_in_effector": { "xyz": star.translation.as_slice(), "distance": TARGET_DISTANCE },
         "base": s.base,
     });
-    std::fs::write(&path, serde_json::to_string_pretty(&described)? + "\n")
-        .map_err(|source| SpatialRunError::Json { path, source })?;
-    Ok(())
+    write("scenario.json", serde_json::to_string_pretty(&described)?)
 }

@@ -189,8 +189,7 @@ pub fn header(knobs: &[Knob]) -> String {
 /// FNV-1a, 64 bits (the wire's: one implementation for every hash of the runtime).
 pub use crate::transport::wire::fnv1a;
 
-/// The line of a sample (without a line break), from its run's figures and tail. Manoeuvres
-/// a run does not count (spatial runs) are written `NaN`.
+/// The line of a sample (without a line break), from its run's figures and tail.
 pub fn line(sample: u64, inputs: &[f64], class: Class, ran: Option<(&Figures, &Tail)>) -> String {
     let mut s = format!("{sample}");
     for v in inputs {
@@ -201,7 +200,7 @@ pub fn line(sample: u64, inputs: &[f64], class: Class, ran: Option<(&Figures, &T
         Some((m, tail)) => {
             let _ = write!(
                 s,
-                ",{},{},{},{},{},{},{},{},",
+                ",{},{},{},{},{},{},{},{},{}",
                 tail.tracked_fraction,
                 tail.settling_time_s,
                 m.final_ep_norm,
@@ -210,13 +209,8 @@ pub fn line(sample: u64, inputs: &[f64], class: Class, ran: Option<(&Figures, &T
                 m.max_abs_v,
                 tail.time_saturated_s,
                 m.rejected_steps,
+                m.maneuvers,
             );
-            match m.maneuvers {
-                Some(n) => {
-                    let _ = write!(s, "{n}");
-                }
-                None => s.push_str("NaN"),
-            }
         }
         None => s.push_str(",NaN,NaN,NaN,NaN,NaN,NaN,NaN,0,0"),
     }
