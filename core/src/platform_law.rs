@@ -46,8 +46,10 @@
 //! fell from 2.85·10⁻² to 3.8·10⁻³ (T1 a), 3.9·10⁻² to 5.3·10⁻³ (T2 a) and 1.2·10⁻² to
 //! 2.4·10⁻³ (T1 c), second order (÷3.9 per halving), the floors unchanged; the scalar weight
 //! `θ(z)` alone (exact for the mode at `z` only) reached 8·10⁻³, 1.1·10⁻² and 3.3·10⁻³, the
-//! earlier `θ = ½ + ½ z/(1 + z)` the figures above. Below `z = ½`, `b` is taken from its
-//! series (the closed form cancels; in `f32` completely below `z ≈ 10⁻³`).
+//! earlier `θ = ½ + ½ z/(1 + z)` the figures above. The unicycle's `α` step with the same
+//! weights (`alpha_step_one`) brought them to 3.05·10⁻³, 4.08·10⁻³ and 2.36·10⁻³ (÷4.0).
+//! Below `z = ½`, `b` is taken from its series (the closed form cancels; in `f32` completely
+//! below `z ≈ 10⁻³`).
 //! `a` and `b` are scaled down (towards the explicit step) if `det M < ½`, which happens
 //! only when the pre-compensation makes a mode unstable (`∂h_s/∂t < 0` in (40)) — then
 //! growth is the continuous law's own.
@@ -64,7 +66,7 @@
 //! it alone exceeds the steering limit the platform waits (`ρ = 0`) while the wheels turn
 //! at their limit.
 
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 
 use crate::params::{Discretisation, Params, Precompensation, RestFilter};
 use crate::platform::{CompanionFrame, Platform, PlatformKind};
@@ -354,64 +356,103 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
 
 impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P, N, S> {
     /// `w = H̄(α)⁻¹ ū` with `α` advanced linearly implicitly over the hold: `H̄⁻¹` was taken
-    /// at `α_e` (predicted with the guess `α̇_g`); at `α + θh α̇`,
-    /// `w ≈ w_e + c (θh α̇ − h/2 α̇_g)`, `c = ∂(H̄⁻¹ū)/∂α = −H̄⁻¹ (∂H̄/∂α) w_e`, solved for `α̇`
-    /// (one or two unknowns). Without it the loop `α → H̄(α)⁻¹ → α̇` (gain `~|ū|/det H`)
-    /// rings at the Nyquist frequency at long periods.
+    /// at `α_e = α + h/2 α̇_g` (`α̇_g` the previous command's, the guess); at `α + θh α̇`,
+    /// to first order,
     ///
-    /// The weight is first order. For one `α` the linearised equation `α̇ = w_e + c (α − α_e)`
-    /// gives over the hold a mean rate (the held `α̇`) and a mean `α` (where `v`, `ω` are
-    /// evaluated, through `θh α̇ − h/2 α̇_g`), and both need the same weight `θ(x) = 1/(1 −
-    /// e^{−x}) − 1/x = ½ + x/12 − x³/720 + …` (`x = −hc`); `θ − ½ = z/(2(1 + z))` biases them
-    /// by `O(h²)` with one sign wherever the mode decays, and no feedback restores `α`'s
-    /// phase: that is T2 (a)'s largest distance from the continuous law, 5.3·10⁻³ (4.1·10⁻³
-    /// with `θ(x)`; `θ(x)` in `v`, `ω` alone gives all of that gain but 4·10⁻⁵, in the held
-    /// `α̇` alone hardly any). `θ(x)` is not taken: with it the car's two `α`, whose `c` has
-    /// complex modes that no scalar weight follows, track less at 100 Hz; and for the
-    /// unicycle's one `α` it cannot meet issue 25's comparisons of single runs of chaotic
-    /// runs, which no change of this arithmetic can (today's weight with its operations
-    /// reordered fails them too; the root README's precision section and
-    /// `docs/explore/alpha-step`).
+    /// ```text
+    /// w = w_e + c (θh α̇ − h/2 α̇_g),   c = ∂(H̄⁻¹ū)/∂α = −H̄⁻¹ (∂H̄/∂α) w_e
+    /// ```
+    ///
+    /// solved for `α̇`: one unknown on the unicycle ([`alpha_step_one`], exact weight), two on
+    /// the car ([`alpha_step_two`], first-order weight). Without it the loop
+    /// `α → H̄(α)⁻¹ → α̇` (gain `~|ū|/det H`) rings at the Nyquist frequency at long periods.
     #[inline(always)]
     fn implicit_alpha(&self, frame: &CompanionFrame<T>, w_e: Vector3<T>, hold: &Hold<T>) -> Vector3<T> {
-        let (h, half) = (hold.period, hold.half);
         let g = P::alpha_rate(&hold.guess_w);
         let c0 = -(frame.hbar_inv * (frame.dhbar[0] * w_e));
-        let c1 = if P::ALPHA_DIM > 1 { -(frame.hbar_inv * (frame.dhbar[1] * w_e)) } else { Vector3::zeros() };
-        // α̇ as components of w: unicycle w[2]; car w[1], w[2].
-        let idx = if P::ALPHA_DIM == 1 { [2, 2] } else { [1, 2] };
-        let mut stiff = c0[idx[0]].abs();
-        if P::ALPHA_DIM > 1 {
-            stiff = stiff.max(c0[idx[1]].abs() + c1[idx[0]].abs()).max(c1[idx[1]].abs());
+        if P::ALPHA_DIM == 1 {
+            return alpha_step_one(w_e, c0, g[0], hold);
         }
-        let z = h * stiff;
-        let theta = T::of(0.5) + T::of(0.5) * z / (T::one() + z);
-        // Unknown α̇ (2-vector; the second unused for one α): α̇ᵢ = w_e[idx_i] + Σ_j c_j[idx_i] (θh α̇_j − half g_j).
-        let m00 = T::one() - theta * h * c0[idx[0]];
-        let (mut m01, mut m10, mut m11) = (T::zero(), T::zero(), T::one());
-        let mut r0 = w_e[idx[0]] - half * c0[idx[0]] * g[0];
-        let mut r1 = T::zero();
-        if P::ALPHA_DIM > 1 {
-            m01 = -theta * h * c1[idx[0]];
-            m10 = -theta * h * c0[idx[1]];
-            m11 = T::one() - theta * h * c1[idx[1]];
-            r0 -= half * c1[idx[0]] * g[1];
-            r1 = w_e[idx[1]] - half * (c0[idx[1]] * g[0] + c1[idx[1]] * g[1]);
-        }
-        let det = m00 * m11 - m01 * m10;
-        if det.nan() || det <= T::of(0.5) {
-            return w_e;
-        }
-        let a0 = (r0 * m11 - m01 * r1) / det;
-        let a1 = (m00 * r1 - m10 * r0) / det;
-        let d0 = theta * h * a0 - half * g[0];
-        let d1 = theta * h * a1 - half * g[1];
-        w_e + c0 * d0 + c1 * d1
+        let c1 = -(frame.hbar_inv * (frame.dhbar[1] * w_e));
+        alpha_step_two(w_e, [c0, c1], g, hold)
     }
 }
 
+/// The unicycle's `α` step (`w = (v, ω, α̇)`, `c = ∂w/∂α`, `c_α = c[2] = ∂α̇/∂α`), exact for
+/// the linearised equation. Over the hold `α̇ = w_e,α + c_α (α − α_e)` has constant
+/// coefficients; with `x = −h c_α` and `r = w_e,α − h/2 c_α α̇_g` (the rate at the measured
+/// `α`) it gives
+///
+/// ```text
+/// held α̇, the mean rate:      (α(h) − α(0))/h         = r / m(x)
+/// mean α, where v, ω are taken: (1/h)∫(α(t) − α(0)) dt = θ(x) h α̇
+/// m(x) = x/(1 − e^{−x}) = 1 + θ(x) x,   θ(x) = 1/(1 − e^{−x}) − 1/x = ½ + x/12 − x³/720 + …
+/// w = w_e + c (θ(x) h α̇ − h/2 α̇_g)
+/// ```
+///
+/// `m` and `θ` are the platform step's weights at `z = |x|` ([`stiffness_weights`]):
+/// `m = 1 + a x + b x²`, `θ = a + b x`. They are exact where the mode decays (`x = z`) and,
+/// where `a = ½` (`z ≤ z* ≈ 4.8`), where it grows (`x = −z`: `m(−z) = m(z) − z`). So the held
+/// `α̇` is the linearised equation's mean rate and `v`, `ω` are evaluated at its mean `α`;
+/// the local error left is the linearisation's (`c` changing over the hold, the curvature of
+/// `H̄⁻¹ū` in `α`): `O(h²)` in the held command, as everywhere in the midpoint step, without
+/// a sign of its own. The earlier first-order weight `θ = ½ + ½ z/(1 + z)` was off `θ(x)` by
+/// `5x/12` where the mode decays (`7|x|/12` where it grows): an `O(h²)` bias of the mean `α`
+/// with one sign, which no feedback removes from `α`'s phase. It was T2 (a)'s largest
+/// distance from the continuous law at 1 ms, 5.31·10⁻³ (now 4.08·10⁻³; T1 (a) 3.76·10⁻³ →
+/// 3.05·10⁻³: the root README's precision section).
+///
+/// Where `m ≤ ½` (`x < −1.26`: a mode that grows more than 3.5-fold over the hold) the step
+/// stays explicit: `w_e`.
+#[inline(always)]
+fn alpha_step_one<T: Real>(w_e: Vector3<T>, c: Vector3<T>, alpha_dot_g: T, hold: &Hold<T>) -> Vector3<T> {
+    let (h, half) = (hold.period, hold.half);
+    let x = -(h * c[2]);
+    let (a, b) = stiffness_weights(x.abs());
+    let theta = a + b * x;
+    let m = T::one() + theta * x;
+    if m.nan() || m <= T::of(0.5) {
+        return w_e;
+    }
+    let alpha_dot = (w_e[2] - half * c[2] * alpha_dot_g) / m;
+    w_e + c * (theta * h * alpha_dot - half * alpha_dot_g)
+}
+
+/// The car's `α` step (`w = (v, α̇₁, α̇₂)`, `c_j = ∂w/∂α_j`, `C = ∂α̇/∂α`, `C_ij = c_j[i + 1]`):
+/// the 2×2 system `(I − θh C) α̇ = w_e,α − h/2 C α̇_g` with the scalar, first-order weight
+/// `θ = ½ + ½ z/(1 + z)`, `z = h max(|C₀₀|, |C₁₀| + |C₀₁|, |C₁₁|)`.
+///
+/// Not the unicycle's exact weight: the car's `C` has complex eigenvalues on 13 % of the
+/// steps of T1 (a) and 35 % of T2 (a) at 100 Hz (`|Im| h` up to 2–4), which no scalar weight
+/// integrates exactly, and the matrix form `M = I − a hC + b (hC)²` leaves them undamped
+/// where `θ > ½` damps them: with it the car tracks T1 (a) at 100 Hz 66.8 % of the time
+/// after 20 s over 24 nearby starts, against 79.4 % with this weight
+/// (`docs/explore/alpha-step`).
+#[inline(always)]
+fn alpha_step_two<T: Real>(w_e: Vector3<T>, c: [Vector3<T>; 2], g: Vector2<T>, hold: &Hold<T>) -> Vector3<T> {
+    let (h, half) = (hold.period, hold.half);
+    let [c0, c1] = c;
+    let z = h * c0[1].abs().max(c0[2].abs() + c1[1].abs()).max(c1[2].abs());
+    let theta = T::of(0.5) + T::of(0.5) * z / (T::one() + z);
+    // M = I − θh C; the right-hand side r = w_e,α − h/2 C α̇_g.
+    let m00 = T::one() - theta * h * c0[1];
+    let m01 = -theta * h * c1[1];
+    let m10 = -theta * h * c0[2];
+    let m11 = T::one() - theta * h * c1[2];
+    let r0 = w_e[1] - half * c0[1] * g[0] - half * c1[1] * g[1];
+    let r1 = w_e[2] - half * (c0[2] * g[0] + c1[2] * g[1]);
+    let det = m00 * m11 - m01 * m10;
+    if det.nan() || det <= T::of(0.5) {
+        return w_e;
+    }
+    let a0 = (r0 * m11 - m01 * r1) / det;
+    let a1 = (m00 * r1 - m10 * r0) / det;
+    w_e + c0 * (theta * h * a0 - half * g[0]) + c1 * (theta * h * a1 - half * g[1])
+}
+
 /// The weights `(a, b)` of the step's matrix `M = I − a hJ + b (hJ)²` for `z = h‖J‖∞`
-/// (module docs). A mode `y′ = −μy` of `J` (`x = μh ≤ z`) is advanced by
+/// (module docs; the unicycle's `α` step takes them for its scalar `J = ∂α̇/∂α`,
+/// [`alpha_step_one`]). A mode `y′ = −μy` of `J` (`x = μh ≤ z`) is advanced by
 /// `R(x) = (1 − (1 − a)x + b x²)/(1 + a x + b x²)`; exact (`R = e^{−x}`) needs
 /// `m(x) = 1 + a x + b x² = x/(1 − e^{−x})`.
 ///
