@@ -193,7 +193,7 @@ pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
 }
 
 /// Runs the spatial scenario `s` in process, without files: `companion sim --arm`'s loop
-/// (`run::spatial::execute`: measure, step, advance) with nothing logged.
+/// (`run::spatial::run_spatial`, through the same `Robot`: measure, step, advance) with nothing logged.
 ///
 /// # Errors
 /// A bad arm, law, target or plant, or a plant step refused.
