@@ -763,12 +763,12 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
         eprintln!("plant: {}", outcome.end.describe());
     }
     print_failures("plant", &outcome.summary.failures);
+    for t in &outcome.latency.hung_controller_threads {
+        eprintln!("plant: the silent controller's thread {}", t.describe());
+    }
     println!("wrote {}", cfg.out.display());
-    if let Some(p) = &cfg.mcap {
-        println!(
-            "wrote {}: open it in Foxglove (File > Open local file), 3D panel on /tf and /scene",
-            p.display()
-        );
+    if let Some(r) = &outcome.replay {
+        super::sim::print_replay(r);
     }
     Ok(ExitCode::from(plant_exit_code(&outcome.end, &outcome.summary.failures)))
 }

@@ -215,7 +215,7 @@ fn after_20s_columns(steps_after: u64, max_ep: f64, tracked: f64) -> (String, St
 }
 
 /// Says where the replay is and how to open it.
-fn print_replay(r: &ReplaySummary) {
+pub(super) fn print_replay(r: &ReplaySummary) {
     let mb = r.bytes as f64 / 1e6;
     println!(
         "wrote {} ({} frames, {mb:.1} MB): open it in Foxglove (File > Open local file), 3D panel on /tf and /scene",

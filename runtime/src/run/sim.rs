@@ -192,19 +192,18 @@ pub enum LoopEnd<X = Infallible> {
 ///
 /// # Errors
 /// The exchange or the recording failed, or the plant refused a step.
-pub fn run_loop<P, E, K, const N: usize>(
+pub fn run_loop<
+    P: Simulated<N, Space: Task>,
+    E: Exchange<N, P::Space>,
+    K: RowSink<P::Space, N>,
+    const N: usize,
+>(
     s: &Scenario,
     robot: &mut Robot<'_, P, N>,
     exchange: &mut E,
     sink: &mut K,
     observer: &dyn Observer,
-) -> Result<LoopEnd<E::End>, LoopError>
-where
-    P: Simulated<N>,
-    P::Space: Task,
-    E: Exchange<N, P::Space>,
-    K: RowSink<P::Space, N>,
-{
+) -> Result<LoopEnd<E::End>, LoopError> {
     let steps = s.steps();
     let mut delay = (s.delay > 0.0).then(|| DelayLine::<N>::new(s.delay, s.dt));
     for n in 0..=steps {

@@ -22,7 +22,7 @@ use crate::domain::plant_setup::PlantSetupError;
 use crate::domain::plots::spatial::SpatialFigures;
 use crate::domain::plots::PlotError;
 use crate::domain::record::error::RecordError;
-use crate::domain::record::mcap::ReplayError;
+use crate::domain::record::mcap::{ReplayError, ReplaySummary};
 use crate::domain::record::output::OutputError;
 use crate::domain::record::recorder::{expected_rows, summary_for, Log};
 use crate::domain::record::verdict::{deadline_failures, DeadlineFigures};
@@ -118,8 +118,10 @@ pub struct PlantOutcome {
     pub end: PlantEnd,
     /// The run's summary (`summary.json`, with its failures), of either arm.
     pub summary: Summary,
-    /// `latency.json`.
+    /// `latency.json` (with the silent controller's threads, if it went silent).
     pub latency: LatencyReport,
+    /// The `--mcap` replay file, finished.
+    pub replay: Option<ReplaySummary>,
 }
 
 /// Who holds the plant's role of the demo's name.
@@ -319,9 +321,6 @@ impl RunContext<'_> {
         latency.chaos_stops = chaos_stops;
         latency.link_counts = link_counts;
         report::write_json(self.dir, &latency)?;
-        for t in &latency.hung_controller_threads {
-            self.observer.note(&format!("plant: the silent controller's thread {}", t.describe()));
-        }
         if !self.cfg.no_plots {
             if let Err(e) = report::write_svg(self.dir, self.stats, &latency) {
                 self.observer.warn(&format!("latency plot: {}", Causes(&e)));
@@ -440,7 +439,7 @@ where
 /// on `arm`'s robot, records its rows (the CSV and, with `--mcap`, the replay, by a thread of
 /// their own in real time), and writes the run's files: `files` writes `summary.json` and
 /// `scenario.json`, `plots` the figures (unless `--no-plots`).
-fn run_arm<P, const N: usize>(
+fn run_arm<P: Simulated<N, Space: Task + WireSpace>, const N: usize>(
     cfg: &HilConfig,
     s: &Scenario,
     arm: Arm<P, N>,
@@ -448,11 +447,7 @@ fn run_arm<P, const N: usize>(
     observer: &dyn Observer,
     files: impl FnOnce(&Path, &Summary) -> Result<(), RecordError>,
     plots: impl FnOnce(&Path, &Summary, Vec<Row<P::Space, N>>) -> Result<(), PlotError>,
-) -> Result<PlantOutcome, PlantRunError>
-where
-    P: Simulated<N>,
-    P::Space: Task + WireSpace,
-{
+) -> Result<PlantOutcome, PlantRunError> {
     let timing = cfg.timing;
     let Arm { mut plant, star, chain, arm_hash, summary } = arm;
     let plan = cfg.chaos.map(|c| Plan::new(c.seed, s.steps(), &timing)).transpose()?;
@@ -502,9 +497,7 @@ where
         recorder = writer.finish()?;
         r?
     };
-    if let Some(r) = recorder.log.finish_replay()? {
-        observer.note(&format!("plant: wrote {} ({} frames, {} bytes)", r.path.display(), r.frames, r.bytes));
-    }
+    let replay = recorder.log.finish_replay()?;
     let chaos_stops = agent.map(Agent::finish).unwrap_or_default();
     live.finish();
     after_loop(&ep, &stats, &end, observer);
@@ -523,5 +516,5 @@ where
             observer.warn(&format!("plots: {}", Causes(&e)));
         }
     }
-    Ok(PlantOutcome { end, summary, latency })
+    Ok(PlantOutcome { end, summary, latency, replay })
 }

@@ -530,15 +530,12 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
 ///
 /// # Errors
 /// A transport failure, or a step the plant refused.
-pub fn run_real_time<C: Clock, L: PlantLink, P: Simulated<N>, const N: usize>(
+pub fn run_real_time<C: Clock, L: PlantLink, P: Simulated<N, Space: Task + WireSpace>, const N: usize>(
     side: &mut PlantSide<'_, C, L>,
     plant: &mut Robot<'_, P, N>,
     steps: u64,
     sink: &mut impl FnMut(u64, &Row<P::Space, N>, bool) -> bool,
-) -> Result<PlantEnd, LoopError>
-where
-    P::Space: Task + WireSpace,
-{
+) -> Result<PlantEnd, LoopError> {
     let runqueue_before = crate::sys::rt::runqueue_wait_ns();
     let mut cy = Cycle::<N>::new(&side.timing, steps, side.clock.now_ns());
     let mut answered_last;
