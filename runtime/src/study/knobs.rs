@@ -129,11 +129,11 @@ impl Knob {
     }
 
     /// The arm the knob belongs to (`None`: every arm). `gain`, `stroke` set the planar arm's
-    /// task; `lambda` too, in effect: the spatial law takes its weight filter from the run
-    /// (a)–(d) (`Params::for_arm`), not from `[controller]`.
+    /// task; `lambda` filters the weight Ψ of either arm (a spatial arm's margins of (52) are
+    /// its own, its filter the spec's).
     pub fn arm(self) -> Option<ArmKind> {
         match self {
-            Self::Gain | Self::Stroke | Self::Lambda => Some(ArmKind::Planar),
+            Self::Gain | Self::Stroke => Some(ArmKind::Planar),
             Self::JointSpeed | Self::Reach => Some(ArmKind::Spatial),
             _ => None,
         }

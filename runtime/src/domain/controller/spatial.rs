@@ -7,7 +7,7 @@
 
 use companion_core::{
     Chain, Command, Controller, Manipulator, Measurement, Omnidirectional, ParamError, Params, Platform,
-    PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm,
+    PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm, Weight,
 };
 
 use super::report::StepReport;
@@ -111,6 +111,7 @@ pub fn spatial_params<T: Real, const N: usize>(
     s.d = from.d;
     s.mu = from.mu;
     s.precompensation = from.precompensation;
+    s.weight = with_filter_of(s.weight, &from.weight);
     s.rest_filter = from.rest_filter;
     s.psi_rate_in_drift = from.psi_rate_in_drift;
     p.primary.regularisation_gain = planar.primary.regularisation_gain;
@@ -125,6 +126,20 @@ pub fn spatial_params<T: Real, const N: usize>(
     p.max_delay = planar.max_delay;
     p.max_turn_per_step = planar.max_turn_per_step;
     Ok(p)
+}
+
+/// `weight` (the arm's margins of (52)) with the filter `(λ, ξ)` of (53) of `from` (the
+/// spec's, so `[controller] lambda` acts as on planar runs), where both are filtered.
+fn with_filter_of<T: Copy, const N: usize>(weight: Weight<T, N>, from: &Weight<T, 3>) -> Weight<T, N> {
+    let (lambda, xi) = match *from {
+        Weight::Filtered { lambda, xi, .. } | Weight::PerJoint { lambda, xi, .. } => (lambda, xi),
+        Weight::Constant(_) | Weight::FromFilteredJoints { .. } => return weight,
+    };
+    match weight {
+        Weight::Filtered { margins, .. } => Weight::Filtered { margins, lambda, xi },
+        Weight::PerJoint { margins, .. } => Weight::PerJoint { margins, lambda, xi },
+        w => w,
+    }
 }
 
 /// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`.
@@ -196,4 +211,35 @@ where
             Box::new(spatial_controller(spec, &c32()?, Omnidirectional).map_err(law)?)
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use companion_core::{Chain, PaperRun};
+
+    use super::*;
+
+    fn weight(run: PaperRun, lambda: Option<f64>) -> Weight<f64, 6> {
+        let mut spec = ControllerSpec::paper(PlatformKind::Unicycle, run, Scalar::F64);
+        spec.overrides.lambda = lambda;
+        let arm = SpatialArm::new(&Chain::<f64, 6>::ur5()).unwrap();
+        spatial_params(&spec, &arm).unwrap().secondary.weight
+    }
+
+    #[test]
+    fn controller_lambda_filters_a_spatial_arms_weight_whose_margins_stay_the_arms() {
+        let (paper, set) = (weight(PaperRun::B, None), weight(PaperRun::B, Some(3.0)));
+        let (
+            Weight::Filtered { margins: m0, lambda: l0, xi: x0 },
+            Weight::Filtered { margins: m1, lambda: l1, xi: x1 },
+        ) = (paper, set)
+        else {
+            panic!("run (b) filters its weight: {paper:?}, {set:?}");
+        };
+        assert_eq!((l0, l1), (1.66, 3.0));
+        assert_eq!((x0, x1), (1.0, 1.0));
+        assert_eq!(m0, m1);
+        // Run (a)'s weight is the constant 1: there is no filter for `lambda` to set.
+        assert_eq!(weight(PaperRun::A, Some(3.0)), Weight::Constant(1.0));
+    }
 }

@@ -355,8 +355,9 @@ fn bad_spatial_spaces_are_refused_before_anything_runs() {
     assert!(e.contains("`distance` is not available with a spatial arm"), "{e}");
     let e = check("[parameters]\ngain = [1.0, 2.0]");
     assert!(e.contains("`gain` is a parameter of the paper's planar arm"), "{e}");
-    let e = check("[parameters]\nlambda = [1.0, 2.0]");
-    assert!(e.contains("`lambda` is a parameter of the paper's planar arm"), "{e}");
+    let e = check("[parameters]\nstroke = [0.3, 0.5]");
+    assert!(e.contains("`stroke` is a parameter of the paper's planar arm"), "{e}");
+    assert_eq!(check("[parameters]\nlambda = [1.0, 2.0]"), "accepted");
     let e = check("[parameters]\njoint_speed = [0.0, 2.0]");
     let says = ["corner", "joint_speed = 0", "must be finite and > 0"];
     assert!(says.iter().all(|w| e.contains(w)), "{e}");
