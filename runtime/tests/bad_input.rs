@@ -306,6 +306,10 @@ fn no_config_value_makes_the_program_panic() {
         ("controller", "max_delay", false),
         ("controller", "max_turn_per_step", false),
         ("controller", "rest_reach", false),
+        // A spatial arm's law's: a planar run refuses them by name, whatever the value.
+        ("controller", "damping_below", false),
+        ("controller", "damping_depth", false),
+        ("controller", "singular_below", false),
         ("velocity_limits", "forward", false),
         ("velocity_limits", "angular", false),
         ("plant", "actuator_lag", false),

@@ -601,7 +601,8 @@ mod tests {
         let filled = ConfigFile::default().with_arm_settings(d.platform);
         assert_eq!(filled.car, Some(carried));
         assert_eq!(filled.unicycle, None);
-        let own = ConfigFile { car: Some(CarConfig::default()), ..ConfigFile::default() };
+        let mut own = ConfigFile::default();
+        own.car = Some(CarConfig::default());
         assert_eq!(own.with_arm_settings(d.platform).car, Some(CarConfig::default()), "--config wins");
         let panda = ConfigFile::default().with_arm_settings(SpatialArmSpec::Panda.platform_defaults());
         assert_eq!(panda.unicycle, Some(PANDA_UNICYCLE));

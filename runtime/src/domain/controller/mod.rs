@@ -10,8 +10,8 @@ mod spec;
 
 pub use report::{StepReport, JOINTS};
 pub use spatial::{
-    boxed_spatial_controller, command_f64, planar_only_keys, spatial_controller, spatial_params,
-    SpatialControllerError, SpatialStep, TARGET_DISTANCE,
+    boxed_spatial_controller, command_f64, planar_only_keys, spatial_arm, spatial_controller,
+    spatial_only_keys, spatial_params, SpatialControllerError, SpatialStep, TARGET_DISTANCE,
 };
 pub use spec::{
     platform_name, run_name, ArmConfig, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig,

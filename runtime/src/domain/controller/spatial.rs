@@ -142,6 +142,44 @@ fn with_filter_of<T: Copy, const N: usize>(weight: Weight<T, N>, from: &Weight<T
     }
 }
 
+/// The arm of `chain` with the spec's singularity settings (`[controller]` `damping_below`,
+/// `damping_depth`, `singular_below`; the core's defaults where unset).
+///
+/// # Errors
+/// An invalid chain, or a setting outside `[0, 1)`.
+pub fn spatial_arm<T: Real, const N: usize>(
+    spec: &ControllerSpec,
+    chain: &Chain<T, N>,
+) -> Result<SpatialArm<T, N>, ParamError>
+where
+    SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
+{
+    let o = &spec.overrides;
+    let mut arm = SpatialArm::new(chain)?;
+    if o.damping_below.is_some() || o.damping_depth.is_some() {
+        let (onset, depth) = arm.damping();
+        arm = arm.with_damping(o.damping_below.map_or(onset, T::of), o.damping_depth.map_or(depth, T::of))?;
+    }
+    if let Some(x) = o.singular_below {
+        arm = arm.with_singular_below(T::of(x))?;
+    }
+    Ok(arm)
+}
+
+/// The `[controller]` keys of a spatial arm's law (its singularity settings): refused with
+/// the planar arm, whose one singular configuration (`q₂ = 0`) is a joint limit.
+pub fn spatial_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
+    let o = &spec.overrides;
+    [
+        (o.damping_below.is_some(), "controller.damping_below"),
+        (o.damping_depth.is_some(), "controller.damping_depth"),
+        (o.singular_below.is_some(), "controller.singular_below"),
+    ]
+    .into_iter()
+    .filter_map(|(set, key)| set.then_some(key))
+    .collect()
+}
+
 /// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`.
 ///
 /// # Errors
@@ -154,7 +192,7 @@ pub fn spatial_controller<T: Real, P: Platform<T>, const N: usize>(
 where
     SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
 {
-    let arm = SpatialArm::new(chain)?;
+    let arm = spatial_arm(spec, chain)?;
     let params = spatial_params(spec, &arm)?;
     let mut c = Controller::new(params, platform, arm)?;
     if !spec.initial_alpha.iter().all(|a| a.is_finite()) {
@@ -241,5 +279,29 @@ mod tests {
         assert_eq!(m0, m1);
         // Run (a)'s weight is the constant 1: there is no filter for `lambda` to set.
         assert_eq!(weight(PaperRun::A, Some(3.0)), Weight::Constant(1.0));
+    }
+
+    #[test]
+    fn the_singularity_settings_reach_the_arm_and_bad_ones_are_named() {
+        let mut spec = ControllerSpec::paper(PlatformKind::Car, PaperRun::A, Scalar::F64);
+        let chain = Chain::<f64, 6>::ur5();
+        let core = SpatialArm::new(&chain).unwrap();
+        let arm = spatial_arm(&spec, &chain).unwrap();
+        assert_eq!((arm.damping(), arm.singular_below()), (core.damping(), core.singular_below()));
+        spec.overrides.damping_below = Some(1e-2);
+        spec.overrides.singular_below = Some(1e-12);
+        let arm = spatial_arm(&spec, &chain).unwrap();
+        assert_eq!((arm.damping(), arm.singular_below()), ((1e-2, core.damping().1), 1e-12));
+        assert_eq!(spatial_only_keys(&spec), ["controller.damping_below", "controller.singular_below"]);
+        for (key, bad) in [("damping_below", 1.5), ("damping_depth", f64::NAN), ("singular_below", -1.0)] {
+            let mut s = ControllerSpec::paper(PlatformKind::Car, PaperRun::A, Scalar::F64);
+            match key {
+                "damping_below" => s.overrides.damping_below = Some(bad),
+                "damping_depth" => s.overrides.damping_depth = Some(bad),
+                _ => s.overrides.singular_below = Some(bad),
+            }
+            let e = spatial_arm(&s, &chain).unwrap_err();
+            assert_eq!(e.param, key, "{e:?}");
+        }
     }
 }

@@ -181,6 +181,19 @@ pub struct ControllerConfig {
     pub max_turn_per_step: Option<f64>,
     /// How far the rest filter's virtual frame may lag (m).
     pub rest_reach: Option<f64>,
+    /// A spatial arm's damping onset `ρ₀ ∈ [0, 1)`: below this measure of its distance to a
+    /// singular configuration the arm's inverse is damped (default `10⁻³`; 0: never).
+    /// Spatial arms only (`companion_core::SpatialArm::with_damping`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping_below: Option<f64>,
+    /// A spatial arm's damping depth `κ ∈ [0, 1)` at a singular configuration, relative to
+    /// the mean diagonal (default 0.1). Spatial arms only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub damping_depth: Option<f64>,
+    /// A spatial arm's `ρ_min ∈ [0, 1)`: a step below it is refused as singular (default
+    /// `10⁻¹⁰`). Spatial arms only (`companion_core::SpatialArm::with_singular_below`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub singular_below: Option<f64>,
 }
 
 /// The car's default `K̄ = diag(k̄_v, k̄_α₁, k̄_α₂)` for `w = (v, α̇₁, α̇₂)` (found with

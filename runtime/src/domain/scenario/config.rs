@@ -97,6 +97,10 @@ pub struct ConfigFile {
     /// Plant imperfections.
     #[serde(default)]
     pub plant: PlantFileConfig,
+    /// Read for a spatial arm ([`with_arm_settings`](Self::with_arm_settings)): its law's
+    /// `[controller]` keys are allowed (a planar run refuses them).
+    #[serde(skip)]
+    spatial_arm: bool,
 }
 
 /// A config file that cannot be used.
@@ -131,9 +135,12 @@ impl ConfigFile {
         toml::from_str(&text).map_err(|e| ConfigError::Parse { path: path.into(), source: Box::new(e) })
     }
 
-    /// This file with the platform settings an arm carries wherever it has no table of its
-    /// own: a `[unicycle]` or `[car]` of the run's `--config` wins over the arm's.
+    /// This file for a spatial arm, with the platform settings the arm carries wherever it
+    /// has no table of its own: a `[unicycle]` or `[car]` of the run's `--config` wins over
+    /// the arm's. The spatial law's `[controller]` keys (`damping_below`, `damping_depth`,
+    /// `singular_below`) are allowed in it.
     pub fn with_arm_settings(mut self, arm: PlatformDefaults) -> Self {
+        self.spatial_arm = true;
         if self.unicycle.is_none() {
             self.unicycle = arm.unicycle;
         }
@@ -141,6 +148,11 @@ impl ConfigFile {
             self.car = arm.car;
         }
         self
+    }
+
+    /// Whether the file was read for a spatial arm ([`with_arm_settings`](Self::with_arm_settings)).
+    pub fn for_spatial_arm(&self) -> bool {
+        self.spatial_arm
     }
 }
 

@@ -144,6 +144,13 @@ pub enum ScenarioError {
     /// A value of the start is not finite.
     #[error("start: {0} must be finite")]
     Start(&'static str),
+    /// `[controller]` keys of a spatial arm's law in a planar run.
+    #[error(
+        "{} set(s) a spatial arm's law (its singularity settings; --arm ur5|panda|FILE); the paper's planar \
+         arm has none",
+        .0.join(", ")
+    )]
+    SpatialKeys(Vec<&'static str>),
 }
 
 /// A start other than the target's (the paper's `r_bd(0)` and `q(0)`): the platform at the
@@ -401,6 +408,7 @@ impl ScenarioBuilder {
             });
         }
         let file = self.config;
+        let spatial_arm = file.for_spatial_arm();
         let limits = match self.limits {
             Some(LimitsChoice::Unlimited) => None,
             Some(LimitsChoice::Realistic) => Some(LimitsConfig::realistic()),
@@ -431,6 +439,10 @@ impl ScenarioBuilder {
             if !st.steering.is_none_or(f64::is_finite) {
                 return Err(ScenarioError::Start("the steering xi(0)"));
             }
+        }
+        let keys = crate::domain::controller::spatial_only_keys(&controller);
+        if !spatial_arm && !keys.is_empty() {
+            return Err(ScenarioError::SpatialKeys(keys));
         }
         // Build once to report a bad parameter now, with its name and rule.
         AnyController::new(&controller).map_err(ScenarioError::Param)?;
