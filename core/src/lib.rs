@@ -100,7 +100,9 @@ pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
 pub use se3::Pose3;
 pub use space::{Planar, Space, Spatial};
-pub use spatial::{SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms};
+pub use spatial::{
+    SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms, DAMPING_BELOW, DAMPING_DEPTH, SINGULAR_BELOW,
+};
 pub use state::{Sent, State, HISTORY};
 pub use task::Manipulator;
 

@@ -99,6 +99,13 @@ use crate::so3;
 use crate::space::Spatial;
 use crate::task::{Manipulator, TaskPoint, TaskStep};
 
+/// The default `ρ_min` of [`SpatialArm::with_singular_below`]: a step below it is refused.
+pub const SINGULAR_BELOW: f64 = 1e-10;
+/// The default damping onset `ρ₀` of [`SpatialArm::with_damping`].
+pub const DAMPING_BELOW: f64 = 1e-3;
+/// The default damping depth `κ` of [`SpatialArm::with_damping`].
+pub const DAMPING_DEPTH: f64 = 0.1;
+
 /// A spatial arm: a [`Chain`] of six or more joints, for the law of §5.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SpatialArm<T, const N: usize> {
@@ -230,9 +237,9 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
             links,
             revolute,
             tool,
-            singular_below: T::of(1e-10),
-            damping_below: T::of(1e-3),
-            damping_depth: T::of(0.1),
+            singular_below: T::of(SINGULAR_BELOW),
+            damping_below: T::of(DAMPING_BELOW),
+            damping_depth: T::of(DAMPING_DEPTH),
         })
     }
 

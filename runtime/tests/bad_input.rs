@@ -521,6 +521,10 @@ fn bad_arm_files_and_spatial_targets_are_refused_by_field() {
         &["joint_speed = -1", "must be finite and > 0"],
     );
     let reach = file(&d, "reach-space.toml", "[parameters]\nreach = [0.5, 2.0]\n");
-    refused(&d, &["explore", "--space", &reach, "--samples", "1"], &["`reach` scales a spatial arm"]);
+    refused(
+        &d,
+        &["explore", "--space", &reach, "--samples", "1"],
+        &["`reach` is a parameter of a spatial arm"],
+    );
     refused(&d, &["explore", "--arm", "ur5", "--space", &reach, "--noise"], &["noise", "spatial arm"]);
 }

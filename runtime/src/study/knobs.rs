@@ -5,9 +5,10 @@
 //! A knob's name is the key it sets in a `--config` file: `epsilon`, `eta_1`, `eta_2`, `eta_3`,
 //! `k` in `[car]` (Lemma 2 and eq. 59), `epsilon_1`, `epsilon_2` in `[unicycle]` (Lemma 1),
 //! `stroke` in `[arm]`, and in `[controller]` one entry of `k_bar` (`k_bar_1..3`, eq. 36), all
-//! of `d` (eq. 37) or `gain` (eq. 30), and `lambda` (eq. 53). Two more scale a spatial arm
-//! (`--arm`, [`ArmScale`]) rather than set a config key: `joint_speed` (every joint's published
-//! speed times it) and `reach` (every length of the arm times it).
+//! of `d` (eq. 37) or `gain` (eq. 30), `lambda` (eq. 53), and a spatial arm's damping onset
+//! `damping_below`. Two more scale a spatial arm (`--arm`, [`ArmScale`]) rather than set a
+//! config key: `joint_speed` (every joint's published speed times it) and `reach` (every
+//! length of the arm times it).
 
 use companion_core::PlatformKind;
 use serde::{Deserialize, Serialize};
@@ -53,6 +54,9 @@ pub enum Knob {
     JointSpeed,
     /// A spatial arm's size: every length of the arm times this ([`ArmScale::reach`]).
     Reach,
+    /// A spatial arm's damping onset `ρ₀` (`[controller] damping_below`): below it the
+    /// arm's inverse is damped.
+    DampingBelow,
 }
 
 /// Which arm a knob belongs to.
@@ -66,7 +70,7 @@ pub enum ArmKind {
 
 /// Every knob, in the order columns and draws use (new knobs go at the end, so that the
 /// draws of the others stay where they were).
-pub const ALL: [Knob; 16] = [
+pub const ALL: [Knob; 17] = [
     Knob::Epsilon,
     Knob::Eta1,
     Knob::Eta2,
@@ -83,6 +87,7 @@ pub const ALL: [Knob; 16] = [
     Knob::Stroke,
     Knob::JointSpeed,
     Knob::Reach,
+    Knob::DampingBelow,
 ];
 
 impl Knob {
@@ -105,6 +110,7 @@ impl Knob {
             Self::Stroke => "stroke",
             Self::JointSpeed => "joint_speed",
             Self::Reach => "reach",
+            Self::DampingBelow => "damping_below",
         }
     }
 
@@ -134,7 +140,7 @@ impl Knob {
     pub fn arm(self) -> Option<ArmKind> {
         match self {
             Self::Gain | Self::Stroke => Some(ArmKind::Planar),
-            Self::JointSpeed | Self::Reach => Some(ArmKind::Spatial),
+            Self::JointSpeed | Self::Reach | Self::DampingBelow => Some(ArmKind::Spatial),
             _ => None,
         }
     }
@@ -150,7 +156,7 @@ impl Knob {
                 self.name()
             )),
             (Some(ArmKind::Spatial), ArmKind::Planar) => Err(format!(
-                "`{}` scales a spatial arm (--arm ur5|panda|FILE), not the paper's planar arm",
+                "`{}` is a parameter of a spatial arm (--arm ur5|panda|FILE), not of the paper's planar arm",
                 self.name()
             )),
             _ => Ok(()),
@@ -207,6 +213,7 @@ impl Knob {
             Self::Stroke => c.arm.stroke_and_extension().0,
             // Factors on the arm as given.
             Self::JointSpeed | Self::Reach => 1.0,
+            Self::DampingBelow => c.overrides.damping_below.unwrap_or(companion_core::DAMPING_BELOW),
         }
     }
 }
@@ -256,6 +263,7 @@ pub fn apply(builder: &ScenarioBuilder, base: &Scenario, values: &[(Knob, f64)])
                 let arm = file.arm.get_or_insert(ArmConfig::default());
                 arm.stroke = Some(v);
             }
+            Knob::DampingBelow => file.controller.damping_below = Some(v),
             Knob::JointSpeed | Knob::Reach => {}
         }
     }

@@ -100,7 +100,7 @@ pub struct ConfigFile {
     /// Read for a spatial arm ([`with_arm_settings`](Self::with_arm_settings)): its law's
     /// `[controller]` keys are allowed (a planar run refuses them).
     #[serde(skip)]
-    spatial_arm: bool,
+    pub(super) spatial_arm: bool,
 }
 
 /// A config file that cannot be used.

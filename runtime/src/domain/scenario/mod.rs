@@ -274,6 +274,13 @@ impl ScenarioBuilder {
         self
     }
 
+    /// For a spatial arm's run (its base scenario): the spatial law's `[controller]` keys
+    /// are allowed ([`ConfigFile::with_arm_settings`] does the same).
+    pub fn for_spatial_arm(mut self) -> Self {
+        self.config.spatial_arm = true;
+        self
+    }
+
     /// Whether the controller is told the delay (default: yes).
     pub fn delay_compensation(mut self, on: bool) -> Self {
         self.delay_compensation = on;

@@ -212,6 +212,7 @@ impl Exploration {
         if samples == 0 {
             return Err(ExploreError::NoSamples);
         }
+        let builder = if spatial.is_some() { builder.for_spatial_arm() } else { builder };
         let base = builder.clone().build().map_err(ExploreError::Scenario)?;
         let space = Space::check_for(file, &builder, spatial.as_ref())?;
         Ok(Self { builder, base, space, samples, seed, spatial })

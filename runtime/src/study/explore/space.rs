@@ -36,8 +36,9 @@
 //! With a spatial arm (`companion explore --arm`) the start is `sim --arm`'s (the platform
 //! at the origin, the arm at home, the lifted target where the arm holds it): of `[initial]`
 //! only `alpha_1` and `alpha_2` may be given, and the other columns are `NaN`. The knobs
-//! `joint_speed` and `reach` scale the arm; `gain` and `stroke` are the planar arm's and
-//! refused (`lambda` filters either arm's weight).
+//! `joint_speed` and `reach` scale the arm, `damping_below` sets its law's damping onset;
+//! `gain` and `stroke` are the planar arm's and refused (`lambda` filters either arm's
+//! weight).
 //! Unknown keys, empty or reversed ranges, joints outside their limits and parameters the
 //! law rejects are errors. Parameters are checked at every corner of their box: each rule is
 //! monotone in each parameter or, like Lemma 2's `6η₂η₃ − 8η₃ − η₁η₂ > 0`, multilinear in

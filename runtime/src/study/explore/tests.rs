@@ -365,5 +365,25 @@ fn bad_spatial_spaces_are_refused_before_anything_runs() {
     assert!(e.contains("car"), "{e}");
     let planar = spatial_space("[parameters]\nreach = [0.5, 1.0]");
     let e = Exploration::new(builder(PlatformKind::Unicycle), &planar, 2, 1).unwrap_err().to_string();
-    assert!(e.contains("`reach` scales a spatial arm"), "{e}");
+    assert!(e.contains("`reach` is a parameter of a spatial arm"), "{e}");
+    let planar = spatial_space("[parameters]\ndamping_below = [1e-3, 2e-2]");
+    let e = Exploration::new(builder(PlatformKind::Unicycle), &planar, 2, 1).unwrap_err().to_string();
+    assert!(e.contains("`damping_below` is a parameter of a spatial arm"), "{e}");
+}
+
+/// `damping_below` reaches a spatial arm's law: the point's scenario carries it, and a box
+/// whose corner leaves `[0, 1)` is refused naming it.
+#[test]
+fn the_damping_onset_is_a_spatial_knob() {
+    let e = spatial(2, &spatial_space("[parameters]\ndamping_below = [1e-3, 2e-2]")).unwrap();
+    let setup = e.spatial.as_ref().unwrap();
+    let mut point = e.space.point(&e.draws(0));
+    point.parameters = vec![(Knob::DampingBelow, 0.02)];
+    let sc = e.space.spatial_scenario(&e.builder, &e.base, setup, &point).unwrap();
+    assert_eq!(sc.base.controller.overrides.damping_below, Some(0.02));
+    assert_eq!(Knob::DampingBelow.value(&sc.base), 0.02);
+    assert_eq!(Knob::DampingBelow.value(&e.base), companion_core::DAMPING_BELOW);
+    let e = spatial(2, &spatial_space("[parameters]\ndamping_below = [1e-3, 1.5]")).map(|_| ()).unwrap_err();
+    let e = format!("{e:#}");
+    assert!(e.contains("corner") && e.contains("damping_below"), "{e}");
 }
