@@ -3,20 +3,23 @@
 //! exploration classifies a run by, with a run that diverges stopped early.
 //!
 //! The loop is `sim::run_loop`'s (measure, step, advance — and the same pure delay), with
-//! nothing logged: the summary reads the plant's exact state at every step. [`run_spatial`]
-//! does the same for a spatial arm (`sim --arm`'s loop), into the same [`Summary`].
+//! nothing logged: the summary reads the plant's exact state at every step. [`run`] drives
+//! the paper's arm, [`run_spatial`] a spatial one (`sim --arm`'s), through the same loop on
+//! the common `Robot` into the same [`Summary`].
 
 use companion_core::{Manipulator, Spatial, SpatialArm};
 use companion_plant::{AdvanceError, Simulated};
 use serde::{Deserialize, Serialize};
 
 use crate::domain::arm::ArmError;
-use crate::domain::controller::{boxed_spatial_controller, AnyController};
+use crate::domain::controller::{boxed_spatial_controller, AnyController, Law};
 use crate::domain::plant_setup::{self, PlantSetupError};
-use crate::domain::record::{CommandSource, Row, Summary};
+use crate::domain::record::recorder::summary_for;
+use crate::domain::record::summary::SummaryAccumulator;
+use crate::domain::record::{CommandSource, Summary, Task};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::robot::Robot;
-use crate::run::sim::{sample, DelayLine};
+use crate::run::sim::DelayLine;
 use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
 
 /// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
@@ -164,36 +167,13 @@ impl TailCounter {
 /// A bad scenario (its plant or controller cannot be built) or a plant step refused.
 pub fn run(s: &Scenario, judge: &Judge) -> Result<Trial, TrialError> {
     let mut plant = plant_setup::build(s)?;
-    let mut ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
-    let told = if s.delay_compensation { s.delay } else { 0.0 };
-    let mut delay = (s.delay > 0.0).then(|| DelayLine::new(s.delay, s.dt));
-    let star = s.controller.params::<f64>().primary.target_in_effector;
-    let mut summary = crate::domain::record::recorder::summary_for(s);
-    let steps = s.steps();
-    let mut tail = TailCounter::new(judge, steps, s.dt);
-    for n in 0..=steps {
-        let meas = plant.measure();
-        let report = ctrl.step(&meas, s.dt, told);
-        let state = sample(&plant, &star, false);
-        summary.add(&Row { plant: state, report, source: CommandSource::Fresh });
-        if !tail.add(state.t, state.ep_norm, report.saturation) {
-            break;
-        }
-        if n < steps {
-            match &mut delay {
-                None => plant.try_advance(&report.command, s.dt)?,
-                Some(line) => {
-                    let (previous, current, within) = line.push(n, &report.command);
-                    plant.try_advance_delayed(&previous, &current, within, s.dt)?;
-                }
-            }
-        }
-    }
-    Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(s.dt) })
+    let ctrl = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
+    let mut robot = Robot::of(&mut plant, s);
+    drive(s, &mut robot, ctrl, summary_for(s), judge)
 }
 
 /// Runs the spatial scenario `s` in process, without files: `companion sim --arm`'s loop
-/// (`run::spatial::run_spatial`, through the same `Robot`: measure, step, advance) with nothing logged.
+/// (`run::spatial::run_spatial`) with nothing logged.
 ///
 /// # Errors
 /// A bad arm, law, target or plant, or a plant step refused.
@@ -212,24 +192,43 @@ where
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
 {
     let chain = s.arm.chain::<f64, N>().map_err(SpatialRunError::from)?;
-    let mut ctrl =
-        boxed_spatial_controller::<N>(&s.base.controller, &s.arm).map_err(SpatialRunError::from)?;
+    let ctrl = boxed_spatial_controller::<N>(&s.base.controller, &s.arm).map_err(SpatialRunError::from)?;
     let star = ctrl.target_in_effector();
     let mut plant = spatial::build_plant(s, &chain, &star)?;
     let mut robot = Robot { plant: &mut plant, target_in_effector: star };
-    let mut summary = spatial::summary_for(s, &chain);
-    let (steps, dt) = (s.steps(), s.base.dt);
+    drive(&s.base, &mut robot, ctrl, spatial::summary_for(s, &chain), judge)
+}
+
+/// The trial's loop, for either arm: `sim::run_loop`'s (measure, step, advance, with the
+/// scenario's pure delay and what the controller is told of it), every row into `summary`
+/// and the [`Tail`], stopped at the first step past the divergence bound.
+fn drive<P: Simulated<N, Space: Task>, C: Law<N, P::Space>, const N: usize>(
+    s: &Scenario,
+    robot: &mut Robot<'_, P, N>,
+    mut ctrl: C,
+    mut summary: SummaryAccumulator,
+    judge: &Judge,
+) -> Result<Trial, TrialError> {
+    let (steps, dt) = (s.steps(), s.dt);
+    let told = if s.delay_compensation { s.delay } else { 0.0 };
+    let mut delay = (s.delay > 0.0).then(|| DelayLine::<N>::new(s.delay, dt));
     let mut tail = TailCounter::new(judge, steps, dt);
     for n in 0..=steps {
-        let meas = robot.measure();
-        let report = ctrl.step(&meas, dt, 0.0);
+        let report = ctrl.step(&robot.measure(), dt, told);
         let row = robot.row(&report, CommandSource::Fresh, false);
         summary.add(&row);
         if !tail.add(row.plant.t, row.plant.ep_norm, report.saturation) {
             break;
         }
         if n < steps {
-            robot.advance(&report.command, &report.command, 0.0, dt)?;
+            let c = &report.command;
+            match &mut delay {
+                None => robot.advance(c, c, 0.0, dt)?,
+                Some(line) => {
+                    let (previous, current, within) = line.push(n, c);
+                    robot.advance(&previous, &current, within, dt)?;
+                }
+            }
         }
     }
     Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(dt) })
@@ -263,6 +262,60 @@ impl Trial {
             rejected_steps: m.rejected_steps,
             maneuvers: m.maneuvers,
             steps: m.steps,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use companion_core::{PaperRun, PlatformKind};
+    use companion_plant::PaperTrajectory;
+
+    use super::*;
+    use crate::domain::arm::SpatialArmSpec;
+    use crate::domain::observe::Silent;
+    use crate::domain::record::verdict::Acceptance;
+    use crate::run::spatial::SpatialTargetChoice;
+
+    fn dir(tag: &str) -> std::path::PathBuf {
+        let d = std::env::temp_dir().join(format!("companion-trial-{}-{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    /// A trial is `sim`'s run without files, for either arm, with a pure delay told to the
+    /// controller or not: the same summary to the last bit (its trajectory digest).
+    #[test]
+    fn a_trial_is_the_simulations_run_for_either_arm_with_or_without_a_delay() {
+        let base = |delay: f64, told: bool| {
+            Scenario::builder(PaperTrajectory::One, PaperRun::B, PlatformKind::Unicycle)
+                .duration(1.0)
+                .delay(delay)
+                .delay_compensation(told)
+        };
+        for (delay, told) in [(0.0, true), (2.5e-3, true), (2.5e-3, false)] {
+            let s = base(delay, told).build().unwrap();
+            let t = run(&s, &Judge::default()).unwrap();
+            let d = dir("planar");
+            let o = crate::run::sim::run_one_with(&s, &d, &Silent, &Acceptance::default()).unwrap();
+            assert_eq!(
+                t.summary.trajectory_digest, o.summary.trajectory_digest,
+                "planar, delay {delay} told {told}"
+            );
+            assert_eq!(t.summary.steps, 1001);
+            let _ = std::fs::remove_dir_all(&d);
+
+            let b = base(delay, told).for_spatial_arm().build().unwrap();
+            let target = SpatialTargetChoice::Lifted(PaperTrajectory::One);
+            let sc = SpatialScenario::new(b, SpatialArmSpec::Ur5, target).unwrap();
+            let t = run_spatial(&sc, &Judge::default()).unwrap();
+            let d = dir("spatial");
+            let (o, _) = spatial::run_spatial(&sc, &d, &Silent, 0.01, None).unwrap();
+            assert_eq!(
+                t.summary.trajectory_digest, o.summary.trajectory_digest,
+                "UR5, delay {delay} told {told}"
+            );
+            let _ = std::fs::remove_dir_all(&d);
         }
     }
 }
