@@ -105,6 +105,29 @@ pub struct PlantState<const N: usize, S: Space<f64> = Planar> {
 }
 
 impl<const N: usize, S: Space<f64>> PlantState<N, S> {
+    /// The state at the end of step `n` (at `t`): the platform and joints of the continuous
+    /// state `x`, the target at `target` moving at `target_velocity`, `applied` and the
+    /// `command` held over the step.
+    pub(crate) fn after(
+        (n, t): (u64, f64),
+        x: &Continuous<N>,
+        (target, target_velocity): (S::Pose, S::Vector),
+        applied: Command<f64, N>,
+        command: &Command<f64, N>,
+    ) -> Self {
+        Self {
+            t,
+            step: n + 1,
+            base: Pose::from_vector(&x.base),
+            steering: x.steering,
+            joints: x.joints,
+            target,
+            target_velocity,
+            applied,
+            command: *command,
+        }
+    }
+
     /// The state as the controller would measure it without noise: time, platform pose,
     /// steering, joints, target pose and target velocity, bit for bit.
     pub fn measurement(&self) -> Measurement<f64, N, S> {
@@ -393,18 +416,9 @@ impl<A: Arm<f64, N>, const N: usize> Simulated<N> for Plant<A, N> {
         // u_d(t₁⁺): the piece the target follows over the next step.
         let target_velocity =
             self.trajectory.piece(t1 + 0.5 * dt).velocity_with(t1, |a| trig.phase.sincos(a));
+        let target = (Pose::from_vector(&x.target), target_velocity);
+        self.state = PlantState::after((n, t1), &x, target, applied, command);
         self.x = x;
-        self.state = PlantState {
-            t: t1,
-            step: n + 1,
-            base: Pose::from_vector(&self.x.base),
-            steering: self.x.steering,
-            joints: self.x.joints,
-            target: Pose::from_vector(&self.x.target),
-            target_velocity,
-            applied,
-            command: *command,
-        };
         Ok(())
     }
 }

@@ -16,7 +16,7 @@
 //! target's third dimension. Measurement noise is not simulated for spatial runs (refused).
 
 use companion_core::nalgebra::{SVector, Vector3, Vector6};
-use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose, Pose3, Spatial};
+use companion_core::{so3, Chain, Command, Measurement, PlatformKind, Pose3, Spatial};
 
 use crate::dynamics::{Continuous, Trig};
 use crate::error::{AdvanceError, PlantError, Rule};
@@ -212,20 +212,9 @@ impl<const N: usize> Simulated<N> for SpatialPlant<N> {
         let n = self.state.step;
         let (x, applied, t1) =
             model.period(&mut self.dt, (n, &self.x), (previous, command, delay), dt, &mut self.trig)?;
+        let target = (self.target_pose(t1, &x.target), self.target_twist(t1, t1 + 0.5 * dt));
+        self.state = PlantState::after((n, t1), &x, target, applied, command);
         self.x = x;
-        let target = self.target_pose(t1, &self.x.target);
-        let target_velocity = self.target_twist(t1, t1 + 0.5 * dt);
-        self.state = PlantState {
-            t: t1,
-            step: n + 1,
-            base: Pose::from_vector(&self.x.base),
-            steering: self.x.steering,
-            joints: self.x.joints,
-            target,
-            target_velocity,
-            applied,
-            command: *command,
-        };
         Ok(())
     }
 }
@@ -249,7 +238,7 @@ pub fn vertical_reach<const N: usize>(chain: &Chain<f64, N>, reach_beyond: f64) 
 
 #[cfg(test)]
 mod tests {
-    use companion_core::PlatformCommand;
+    use companion_core::{PlatformCommand, Pose};
 
     use super::*;
     use crate::spatial_target::LiftedTrajectory;
