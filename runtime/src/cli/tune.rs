@@ -6,8 +6,11 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use companion_core::PaperRun;
 use companion_plant::PaperTrajectory;
+use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::domain::controller::run_name;
 use companion_runtime::domain::scenario::Target;
+use companion_runtime::run::spatial::{self, SpatialTargetChoice};
+use companion_runtime::study::trial::SpatialSetup;
 use companion_runtime::study::tune::{self, SetRun, TuneSpaceFile, Tuning};
 
 use super::args::ScenarioArgs;
@@ -28,6 +31,12 @@ pub struct TuneArgs {
     /// `[objective]` effort_weight [default: the platform's space, see the README].
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
+    /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
+    /// file), each run of the set as `sim --arm` runs it (its platform settings, the lifted
+    /// trajectory or a spatial --target-file, the start at home). The knobs are the platform
+    /// law's, `lambda` and the arm's `damping_below`.
+    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    pub arm: String,
     /// Candidate evaluations (each runs the whole set).
     #[arg(long, default_value_t = 200, value_name = "N")]
     pub budget: usize,
@@ -62,7 +71,12 @@ fn parse_run(text: &str) -> Result<(PaperTrajectory, PaperRun)> {
 /// A bad flag, space file, or an I/O failure.
 pub fn run(args: &TuneArgs) -> Result<()> {
     let sc = &args.scenario;
-    let file = sc.config_file()?;
+    let arm = SpatialArmSpec::from_choice(&ArmChoice::parse(&args.arm))?;
+    let file = match &arm {
+        // As `sim --arm`: the arm's platform settings where the config file has none.
+        Some(a) => sc.config_file()?.with_arm_settings(a.platform_defaults()),
+        None => sc.config_file()?,
+    };
     let mut set: Vec<(String, Target, PaperRun)> = Vec::new();
     if args.runs.is_empty() {
         let choice: PaperRun = sc.choice.into();
@@ -86,9 +100,27 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             Target::Paper(PaperTrajectory::One) => 40.0,
             _ => 120.0,
         };
-        let builder = sc.builder(file.clone(), target, choice, sc.platform.into(), duration);
+        // A spatial run's planar scenario carries the platform law; its own target is unused
+        // (a spatial --target-file is not a planar one).
+        let (planar_target, spatial_target) = match (&arm, target) {
+            (None, t) => (t, None),
+            (Some(_), Target::Paper(t)) => (Target::Paper(t), Some(SpatialTargetChoice::Lifted(t))),
+            (Some(_), Target::File(p)) => {
+                (Target::Paper(PaperTrajectory::One), Some(SpatialTargetChoice::File(p)))
+            }
+        };
+        let builder = sc.builder(file.clone(), planar_target, choice, sc.platform.into(), duration);
         let base = builder.clone().build().with_context(|| format!("run {name}"))?;
-        runs.push(SetRun { name, builder, base });
+        let spatial = match (&arm, spatial_target) {
+            (Some(a), Some(target)) => {
+                let setup = SpatialSetup { arm: a.clone(), target };
+                // The run `sim --arm` would make, checked as it checks it.
+                spatial::check(&setup.scenario(base.clone(), &[])?).with_context(|| format!("run {name}"))?;
+                Some(setup)
+            }
+            _ => None,
+        };
+        runs.push(SetRun { name, builder, base, spatial });
     }
     let space = args.space.as_deref().map(|p| -> Result<TuneSpaceFile> {
         let text = std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;

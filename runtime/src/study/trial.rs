@@ -11,7 +11,7 @@ use companion_core::{Manipulator, Spatial, SpatialArm};
 use companion_plant::{AdvanceError, Simulated};
 use serde::{Deserialize, Serialize};
 
-use crate::domain::arm::ArmError;
+use crate::domain::arm::{ArmError, SpatialArmSpec};
 use crate::domain::controller::{boxed_spatial_controller, AnyController, Law};
 use crate::domain::plant_setup::{self, PlantSetupError};
 use crate::domain::record::recorder::summary_for;
@@ -20,7 +20,29 @@ use crate::domain::record::{CommandSource, Summary, Task};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::robot::Robot;
 use crate::run::sim::DelayLine;
-use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
+use crate::run::spatial::{self, SpatialError, SpatialRunError, SpatialScenario, SpatialTargetChoice};
+use crate::study::knobs::{self, Knob};
+
+/// The spatial arm and target of a study with `--arm` (`explore`, `tune`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpatialSetup {
+    /// The arm as given (the knobs `joint_speed` and `reach` scale it per run).
+    pub arm: SpatialArmSpec,
+    /// The target.
+    pub target: SpatialTargetChoice,
+}
+
+impl SpatialSetup {
+    /// The spatial run of the built planar scenario `s` (the platform law's settings, the
+    /// knobs' among them) with the arm scaled by the arm's knobs among `values`.
+    ///
+    /// # Errors
+    /// As [`SpatialScenario::new`].
+    pub fn scenario(&self, s: Scenario, values: &[(Knob, f64)]) -> Result<SpatialScenario, SpatialError> {
+        let arm = self.arm.clone().scaled(knobs::arm_scale(values));
+        SpatialScenario::new(s, arm, self.target.clone())
+    }
+}
 
 /// Why a trial could not run: its plant or controller cannot be built, or the plant refused a
 /// step.

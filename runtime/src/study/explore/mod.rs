@@ -60,12 +60,13 @@ pub use self::error::{BadShard, ExploreError};
 pub use self::lock::Busy;
 use self::lock::Lock;
 pub use self::results::{Class, Record};
-pub use self::space::{Space, SpaceFile, SpatialSetup, Value};
+pub use self::space::{Space, SpaceFile, Value};
 pub use self::summary::ExploreSummary;
 use crate::domain::observe::Observer;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 use crate::study::knobs::Knob;
 use crate::study::shared;
+pub use crate::study::trial::SpatialSetup;
 use crate::study::trial::{self, Figures, Tail, TrialError};
 
 /// The result of an exploration's steps.

@@ -50,12 +50,11 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::domain::arm::SpatialArmSpec;
 use crate::domain::plant_setup::PlantSetupError;
 use crate::domain::scenario::{Scenario, ScenarioBuilder, ScenarioError};
-use crate::run::spatial::{self, SpatialRunError, SpatialScenario, SpatialTargetChoice};
+use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
 use crate::study::knobs::{self, ArmKind, Knob};
-use crate::study::trial::Judge;
+use crate::study::trial::{Judge, SpatialSetup};
 
 /// Why a space file cannot be read, or the space it describes cannot be explored; every text
 /// is the message the command line prints.
@@ -559,15 +558,6 @@ impl Space {
     }
 }
 
-/// The spatial arm and target of an exploration with `--arm`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SpatialSetup {
-    /// The arm as given (the knobs `joint_speed` and `reach` scale it per sample).
-    pub arm: SpatialArmSpec,
-    /// The target.
-    pub target: SpatialTargetChoice,
-}
-
 /// Why the spatial run of a point cannot be built.
 #[derive(Debug, thiserror::Error)]
 pub enum PointError {
@@ -588,8 +578,7 @@ fn spatial_at(
     alpha: [f64; 2],
 ) -> Result<SpatialScenario, PointError> {
     let s = knobs::apply(builder, base, values).initial_alpha(alpha).build()?;
-    let arm = setup.arm.clone().scaled(knobs::arm_scale(values));
-    SpatialScenario::new(s, arm, setup.target.clone()).map_err(|e| PointError::Spatial(e.into()))
+    setup.scenario(s, values).map_err(|e| PointError::Spatial(e.into()))
 }
 
 /// How many uniform draws a point takes: one per initial variable and one per knob, whether

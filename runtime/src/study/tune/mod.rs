@@ -54,7 +54,7 @@ use crate::domain::record::Summary;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
 use crate::study::knobs::{self, ArmKind, Knob};
 use crate::study::shared::{into_inner, lock, Poisoned};
-use crate::study::trial::{self, Judge, TrialError};
+use crate::study::trial::{self, Judge, SpatialSetup};
 
 /// Why a tuning cannot be set up or its search failed; every text is the message the
 /// command line prints.
@@ -181,10 +181,45 @@ pub fn default_space(platform: PlatformKind) -> Vec<(Knob, [f64; 2])> {
 pub struct SetRun {
     /// E.g. `1a`.
     pub name: String,
-    /// The run's scenario before the knobs.
+    /// The run's scenario before the knobs (with a spatial arm: its platform law's).
     pub builder: ScenarioBuilder,
     /// What the builder builds.
     pub base: Scenario,
+    /// With a spatial arm (`tune --arm`): the arm and its target; the run is `sim --arm`'s.
+    pub spatial: Option<SpatialSetup>,
+}
+
+impl SetRun {
+    /// The run with the knobs set to `values`, as a trial runs it.
+    ///
+    /// # Errors
+    /// The law or (with a spatial arm) the arm, the target or the plant refuse it: the
+    /// message.
+    fn trial(&self, values: &[(Knob, f64)]) -> Result<trial::Trial, String> {
+        let s = knobs::apply(&self.builder, &self.base, values).build().map_err(|e| e.to_string())?;
+        match &self.spatial {
+            None => trial::run(&s, &Judge::default()).map_err(|e| e.to_string()),
+            Some(setup) => {
+                let sc = setup.scenario(s, values).map_err(|e| e.to_string())?;
+                trial::run_spatial(&sc, &Judge::default()).map_err(|e| e.to_string())
+            }
+        }
+    }
+
+    /// Why the law (or, with a spatial arm, the arm, the target or the plant) refuses the
+    /// knobs `values` (`None`: the run can be made).
+    fn invalid(&self, values: &[(Knob, f64)]) -> Option<String> {
+        let s = match knobs::apply(&self.builder, &self.base, values).build() {
+            Ok(s) => s,
+            Err(e) => return Some(e.to_string()),
+        };
+        let setup = self.spatial.as_ref()?;
+        let sc = match setup.scenario(s, values) {
+            Ok(sc) => sc,
+            Err(e) => return Some(e.to_string()),
+        };
+        crate::run::spatial::check(&sc).err().map(|e| e.to_string())
+    }
 }
 
 /// A run's figures for one candidate.
@@ -255,12 +290,19 @@ impl Tuning {
     ) -> Result<Self, TuneError> {
         let Some(first) = runs.first() else { return Err(TuneError::NoRuns) };
         let platform = first.base.controller.platform;
+        let arm = if first.spatial.is_some() { ArmKind::Spatial } else { ArmKind::Planar };
         let space = match file.filter(|f| !f.parameters.is_empty()) {
             None => default_space(platform),
             Some(f) => {
                 let mut v = Vec::new();
                 for (name, r) in &f.parameters {
-                    let k = Knob::parse_for(name, platform, ArmKind::Planar).map_err(TuneError::Knob)?;
+                    let k = Knob::parse_for(name, platform, arm).map_err(TuneError::Knob)?;
+                    if matches!(k, Knob::JointSpeed | Knob::Reach) {
+                        return Err(TuneError::Knob(format!(
+                            "`{name}` scales the arm, not a setting of the law: tune searches the law's \
+                             (`explore --arm` maps what the arm's speed and size do)"
+                        )));
+                    }
                     v.push((k, *r));
                 }
                 v.sort_by_key(|(k, _)| *k);
@@ -322,9 +364,7 @@ impl Tuning {
 
     /// Why the law rejects these values in some run of the set (`None`: valid).
     fn invalid(&self, values: &[(Knob, f64)]) -> Option<String> {
-        self.runs
-            .iter()
-            .find_map(|r| knobs::apply(&r.builder, &r.base, values).build().err().map(|e| e.to_string()))
+        self.runs.iter().find_map(|r| r.invalid(values))
     }
 
     /// Evaluates one candidate (its runs in parallel).
@@ -438,11 +478,7 @@ const STEP: f64 = 0.15;
 
 /// The scores of a run with knob values.
 fn score(r: &SetRun, values: &[(Knob, f64)]) -> RunScore {
-    let result = knobs::apply(&r.builder, &r.base, values)
-        .build()
-        .map_err(TrialError::from)
-        .and_then(|s| trial::run(&s, &Judge::default()));
-    match result {
+    match r.trial(values) {
         Ok(t) => {
             let s: &Summary = &t.summary;
             let margin = s.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);

@@ -57,6 +57,8 @@ fn writing(file: &'static str) -> impl FnOnce(std::io::Error) -> ReportError {
 pub struct TuneReport {
     /// The runs of the set.
     pub runs: Vec<String>,
+    /// The spatial arm they ran (`tune --arm`); `None`: the paper's planar arm.
+    pub arm: Option<String>,
     /// The space searched.
     pub space: Vec<(Knob, [f64; 2])>,
     /// The effort weight (s/m).
@@ -98,6 +100,7 @@ impl TuneReport {
         });
         Self {
             runs: t.runs.iter().map(|r| r.name.clone()).collect(),
+            arm: t.runs.first().and_then(|r| r.spatial.as_ref()).map(|s| s.arm.name().to_string()),
             space: t.space.clone(),
             effort_weight: t.effort_weight,
             seed: t.seed,
@@ -133,6 +136,12 @@ impl TuneReport {
             best.tracked,
             best.effort
         );
+        if let Some(arm) = &self.arm {
+            let _ = writeln!(
+                text,
+                "# runs of the spatial arm `{arm}`: use it with the same --arm and --config THIS_FILE"
+            );
+        }
         for s in &best.runs {
             let _ = writeln!(
                 text,

@@ -13,7 +13,7 @@ fn set(platform: PlatformKind, duration: f64) -> Vec<SetRun> {
         .map(|(t, c, name)| {
             let builder = Scenario::builder(t, c, platform).duration(duration);
             let base = builder.clone().build().unwrap();
-            SetRun { name: name.into(), builder, base }
+            SetRun { name: name.into(), builder, base, spatial: None }
         })
         .collect()
 }
@@ -84,4 +84,37 @@ fn the_search_is_deterministic_and_its_report_consistent() {
     let cfg: crate::domain::scenario::ConfigFile = toml::from_str(&preset).unwrap();
     let u = cfg.unicycle.unwrap();
     assert_eq!(u.epsilon_1, best.values[0].1);
+}
+
+/// `tune --arm`: each candidate runs `sim --arm`'s run (its score is the spatial trial's), the
+/// arm's scale is not a knob of the law, and the report names the arm.
+#[test]
+fn a_spatial_arm_is_tuned_on_its_own_runs() {
+    use crate::domain::arm::SpatialArmSpec;
+    use crate::run::spatial::SpatialTargetChoice;
+    let builder = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+        .duration(2.0)
+        .for_spatial_arm();
+    let base = builder.clone().build().unwrap();
+    let setup =
+        SpatialSetup { arm: SpatialArmSpec::Ur5, target: SpatialTargetChoice::Lifted(PaperTrajectory::One) };
+    let runs = vec![SetRun { name: "1a".into(), builder, base, spatial: Some(setup.clone()) }];
+    let e =
+        Tuning::new(runs.clone(), Some(&space("[parameters]\njoint_speed = [0.5, 2.0]")), 10, 1).unwrap_err();
+    assert!(e.to_string().contains("`joint_speed` scales the arm"), "{e}");
+    let file = space("[parameters]\nk_bar_3 = [10.0, 1000.0]\ndamping_below = [1e-3, 1e-2]");
+    let t = Tuning::new(runs.clone(), Some(&file), 10, 1).unwrap();
+    let a = report::TuneReport::new(&t, t.run(&Silent).unwrap());
+    assert_eq!(a.arm.as_deref(), Some("ur5"));
+    // (A 2 s run tracks nothing after 20 s: equal costs may end Nelder–Mead before the budget.)
+    assert!((4..=10).contains(&a.candidates.len()), "{}", a.candidates.len());
+    let r = &runs[0];
+    for c in &a.candidates {
+        let s = knobs::apply(&r.builder, &r.base, &c.values).build().unwrap();
+        let direct = trial::run_spatial(&setup.scenario(s, &c.values).unwrap(), &Judge::default()).unwrap();
+        assert_eq!(c.runs[0].rms_v, direct.summary.rms_v, "candidate {}", c.index);
+        let margin = direct.summary.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(c.runs[0].min_joint_margin, margin);
+    }
+    assert!(a.preset(&t).unwrap().contains("spatial arm `ur5`"));
 }
