@@ -192,6 +192,42 @@ fn ur5_car_trajectory_2_needs_earlier_damping() {
     assert!(!dir.exists(), "refused, yet {} was written", dir.display());
 }
 
+/// `companion tune --arm` on the UR5 on the car on lifted T2, searching the damping onset:
+/// its preset, read back by `sim --arm`, gives the run the report promised (the same tracked
+/// fraction, none refused) — the tune's trial and the simulation agree through the files.
+#[test]
+fn tune_finds_a_damping_onset_for_the_ur5_on_the_car_that_sim_confirms() {
+    let dir = out("tune-ur5-car");
+    std::fs::create_dir_all(&dir).unwrap();
+    let space = dir.join("space.toml");
+    std::fs::write(&space, "[parameters]\ndamping_below = [1e-3, 3e-2]\n").unwrap();
+    let tuned = dir.join("tune");
+    let o = Command::new(BIN)
+        .args(["tune", "--arm", "ur5", "--platform", "car", "--runs", "2a", "--budget", "12", "--quiet"])
+        .arg("--space")
+        .arg(&space)
+        .arg("--out")
+        .arg(&tuned)
+        .output()
+        .expect("companion runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    let report = json(&tuned.join("report.json"));
+    assert_eq!(report["arm"], "ur5", "{report}");
+    let best = &report["candidates"][report["best"].as_u64().unwrap() as usize];
+    let promised = best["runs"][0]["tracked"].as_f64().unwrap();
+    assert!(promised > 0.3, "{best}");
+    let preset = tuned.join("preset.toml");
+    let text = std::fs::read_to_string(&preset).unwrap();
+    assert!(text.contains("damping_below") && text.contains("spatial arm `ur5`"), "{text}");
+    let args = ["--trajectory", "2", "--config", preset.to_str().unwrap()];
+    let (code, s, _) = sim_for("ur5-car-t2-tuned", "ur5", "car", "120", &args);
+    assert_eq!(code, Some(0), "{s}");
+    assert_eq!(s["rejected_steps"], 0, "{s}");
+    assert_eq!(f(&s, "fraction_ep_below_1e-3_after_20s"), promised, "{s}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The Panda on the car runs with the Lemma 2 parameters the preset carries (scenario.json
 /// says so) and settles; over 120 s too, with `‖e_p‖` below the aim's 1e−5 all the time from
 /// 20 s on (no burst comes back). With the car's defaults given by `--config`
