@@ -52,8 +52,8 @@ pub struct ExploreRunArgs {
     /// A TOML file of ranges to sample: `[initial]` (distance, bearing, heading, q1–q3,
     /// alpha_1, alpha_2, steering), `[parameters]` (epsilon, eta_1..3, k, epsilon_1,
     /// epsilon_2, k_bar_1..3, d, gain, lambda, stroke; with a spatial --arm joint_speed,
-    /// reach and damping_below), `[map]` and `[judge]`. Without it: starts around the target (distance 0.5–6 m,
-    /// any bearing and relative heading; the planar arm only).
+    /// reach and damping_below), `[map]` and `[judge]`. Without it: starts around the
+    /// target (distance 0.5–6 m, any bearing and relative heading; the planar arm only).
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
     /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
