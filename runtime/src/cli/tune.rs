@@ -102,24 +102,23 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         };
         // A spatial run's planar scenario carries the platform law; its own target is unused
         // (a spatial --target-file is not a planar one).
-        let (planar_target, spatial_target) = match (&arm, target) {
+        let (planar_target, spatial) = match (&arm, target) {
             (None, t) => (t, None),
-            (Some(_), Target::Paper(t)) => (Target::Paper(t), Some(SpatialTargetChoice::Lifted(t))),
-            (Some(_), Target::File(p)) => {
-                (Target::Paper(PaperTrajectory::One), Some(SpatialTargetChoice::File(p)))
-            }
+            (Some(a), Target::Paper(t)) => (
+                Target::Paper(t),
+                Some(SpatialSetup { arm: a.clone(), target: SpatialTargetChoice::Lifted(t) }),
+            ),
+            (Some(a), Target::File(p)) => (
+                Target::Paper(PaperTrajectory::One),
+                Some(SpatialSetup { arm: a.clone(), target: SpatialTargetChoice::File(p) }),
+            ),
         };
         let builder = sc.builder(file.clone(), planar_target, choice, sc.platform.into(), duration);
         let base = builder.clone().build().with_context(|| format!("run {name}"))?;
-        let spatial = match (&arm, spatial_target) {
-            (Some(a), Some(target)) => {
-                let setup = SpatialSetup { arm: a.clone(), target };
-                // The run `sim --arm` would make, checked as it checks it.
-                spatial::check(&setup.scenario(base.clone(), &[])?).with_context(|| format!("run {name}"))?;
-                Some(setup)
-            }
-            _ => None,
-        };
+        if let Some(setup) = &spatial {
+            // The run `sim --arm` would make, checked as it checks it.
+            spatial::check(&setup.scenario(base.clone(), &[])?).with_context(|| format!("run {name}"))?;
+        }
         runs.push(SetRun { name, builder, base, spatial });
     }
     let space = args.space.as_deref().map(|p| -> Result<TuneSpaceFile> {

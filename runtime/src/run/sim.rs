@@ -94,7 +94,7 @@ impl<C> InProcess<C> {
     /// `controller` stepped at the period of scenario `s`, told its delay unless `s` switched
     /// the compensation off.
     pub fn with(controller: C, s: &Scenario) -> Self {
-        Self { controller, dt: s.dt, delay: if s.delay_compensation { s.delay } else { 0.0 } }
+        Self { controller, dt: s.dt, delay: s.told_delay() }
     }
 }
 
@@ -168,6 +168,28 @@ impl<const N: usize> DelayLine<N> {
     }
 }
 
+/// Period `n` of `robot` with `command` sent at its start: through the pure `delay` if the
+/// scenario has one (the command that was acting, then this one from when it arrives).
+///
+/// # Errors
+/// The plant refused the step.
+#[inline]
+pub fn advance<P: Simulated<N, Space: Task>, const N: usize>(
+    robot: &mut Robot<'_, P, N>,
+    delay: Option<&mut DelayLine<N>>,
+    n: u64,
+    command: &Command<f64, N>,
+    dt: f64,
+) -> Result<(), AdvanceError> {
+    match delay {
+        None => robot.advance(command, command, 0.0, dt),
+        Some(line) => {
+            let (previous, current, within) = line.push(n, command);
+            robot.advance(&previous, &current, within, dt)
+        }
+    }
+}
+
 /// How often the loop reports progress and looks for SIGINT/SIGTERM (steps).
 const PROGRESS_EVERY: u64 = 4096;
 
@@ -221,14 +243,7 @@ pub fn run_loop<
             return Ok(LoopEnd::Interrupted { last: n });
         }
         if n < steps {
-            let c = &report.command;
-            match &mut delay {
-                None => robot.advance(c, c, 0.0, s.dt)?,
-                Some(line) => {
-                    let (previous, current, within) = line.push(n, c);
-                    robot.advance(&previous, &current, within, s.dt)?;
-                }
-            }
+            advance(robot, delay.as_mut(), n, &report.command, s.dt)?;
         }
         if n % PROGRESS_EVERY == 0 {
             observer.advance(PROGRESS_EVERY.min(steps + 1 - n));

@@ -19,7 +19,7 @@ use crate::domain::record::summary::SummaryAccumulator;
 use crate::domain::record::{CommandSource, Summary, Task};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::robot::Robot;
-use crate::run::sim::DelayLine;
+use crate::run::sim::{advance, DelayLine};
 use crate::run::spatial::{self, SpatialError, SpatialRunError, SpatialScenario, SpatialTargetChoice};
 use crate::study::knobs::{self, Knob};
 
@@ -232,7 +232,7 @@ fn drive<P: Simulated<N, Space: Task>, C: Law<N, P::Space>, const N: usize>(
     judge: &Judge,
 ) -> Result<Trial, TrialError> {
     let (steps, dt) = (s.steps(), s.dt);
-    let told = if s.delay_compensation { s.delay } else { 0.0 };
+    let told = s.told_delay();
     let mut delay = (s.delay > 0.0).then(|| DelayLine::<N>::new(s.delay, dt));
     let mut tail = TailCounter::new(judge, steps, dt);
     for n in 0..=steps {
@@ -243,14 +243,7 @@ fn drive<P: Simulated<N, Space: Task>, C: Law<N, P::Space>, const N: usize>(
             break;
         }
         if n < steps {
-            let c = &report.command;
-            match &mut delay {
-                None => robot.advance(c, c, 0.0, dt)?,
-                Some(line) => {
-                    let (previous, current, within) = line.push(n, c);
-                    robot.advance(&previous, &current, within, dt)?;
-                }
-            }
+            advance(robot, delay.as_mut(), n, &report.command, dt)?;
         }
     }
     Ok(Trial { summary: summary.finish(0.0), tail: tail.finish(dt) })

@@ -72,8 +72,7 @@ pub fn command_f64<T: Real, const N: usize>(c: &Command<T, N>) -> Command<f64, N
 /// (its task comes from the chain).
 pub fn planar_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
     let o = &spec.overrides;
-    let mut keys = Vec::new();
-    for (set, key) in [
+    keys_set([
         (o.target_in_effector.is_some(), "controller.target_in_effector"),
         (o.preferred_pose.is_some(), "controller.preferred_pose"),
         (o.gain.is_some(), "controller.gain"),
@@ -81,12 +80,12 @@ pub fn planar_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
         (o.penalty_margin.is_some(), "controller.penalty_margin"),
         (o.joint_velocity_limits.is_some(), "controller.joint_velocity_limits"),
         (spec.arm != ArmConfig::default(), "arm"),
-    ] {
-        if set {
-            keys.push(key);
-        }
-    }
-    keys
+    ])
+}
+
+/// The keys among `keys` that are set.
+fn keys_set<const K: usize>(keys: [(bool, &'static str); K]) -> Vec<&'static str> {
+    keys.into_iter().filter_map(|(set, key)| set.then_some(key)).collect()
 }
 
 /// The spatial law's parameters: the arm's task from `arm` (`Params::for_arm` for the
@@ -170,14 +169,11 @@ where
 /// the planar arm, whose one singular configuration (`q₂ = 0`) is a joint limit.
 pub fn spatial_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
     let o = &spec.overrides;
-    [
+    keys_set([
         (o.damping_below.is_some(), "controller.damping_below"),
         (o.damping_depth.is_some(), "controller.damping_depth"),
         (o.singular_below.is_some(), "controller.singular_below"),
-    ]
-    .into_iter()
-    .filter_map(|(set, key)| set.then_some(key))
-    .collect()
+    ])
 }
 
 /// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`.

@@ -151,7 +151,7 @@ impl ConfigFile {
     }
 
     /// Whether the file was read for a spatial arm ([`with_arm_settings`](Self::with_arm_settings)).
-    pub fn for_spatial_arm(&self) -> bool {
+    pub fn is_for_spatial_arm(&self) -> bool {
         self.spatial_arm
     }
 }

@@ -415,7 +415,7 @@ impl ScenarioBuilder {
             });
         }
         let file = self.config;
-        let spatial_arm = file.for_spatial_arm();
+        let spatial_arm = file.is_for_spatial_arm();
         let limits = match self.limits {
             Some(LimitsChoice::Unlimited) => None,
             Some(LimitsChoice::Realistic) => Some(LimitsConfig::realistic()),
@@ -535,6 +535,15 @@ impl Scenario {
             name.push_str("-sampled");
         }
         name
+    }
+
+    /// The delay the controller is told (s): the scenario's, or 0 without compensation.
+    pub fn told_delay(&self) -> f64 {
+        if self.delay_compensation {
+            self.delay
+        } else {
+            0.0
+        }
     }
 
     /// The number of control periods (the run logs steps `0..=steps`).

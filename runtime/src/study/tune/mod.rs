@@ -52,6 +52,7 @@ use serde::{Deserialize, Serialize};
 use crate::domain::observe::Observer;
 use crate::domain::record::Summary;
 use crate::domain::scenario::{Scenario, ScenarioBuilder};
+use crate::run::spatial::SpatialScenario;
 use crate::study::knobs::{self, ArmKind, Knob};
 use crate::study::shared::{into_inner, lock, Poisoned};
 use crate::study::trial::{self, Judge, SpatialSetup};
@@ -189,36 +190,45 @@ pub struct SetRun {
     pub spatial: Option<SpatialSetup>,
 }
 
+/// A run of the set with the knobs set: the paper's arm's scenario, or a spatial arm's.
+enum Built {
+    Planar(Scenario),
+    Spatial(SpatialScenario),
+}
+
 impl SetRun {
+    /// The run with the knobs set to `values`.
+    ///
+    /// # Errors
+    /// The law or (with a spatial arm) the arm or the target refuse it: the message.
+    fn build(&self, values: &[(Knob, f64)]) -> Result<Built, String> {
+        let s = knobs::apply(&self.builder, &self.base, values).build().map_err(|e| e.to_string())?;
+        match &self.spatial {
+            None => Ok(Built::Planar(s)),
+            Some(setup) => setup.scenario(s, values).map(Built::Spatial).map_err(|e| e.to_string()),
+        }
+    }
+
     /// The run with the knobs set to `values`, as a trial runs it.
     ///
     /// # Errors
-    /// The law or (with a spatial arm) the arm, the target or the plant refuse it: the
-    /// message.
+    /// As [`build`](Self::build), or the trial failed: the message.
     fn trial(&self, values: &[(Knob, f64)]) -> Result<trial::Trial, String> {
-        let s = knobs::apply(&self.builder, &self.base, values).build().map_err(|e| e.to_string())?;
-        match &self.spatial {
-            None => trial::run(&s, &Judge::default()).map_err(|e| e.to_string()),
-            Some(setup) => {
-                let sc = setup.scenario(s, values).map_err(|e| e.to_string())?;
-                trial::run_spatial(&sc, &Judge::default()).map_err(|e| e.to_string())
-            }
+        match self.build(values)? {
+            Built::Planar(s) => trial::run(&s, &Judge::default()),
+            Built::Spatial(sc) => trial::run_spatial(&sc, &Judge::default()),
         }
+        .map_err(|e| e.to_string())
     }
 
     /// Why the law (or, with a spatial arm, the arm, the target or the plant) refuses the
     /// knobs `values` (`None`: the run can be made).
     fn invalid(&self, values: &[(Knob, f64)]) -> Option<String> {
-        let s = match knobs::apply(&self.builder, &self.base, values).build() {
-            Ok(s) => s,
-            Err(e) => return Some(e.to_string()),
-        };
-        let setup = self.spatial.as_ref()?;
-        let sc = match setup.scenario(s, values) {
-            Ok(sc) => sc,
-            Err(e) => return Some(e.to_string()),
-        };
-        crate::run::spatial::check(&sc).err().map(|e| e.to_string())
+        match self.build(values) {
+            Err(why) => Some(why),
+            Ok(Built::Planar(_)) => None,
+            Ok(Built::Spatial(sc)) => crate::run::spatial::check(&sc).err().map(|e| e.to_string()),
+        }
     }
 }
 
