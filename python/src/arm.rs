@@ -107,12 +107,12 @@ fn joints<const N: usize>(q: &PyReadonlyArray1<'_, f64>) -> PyResult<SVector<f64
     Ok(SVector::from_column_slice(q))
 }
 
+/// A joint's axis, a point on it, and whether it turns (else it slides).
+type Axis = (Vector3<f64>, Vector3<f64>, bool);
+
 /// The tip in the arm's base frame (the chain without its mount), and every joint's axis and
 /// a point on it in that frame.
-fn frames<const N: usize>(
-    c: &Chain<f64, N>,
-    q: &SVector<f64, N>,
-) -> (Pose3<f64>, [(Vector3<f64>, Vector3<f64>, bool); N]) {
+fn frames<const N: usize>(c: &Chain<f64, N>, q: &SVector<f64, N>) -> (Pose3<f64>, [Axis; N]) {
     let mut f = Pose3::<f64>::identity();
     let mut axes = [(Vector3::zeros(), Vector3::zeros(), true); N];
     for (i, j) in c.joints.iter().enumerate() {
