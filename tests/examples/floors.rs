@@ -2,7 +2,7 @@
 //! the table of the README's "Sampled-data controller" section:
 //!
 //! ```text
-//! cargo run --release -p companion-tests --example floors -- docs/floors.svg
+//! cargo run --release -p companion-tests --example floors -- docs/book/src/img/floors.svg
 //! ```
 //!
 //! Runs T1 (a), T1 (c) and T2 (a) (unicycle, the paper's parameters) at periods from 0.25
