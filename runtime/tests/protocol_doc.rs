@@ -5,6 +5,8 @@
 //!   [`exit::EXIT_CODES`] (`runtime/src/cli/exit.rs`, included here by path), which `--help`
 //!   prints: the same codes, each row naming what the code means; every "exit N" of the
 //!   document is one of them; `--help` prints the list.
+//! - The HIL chapter's table of every command's exit codes (`docs/book/src/hil.md`, marked
+//!   `<!-- exit-codes: all -->`) against the same list.
 //! - The warning `companion control` gives for the plant's flags it ignores, as §4 quotes it.
 //! - Its Python snippets marked `<!-- doc-test: python -->` (§2: node and prefix, the two
 //!   messages, services and ports; §4: waiting for the peer's ports and the scan for other
@@ -55,7 +57,7 @@ fn codes_of(command: &str) -> Vec<u8> {
 fn after_marker<'a>(doc: &'a str, marker: &str) -> Vec<&'a str> {
     let lines: Vec<&str> = doc.lines().collect();
     let at: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].trim() == marker).collect();
-    assert_eq!(at.len(), 1, "the bridge chapter must have exactly one line {marker:?}");
+    assert_eq!(at.len(), 1, "the document must have exactly one line {marker:?}");
     lines[at[0] + 1..].to_vec()
 }
 
@@ -122,6 +124,31 @@ fn help_prints_the_exit_code_list() {
         assert!(out.status.success(), "{command:?} --help");
         let help = String::from_utf8_lossy(&out.stdout);
         assert!(help.contains(&table), "{command:?} --help does not print EXIT_CODES:\n{help}");
+    }
+}
+
+/// The table of every command's exit codes in the HIL chapter (`docs/book/src/hil.md`, marked
+/// `<!-- exit-codes: all -->`) against the same list: every code, in order, each row saying
+/// what the code means (its key phrase, the row's backticks aside).
+#[test]
+fn the_hil_chapters_exit_codes_are_the_clis() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/book/src/hil.md");
+    let doc = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let rows = table_rows(&doc, "<!-- exit-codes: all -->");
+    let documented: Vec<u8> = rows.iter().map(|(c, _)| *c).collect();
+    let all: Vec<u8> = EXIT_CODES.iter().map(|e| e.code).collect();
+    assert_eq!(
+        documented, all,
+        "hil.md: the exit codes (left) differ from runtime/src/cli/exit.rs's (right)"
+    );
+    for (code, row) in &rows {
+        let e = EXIT_CODES.iter().find(|e| e.code == *code).unwrap();
+        assert!(
+            row.replace('`', "").contains(e.key),
+            "hil.md: the row of exit code {code} does not say {:?} (EXIT_CODES: {:?}):\n{row}",
+            e.key,
+            e.meaning
+        );
     }
 }
 
