@@ -517,8 +517,8 @@ def so3_log(r):
 
 
 class Chain:
-    """An arm file (README, "Arms as data"): the mount on the platform, each joint's frame in
-    the previous joint's moving frame, its axis and limits, and the tool."""
+    """An arm file (docs/book/src/spatial-arms.md, "Arms as data"): the mount on the platform,
+    each joint's frame in the previous joint's moving frame, its axis and limits, and the tool."""
 
     def __init__(self, path):
         try:

@@ -1,5 +1,5 @@
 //! The tracking floor against the control period for both discretisations — the figure and
-//! the table of the README's "Sampled-data controller" section:
+//! the table of the book's precision chapter (docs/book/src/precision.md):
 //!
 //! ```text
 //! cargo run --release -p companion-tests --example floors -- docs/book/src/img/floors.svg

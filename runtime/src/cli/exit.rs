@@ -113,7 +113,7 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
 /// The width `--help` wraps the table's meanings at (columns, indentation included).
 const WIDTH: usize = 100;
 
-/// The table of exit codes, as `--help` shows it (and the README repeats it): one entry per
+/// The table of exit codes, as `--help` shows it (and docs/book/src/hil.md repeats it): one entry per
 /// code, the commands it applies to in parentheses unless all do, wrapped at 100 columns.
 pub fn help() -> String {
     let mut out = String::from("Exit codes:");
