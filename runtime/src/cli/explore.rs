@@ -11,6 +11,7 @@ use companion_runtime::sys::signals;
 
 use super::args::ScenarioArgs;
 use super::exit::{EXIT_FOLDER_BUSY, EXIT_INTERRUPTED};
+use super::footer::{long_after, short_after};
 use super::terminal::Terminal;
 
 /// `companion explore` flags.
@@ -30,7 +31,7 @@ pub enum ExploreCommand {
     ///
     /// Merge the folders of the shards of one exploration (`--shard K/N`) into the files an
     /// unsharded run writes, byte for byte. Every shard must be finished and intact.
-    #[command(after_help = super::short_after("explore-tune.md"), after_long_help = super::long_after("explore-tune.md"))]
+    #[command(after_help = short_after("explore-tune.md"), after_long_help = long_after("explore-tune.md"))]
     Merge(MergeArgs),
 }
 

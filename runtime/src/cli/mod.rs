@@ -7,6 +7,7 @@ mod args;
 mod certs;
 mod exit;
 mod explore;
+mod footer;
 mod hil;
 mod latency;
 mod sim;
@@ -18,6 +19,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 
 use self::exit::EXIT_ERROR;
+use self::footer::{long_after, short_after};
 
 /// The companion-frame controller for mobile manipulators: simulation, HIL demo, benchmarks.
 ///
@@ -89,16 +91,6 @@ enum Command {
     /// The echoing side of `companion latency`'s ping-pong (started by it).
     #[command(hide = true)]
     LatencyPeer(latency::PeerArgs),
-}
-
-/// The last line of `-h`: where the rest is.
-fn short_after(chapter: &str) -> String {
-    format!("Exit codes and the whole text of each flag: --help. The book: docs/book/src/{chapter}")
-}
-
-/// The end of `--help`: the exit codes, then the book's chapter to read.
-fn long_after(chapter: &str) -> String {
-    format!("{}\n\nThe book's chapter (in the repository): docs/book/src/{chapter}", exit::help())
 }
 
 /// Runs the command line; the process's exit code.
