@@ -65,14 +65,19 @@ fn entry(line: &str) -> Option<&str> {
     (first.starts_with('-') || first.starts_with('<') || first.starts_with('[')).then_some(first)
 }
 
+/// The titles of the sections that list flags or arguments: `Arguments:`, `Options:` and any
+/// `help_heading` of a group of flags — every unindented line ending in `:` but `Commands:`
+/// and the exit codes' list.
+fn flag_sections(text: &str) -> Vec<&str> {
+    text.lines()
+        .filter(|l| !l.starts_with(' ') && l.ends_with(':'))
+        .filter(|l| !matches!(*l, "Commands:" | "Exit codes:") && !l.starts_with("Usage:"))
+        .collect()
+}
+
 /// The flags and arguments a help text lists, in order.
 fn entries(text: &str) -> Vec<String> {
-    ["Arguments:", "Options:"]
-        .iter()
-        .flat_map(|s| section(text, s))
-        .filter_map(entry)
-        .map(str::to_string)
-        .collect()
+    flag_sections(text).iter().flat_map(|s| section(text, s)).filter_map(entry).map(str::to_string).collect()
 }
 
 #[test]
@@ -92,7 +97,7 @@ fn short_help_gives_one_line_per_flag_of_at_most_100_characters() {
             let n = line.chars().count();
             assert!(n <= WIDTH, "`{name} -h`: a line of {n} characters (at most {WIDTH}):\n{line}");
         }
-        for title in ["Arguments:", "Options:"] {
+        for title in flag_sections(&text) {
             for line in section(&text, title) {
                 assert!(
                     entry(line).is_some(),
