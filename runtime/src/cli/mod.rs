@@ -9,6 +9,7 @@ mod exit;
 mod explore;
 mod hil;
 mod latency;
+mod ros2;
 mod sim;
 mod terminal;
 mod tune;
@@ -57,6 +58,11 @@ enum Command {
     /// and the full HIL cycle in each wait mode.
     #[command(after_help = exit::help())]
     Latency(latency::LatencyArgs),
+    /// The controller as a ROS 2 node (a build with `--features ros2`; no ROS installation):
+    /// reads joint states, odometry and the target over DDS, sends the base's twist and the
+    /// joint velocities at a fixed period, and writes summary.json (docs/ros2.md).
+    #[command(after_help = exit::help())]
+    Ros2(Box<ros2::Ros2Args>),
     /// The TLS material of a deployment: a CA, and a certificate and key per host, for the
     /// Zenoh transport's mutual TLS (`--hosts plant.local,ctrl.local`).
     Certs(certs::CertsArgs),
@@ -76,6 +82,7 @@ pub fn main() -> ExitCode {
         Command::Explore(a) => explore::run(a),
         Command::Tune(a) => tune::run(a).map(|()| ExitCode::SUCCESS),
         Command::Latency(a) => latency::run(a).map(|()| ExitCode::SUCCESS),
+        Command::Ros2(a) => ros2::run(a),
         Command::Certs(a) => certs::run(a).map(|()| ExitCode::SUCCESS),
         Command::LatencyPeer(a) => latency::run_peer(a).map(|()| ExitCode::SUCCESS),
     };

@@ -23,6 +23,16 @@ pub fn monotonic_ns() -> u64 {
     clock_ns(libc::CLOCK_MONOTONIC)
 }
 
+/// `CLOCK_REALTIME` in nanoseconds since the Unix epoch: the system clock, ROS 2's time
+/// (message stamps), which may step; durations are measured with [`monotonic_ns`].
+#[inline]
+pub fn realtime_ns() -> i64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_REALTIME always exists.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    ts.tv_sec as i64 * 1_000_000_000 + ts.tv_nsec as i64
+}
+
 /// `CLOCK_MONOTONIC_RAW` in nanoseconds: the hardware clock without NTP's frequency
 /// corrections — a second clock to check measurements made with [`monotonic_ns`].
 #[inline]
