@@ -112,13 +112,26 @@ pub struct NodeSettings {
     #[arg(long, value_name = "N")]
     pub depth: Option<u16>,
     /// A measurement older than this (by its stamp against the system clock) gives the zero
-    /// command (s) [default and largest: the delay the law predicts over, min(0.05, 8 periods)].
+    /// command (s) [default and largest: the delay the law predicts over, min(0.05, 8 periods), less --command-latency].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub max_age: Option<f64>,
     /// A publisher silent for this long (on the node's clock) gives the zero command (ms)
     /// [default: 20, at least 3 periods].
     #[arg(long, value_name = "MS")]
     pub silence_ms: Option<f64>,
+    /// The expected time from the node sending a command to the robot applying it (s): the
+    /// transport and the robot's controller cycle (ros2_control: about half its update
+    /// period); added to the delay the law predicts over [default: 0].
+    #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
+    pub command_latency: Option<f64>,
+    /// Real-time setup: SCHED_FIFO for the node's threads (RustDDS's among them) at
+    /// --rt-priority, memory locked (a missing privilege is a warning).
+    #[arg(long)]
+    #[serde(default)]
+    pub rt: bool,
+    /// SCHED_FIFO priority with --rt (1–99) [default: 80].
+    #[arg(long, value_name = "P")]
+    pub rt_priority: Option<i32>,
     /// Give up (exit code 2) when an input has not come after this long (s) [default: 20].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub startup_timeout: Option<f64>,
@@ -203,6 +216,9 @@ impl NodeSettings {
             max_age: self.max_age.or(file.max_age),
             silence_ms: self.silence_ms.or(file.silence_ms),
             startup_timeout: self.startup_timeout.or(file.startup_timeout),
+            command_latency: self.command_latency.or(file.command_latency),
+            rt: self.rt || file.rt,
+            rt_priority: self.rt_priority.or(file.rt_priority),
             max_miss_fraction: self.max_miss_fraction.or(file.max_miss_fraction),
             base_frame: self.base_frame.or(file.base_frame),
             world_frame: self.world_frame.or(file.world_frame),
@@ -338,6 +354,7 @@ mod node {
         let period = base.dt;
         let period_ns = (period * 1e9).round() as u64;
         let bound = admissible_delay(base, period);
+        let latency = within("--command-latency", n.command_latency.unwrap_or(0.0), 0.0, bound)?;
         let max_age = match n.max_age {
             Some(x) if x > bound => bail!(
                 "--max-age {} s exceeds the delay the law predicts over at this period ({} s: max_delay and 8 periods)",
@@ -345,8 +362,18 @@ mod node {
                 short(bound)
             ),
             Some(x) => within("--max-age", x, 1e-6, bound)?,
-            None => bound,
+            // What the law can predict over, less the robot's share.
+            None => bound - latency,
         };
+        if max_age + latency > bound * (1.0 + 1e-12) {
+            bail!(
+                "--max-age {} s and --command-latency {} s add up to more than the delay the law predicts over at \
+                 this period ({} s)",
+                short(max_age),
+                short(latency),
+                short(bound)
+            );
+        }
         let silence = match n.silence_ms {
             Some(ms) => within("--silence-ms", ms, 0.001, 60_000.0)? * 1e-3,
             None => (20e-3f64).max(3.0 * period),
@@ -371,6 +398,11 @@ mod node {
         let command = command_joints(&names, n.command_joints)?;
         let target = n.target.unwrap_or(TargetArg::Trajectory);
         let duration_ns = a.scenario.duration.map(|d| (d * 1e9).round() as u64);
+        if let Some(p) = n.rt_priority {
+            if !(1..=99).contains(&p) {
+                bail!("--rt-priority must be in [1, 99], got {p}");
+            }
+        }
         let st = within("--startup-timeout", n.startup_timeout.unwrap_or(20.0), 0.0, 86_400.0)?;
         let endpoint = EndpointConfig {
             domain_id,
@@ -409,6 +441,8 @@ mod node {
                 max_age_ns: (max_age * 1e9).round() as u64,
                 silence_ns: (silence * 1e9).round() as u64,
             },
+            command_latency_ns: (latency * 1e9).round() as u64,
+            rt_priority: n.rt.then(|| n.rt_priority.unwrap_or(80)),
             startup_timeout_ns: (st * 1e9).round() as u64,
             duration_ns,
             joint_names: names,

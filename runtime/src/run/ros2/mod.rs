@@ -12,8 +12,9 @@
 //!
 //! ROS 2's stamps are the system clock's (`CLOCK_REALTIME`). A step's measurement time is the
 //! older of the joint state's and the base pose's stamps; the law predicts over the delay from
-//! that stamp to the moment it steps (its delay compensation, as in the real-time HIL), and
-//! holds its command for one period. A target read from topics is moved from its own stamp to
+//! that stamp to the moment it steps plus `--command-latency` (the robot's share: transport,
+//! its controller's cycle) — its delay compensation, as in the real-time HIL — and holds its
+//! command for one period. A target read from topics is moved from its own stamp to
 //! the measurement's by its twist ([`target`]). The run's time (the law's `t`, a generated
 //! target's) counts from the first step's measurement.
 //!
@@ -73,6 +74,12 @@ pub struct NodeConfig {
     pub period_ns: u64,
     /// How long a sample stays good ([`Ages`]).
     pub ages: Ages,
+    /// The expected time from sending a command to the robot applying it (transport and the
+    /// robot's controller cycle), added to the delay the law predicts over (ns).
+    pub command_latency_ns: u64,
+    /// `--rt`: `SCHED_FIFO` at this priority for the node's threads (RustDDS's among them)
+    /// and memory locked.
+    pub rt_priority: Option<i32>,
     /// How long to wait for every input at start (ns).
     pub startup_timeout_ns: u64,
     /// How long the run lasts from its first step (ns); `None`: until SIGINT or SIGTERM.
@@ -384,6 +391,13 @@ where
     P: companion_plant::Simulated<N, Space = S>,
     L: Law<N, S>,
 {
+    if let Some(priority) = cfg.rt_priority {
+        // Before the endpoint: RustDDS's threads, which carry the messages, inherit it.
+        let rep = rt::apply(&rt::RtConfig { priority, inherited: true, ..rt::RtConfig::with_cpu(None) });
+        if let Some(w) = rep.warning("ros2") {
+            observer.warn(&w);
+        }
+    }
     let mut ep = Ros2Endpoint::open(&cfg.endpoint)?;
     let stop = Arc::new(AtomicBool::new(false));
     let (mut diag_in, diag_out) = rtrb::RingBuffer::<DiagSample>::new(64);
@@ -569,7 +583,8 @@ where
                 let t = (stamp - epoch_stamp) as f64 * 1e-9;
                 match measurement::<S, P, N>(&s, t, stamp, &base0, target) {
                     Ok((meas, target_pose)) => {
-                        let r = law.step(&meas, period, age_ns as f64 * 1e-9);
+                        let delay = (age_ns + cfg.command_latency_ns) as f64 * 1e-9;
+                        let r = law.step(&meas, period, delay);
                         c.steps += 1;
                         c.age.record(age_ns);
                         sample.age_ns = age_ns;
