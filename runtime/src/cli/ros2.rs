@@ -232,6 +232,18 @@ impl NodeSettings {
     }
 }
 
+/// The node's settings: the flags, then `--ros-config`'s keys for those not given.
+///
+/// # Errors
+/// The file cannot be read or has an unknown key.
+fn settings(a: &Ros2Args) -> Result<NodeSettings> {
+    let file = match &a.ros_config {
+        Some(p) => NodeSettings::load(p)?,
+        None => NodeSettings::default(),
+    };
+    Ok(a.node.clone().or(file))
+}
+
 /// The arm's joint names: given (checked against the arm's count), or the preset's.
 ///
 /// # Errors
@@ -313,7 +325,16 @@ pub fn run(a: &Ros2Args) -> Result<ExitCode> {
     }
     #[cfg(not(feature = "ros2"))]
     {
-        let _ = a;
+        // The flags checked as in a build with the node, then the missing feature said.
+        let n = settings(a)?;
+        let joints =
+            match companion_runtime::domain::arm::SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
+                None => 3,
+                Some(arm) => arm.joints(),
+            };
+        let names = joint_names(&a.arm, joints, n.joint_names)?;
+        command_joints(&names, n.command_joints)?;
+        within("--max-miss-fraction", n.max_miss_fraction.unwrap_or(0.05), 0.0, 1.0)?;
         bail!(
             "companion ros2 needs a build with the ROS 2 node: cargo build --release -p companion-runtime --features ros2"
         )
@@ -346,11 +367,7 @@ mod node {
     }
 
     fn resolve(a: &Ros2Args, base: &Scenario, joints: usize) -> Result<NodeConfig> {
-        let file = match &a.ros_config {
-            Some(p) => NodeSettings::load(p)?,
-            None => NodeSettings::default(),
-        };
-        let n = a.node.clone().or(file);
+        let n = settings(a)?;
         let period = base.dt;
         let period_ns = (period * 1e9).round() as u64;
         let bound = admissible_delay(base, period);

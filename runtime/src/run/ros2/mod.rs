@@ -581,8 +581,14 @@ where
                 let stamp = s.joints_stamp.as_ns().min(s.base_stamp.as_ns());
                 let age_ns = (now_real - stamp).max(0) as u64;
                 let t = (stamp - epoch_stamp) as f64 * 1e-9;
-                match measurement::<S, P, N>(&s, t, stamp, &base0, target) {
-                    Ok((meas, target_pose)) => {
+                match measurement::<S, P, N>(&s, t, stamp, &base0, target)? {
+                    None => {
+                        let f = Fault::Malformed(Input::TargetPose);
+                        c.faults.count(f);
+                        sample.fault = Some(f);
+                        StepReport::zero(None)
+                    }
+                    Some((meas, target_pose)) => {
                         let delay = (age_ns + cfg.command_latency_ns) as f64 * 1e-9;
                         let r = law.step(&meas, period, delay);
                         c.steps += 1;
@@ -601,7 +607,6 @@ where
                         }
                         r
                     }
-                    Err(e) => return Err(e),
                 }
             }
         };
@@ -650,15 +655,19 @@ where
     Ok(summary(cfg, &c, end, t_end))
 }
 
+/// A step's measurement, and the generated target's pose to send.
+type StepInputs<S, const N: usize> = (Measurement<f64, N, S>, Option<crate::transport::ros2::msgs::Pose>);
+
 /// The measurement of a step at run time `t` (stamp `stamp_ns`) from the snapshot `s`, and the
-/// generated target's pose to send (none when read from topics).
+/// generated target's pose to send (none when read from topics); `None` if the target read
+/// from topics cannot be used.
 fn measurement<S, P, const N: usize>(
     s: &Snapshot,
     t: f64,
     stamp_ns: i64,
     base0: &Pose<f64>,
     target: &mut TargetSource<P, N>,
-) -> Result<(Measurement<f64, N, S>, Option<crate::transport::ros2::msgs::Pose>), NodeError>
+) -> Result<Option<StepInputs<S, N>>, NodeError>
 where
     S: NodeSpace,
     P: companion_plant::Simulated<N, Space = S>,
@@ -666,8 +675,13 @@ where
     let base = planar_pose(&s.base).unwrap_or(Pose::new(f64::NAN, f64::NAN, f64::NAN));
     let (pose, twist, out) = match target {
         TargetSource::Topics => {
-            let (p, tw) = s.target.expect("a target read from topics is in the snapshot");
-            let (pose, twist) = S::target(&p.pose, &tw.twist).expect("checked: a unit quaternion");
+            // Both are in a snapshot of a run that reads them, the quaternion checked; a
+            // target that still cannot be read is refused as malformed (never a panic).
+            let Some((pose, twist, p)) =
+                s.target.and_then(|(p, tw)| S::target(&p.pose, &tw.twist).map(|(a, b)| (a, b, p)))
+            else {
+                return Ok(None);
+            };
             let moved = S::moved(&pose, &twist, (stamp_ns - p.stamp.as_ns()) as f64 * 1e-9);
             (moved, twist, None)
         }
@@ -681,7 +695,7 @@ where
         joints[i] = s.joints[i];
     }
     let meas = Measurement { t, base, steering: 0.0, joints, target: pose, target_velocity: twist };
-    Ok((meas, out))
+    Ok(Some((meas, out)))
 }
 
 fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummary {

@@ -26,7 +26,7 @@ use crate::transport::ros2::msgs::{self, Quaternion};
 /// A quaternion's rotation matrix, if its norm is within 10⁻³ of 1 (normalised first).
 pub fn rotation(q: &Quaternion) -> Option<Matrix3<f64>> {
     let n = (q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w).sqrt();
-    if !((n - 1.0).abs() <= 1e-3) {
+    if n.is_nan() || (n - 1.0).abs() > 1e-3 {
         return None;
     }
     let (x, y, z, w) = (q.x / n, q.y / n, q.z / n, q.w / n);
@@ -122,6 +122,9 @@ impl NodeSpace for Spatial {
     }
 }
 
+/// A target's pose and body twist in space `S`.
+pub type TargetAt<S> = (<S as Space<f64>>::Pose, <S as Space<f64>>::Vector);
+
 /// The longest grid step of a generated target (s).
 pub const MAX_GRID: f64 = 1e-3;
 
@@ -151,10 +154,7 @@ where
         &mut self,
         t: f64,
         base0: &Pose<f64>,
-    ) -> Result<
-        (<P::Space as Space<f64>>::Pose, <P::Space as Space<f64>>::Vector),
-        companion_plant::AdvanceError,
-    > {
+    ) -> Result<TargetAt<P::Space>, companion_plant::AdvanceError> {
         let zero = Command::<f64, N>::zero();
         while (self.steps + 1) as f64 * self.h <= t {
             self.plant.try_advance(&zero, self.h)?;
