@@ -223,7 +223,7 @@ def main(argv=None):
     next_pub = t0_mono
     res = {
         "published": 0, "late_publishes": 0, "base_commands": 0, "joint_commands": 0,
-        "zero_commands": 0, "nonzero_commands": 0, "commands_in_fault": [0, 0], "commands_after_fault": [0, 0],
+        "zero_commands": 0, "nonzero_commands": 0, "last_command_zero": None, "commands_in_fault": [0, 0], "commands_after_fault": [0, 0],
         "bad_command_length": 0, "target_messages": 0, "target_max_deviation": 0.0, "diagnostics": 0,
         "diagnostic_levels": {}, "errors": [], "publish_gaps_ms": [],
     }  # fmt: skip
@@ -254,6 +254,7 @@ def main(argv=None):
         if first_cmd is None and not is_zero:
             first_cmd = now
         res["zero_commands" if is_zero else "nonzero_commands"] += 1
+        res["last_command_zero"] = is_zero
         w = window(now)
         # Allow 50 ms of transition after the fault starts (a silent publisher is noticed
         # after --silence-ms).

@@ -307,3 +307,35 @@ def test_a_bad_input_gives_the_zero_command_while_it_lasts(node_bin, tmp_path, k
     assert s["zero_commands"] == sum(sum(v.values()) for k, v in s["input_faults"].items() if k != "undecodable")
     # 50 zero periods of 600 are more than --max-miss-fraction 0.05: the run failed, exit 7.
     assert code == 7 and any("zero commands for an input fault" in x for x in s["failures"]), log
+
+
+@pytest.mark.parametrize("sig, name", [(signal.SIGINT, "SIGINT"), (signal.SIGTERM, "SIGTERM")])
+def test_a_termination_signal_ends_the_run_with_the_zero_command_and_the_summary(node_bin, tmp_path, sig, name):
+    domain = next_domain()
+    out = tmp_path / "standin.json"
+    robot = subprocess.Popen([sys.executable, STANDIN, "--arm", UR5, "--rate", "100", "--domain-id", domain,
+                              "--out", str(out)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
+    node = subprocess.Popen([node_bin, "ros2", "--arm", "ur5", "--dt", "0.01", "--domain-id", domain,
+                             "--startup-timeout", "30", "--out", str(tmp_path / "node")],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)  # fmt: skip
+    try:
+        # The counted state: the node says it runs (every input arrived); then the signal.
+        seen = []
+        for line in node.stderr:
+            seen.append(line)
+            if "every input arrived; running until SIGINT or SIGTERM" in line:
+                break
+        assert seen and "running" in seen[-1], seen
+        node.send_signal(sig)
+        rest, err = node.communicate(timeout=30)
+    finally:
+        if node.poll() is None:
+            node.kill()
+        robot.send_signal(signal.SIGINT)
+        log, _ = robot.communicate(timeout=60)
+    assert node.returncode == 130, (name, err)
+    s = json.loads((tmp_path / "node" / "summary.json").read_text())
+    f = json.loads(out.read_text())
+    assert s["end"] == "interrupted" and s["periods"] == s["steps"] >= 1, s
+    # The robot's last command: the zero the node sent as it ended.
+    assert f["nonzero_commands"] >= 1 and f["last_command_zero"] is True, f
