@@ -12,6 +12,28 @@ use companion_runtime::domain::scenario::short;
 use serde::Deserialize;
 
 use super::args::ScenarioArgs;
+#[cfg(feature = "ros2")]
+use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
+#[cfg(feature = "ros2")]
+use super::terminal::Terminal;
+#[cfg(feature = "ros2")]
+use companion_core::{Manipulator, Spatial, SpatialArm};
+#[cfg(feature = "ros2")]
+use companion_runtime::domain::arm::SpatialArmSpec;
+#[cfg(feature = "ros2")]
+use companion_runtime::domain::controller::{boxed_spatial_controller, AnyController};
+#[cfg(feature = "ros2")]
+use companion_runtime::domain::scenario::{Scenario, ScenarioError};
+#[cfg(feature = "ros2")]
+use companion_runtime::run::ros2::inputs::Ages;
+#[cfg(feature = "ros2")]
+use companion_runtime::run::ros2::target::Generator;
+#[cfg(feature = "ros2")]
+use companion_runtime::run::ros2::{self, NodeConfig, NodeEnd, RunDescription, TargetSource};
+#[cfg(feature = "ros2")]
+use companion_runtime::run::spatial::SpatialScenario;
+#[cfg(feature = "ros2")]
+use companion_runtime::transport::ros2::{BasePoseKind, EndpointConfig, Qos, TargetTopics, TwistKind};
 
 /// `--target`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum, Deserialize)]
@@ -321,7 +343,7 @@ fn within(flag: &str, x: f64, lo: f64, hi: f64) -> Result<f64> {
 pub fn run(a: &Ros2Args) -> Result<ExitCode> {
     #[cfg(feature = "ros2")]
     {
-        node::run(a)
+        run_node(a)
     }
     #[cfg(not(feature = "ros2"))]
     {
@@ -342,242 +364,220 @@ pub fn run(a: &Ros2Args) -> Result<ExitCode> {
 }
 
 #[cfg(feature = "ros2")]
-mod node {
-    use std::process::ExitCode;
+/// The delay the law can predict over at `period` (s): its `max_delay` and its history.
+fn admissible_delay(s: &Scenario, period: f64) -> f64 {
+    let p = s.controller.params::<f64>();
+    p.max_delay.min(period * companion_core::HISTORY as f64)
+}
 
-    use anyhow::{bail, Result};
-    use companion_core::{Manipulator, Spatial, SpatialArm};
-    use companion_runtime::domain::arm::SpatialArmSpec;
-    use companion_runtime::domain::controller::{boxed_spatial_controller, AnyController};
-    use companion_runtime::domain::scenario::{Scenario, ScenarioError};
-    use companion_runtime::run::ros2::inputs::Ages;
-    use companion_runtime::run::ros2::target::Generator;
-    use companion_runtime::run::ros2::{self, NodeConfig, NodeEnd, RunDescription, TargetSource};
-    use companion_runtime::run::spatial::SpatialScenario;
-    use companion_runtime::transport::ros2::{BasePoseKind, EndpointConfig, Qos, TargetTopics, TwistKind};
-
-    use super::super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
-    use super::super::terminal::Terminal;
-    use super::*;
-
-    /// The delay the law can predict over at `period` (s): its `max_delay` and its history.
-    fn admissible_delay(s: &Scenario, period: f64) -> f64 {
-        let p = s.controller.params::<f64>();
-        p.max_delay.min(period * companion_core::HISTORY as f64)
-    }
-
-    fn resolve(a: &Ros2Args, base: &Scenario, joints: usize) -> Result<NodeConfig> {
-        let n = settings(a)?;
-        let period = base.dt;
-        let period_ns = (period * 1e9).round() as u64;
-        let bound = admissible_delay(base, period);
-        let latency = within("--command-latency", n.command_latency.unwrap_or(0.0), 0.0, bound)?;
-        let max_age = match n.max_age {
-            Some(x) if x > bound => bail!(
-                "--max-age {} s exceeds the delay the law predicts over at this period ({} s: max_delay and 8 periods)",
-                short(x),
-                short(bound)
-            ),
-            Some(x) => within("--max-age", x, 1e-6, bound)?,
-            // What the law can predict over, less the robot's share.
-            None => bound - latency,
-        };
-        if max_age + latency > bound * (1.0 + 1e-12) {
-            bail!(
-                "--max-age {} s and --command-latency {} s add up to more than the delay the law predicts over at \
-                 this period ({} s)",
-                short(max_age),
-                short(latency),
-                short(bound)
-            );
-        }
-        let silence = match n.silence_ms {
-            Some(ms) => within("--silence-ms", ms, 0.001, 60_000.0)? * 1e-3,
-            None => (20e-3f64).max(3.0 * period),
-        };
-        let domain_id = match n.domain_id {
-            Some(d) => d,
-            None => match std::env::var("ROS_DOMAIN_ID") {
-                Ok(v) if !v.trim().is_empty() => {
-                    v.trim().parse().map_err(|_| anyhow::anyhow!("ROS_DOMAIN_ID={v:?} is not a number"))?
-                }
-                _ => 0,
-            },
-        };
-        if domain_id > 232 {
-            bail!("--domain-id must be in [0, 232] (ROS 2's), got {domain_id}");
-        }
-        let depth = n.depth.unwrap_or(10);
-        if !(1..=1000).contains(&depth) {
-            bail!("--depth must be in [1, 1000], got {depth}");
-        }
-        let names = joint_names(&a.arm, joints, n.joint_names)?;
-        let command = command_joints(&names, n.command_joints)?;
-        let target = n.target.unwrap_or(TargetArg::Trajectory);
-        let duration_ns = a.scenario.duration.map(|d| (d * 1e9).round() as u64);
-        if let Some(p) = n.rt_priority {
-            if !(1..=99).contains(&p) {
-                bail!("--rt-priority must be in [1, 99], got {p}");
-            }
-        }
-        let st = within("--startup-timeout", n.startup_timeout.unwrap_or(20.0), 0.0, 86_400.0)?;
-        let endpoint = EndpointConfig {
-            domain_id,
-            node_name: n.node_name.unwrap_or_else(|| "companion".into()),
-            namespace: n.namespace.unwrap_or_else(|| "/".into()),
-            qos: Qos { reliable: n.reliability != Some(ReliabilityArg::BestEffort), depth },
-            joint_states: n.joint_states.unwrap_or_else(|| "/joint_states".into()),
-            base_pose: n.base_pose.unwrap_or_else(|| "/mobile_base_controller/odom".into()),
-            base_pose_kind: match n.base_pose_type.unwrap_or(BasePoseArg::Odometry) {
-                BasePoseArg::Odometry => BasePoseKind::Odometry,
-                BasePoseArg::PoseStamped => BasePoseKind::PoseStamped,
-            },
-            target_pose: n.target_pose.unwrap_or_else(|| "/companion/target_pose".into()),
-            target_twist: n.target_twist.unwrap_or_else(|| "/companion/target_twist".into()),
-            target: match target {
-                TargetArg::Topics => TargetTopics::Read,
-                TargetArg::Trajectory => TargetTopics::Write,
-            },
-            base_command: n.base_command.unwrap_or_else(|| "/mobile_base_controller/cmd_vel".into()),
-            twist: if n.twist_unstamped { TwistKind::Unstamped } else { TwistKind::Stamped },
-            joint_command: n.joint_command.unwrap_or_else(|| "/arm_velocity_controller/commands".into()),
-            diagnostics: n.diagnostics.unwrap_or_else(|| "/diagnostics".into()),
-            base_frame: n.base_frame.unwrap_or_else(|| "base_link".into()),
-            world_frame: n.world_frame.unwrap_or_else(|| "odom".into()),
-        };
-        let target_text = match (target, &a.scenario.target_file) {
-            (TargetArg::Topics, _) => "topics".to_string(),
-            (TargetArg::Trajectory, Some(f)) => format!("file {}", f.display()),
-            (TargetArg::Trajectory, None) if joints == 3 => format!("trajectory {}", a.scenario.trajectory),
-            (TargetArg::Trajectory, None) => format!("lifted trajectory {}", a.scenario.trajectory),
-        };
-        Ok(NodeConfig {
-            endpoint,
-            period_ns,
-            ages: Ages {
-                max_age_ns: (max_age * 1e9).round() as u64,
-                silence_ns: (silence * 1e9).round() as u64,
-            },
-            command_latency_ns: (latency * 1e9).round() as u64,
-            rt_priority: n.rt.then(|| n.rt_priority.unwrap_or(80)),
-            startup_timeout_ns: (st * 1e9).round() as u64,
-            duration_ns,
-            joint_names: names,
-            command_joints: command,
-            diagnostics_hz: within("--diagnostics-hz", n.diagnostics_hz.unwrap_or(10.0), 0.0, 1000.0)?,
-            max_miss_fraction: within("--max-miss-fraction", n.max_miss_fraction.unwrap_or(0.05), 0.0, 1.0)?,
-            max_rejected: within("--max-rejected", a.scenario.max_rejected, 0.0, 1.0)?,
-            out: a.out.clone(),
-            describe: RunDescription {
-                arm: a.arm.clone(),
-                platform: companion_runtime::domain::controller::platform_name(base.controller.platform)
-                    .to_string(),
-                run: RunDescription::run_letter(base.controller.choice),
-                target: target_text,
-            },
-        })
-    }
-
-    /// The plant flags that simulate a robot: meaningless for a node that drives one.
-    fn refuse_plant_flags(a: &Ros2Args) -> Result<()> {
-        let s = &a.scenario;
-        for (flag, given) in [
-            ("--noise", s.noise),
-            ("--actuator-lag", s.actuator_lag.is_some()),
-            ("--wheel-scale-error", s.wheel_scale_error.is_some()),
-        ] {
-            if given {
-                bail!("{flag} simulates a robot's imperfection; companion ros2 drives a real one");
-            }
-        }
-        if a.scenario.platform != super::super::args::PlatformArg::Unicycle
-            && a.scenario.platform != super::super::args::PlatformArg::Omni
-        {
-            bail!(
-                "companion ros2 drives a unicycle (differential drive: --platform unicycle) or an omnidirectional \
-                 base (--platform omni); a car-like base needs its steering angle, which no standard message carries"
-            );
-        }
-        Ok(())
-    }
-
-    pub(super) fn run(a: &Ros2Args) -> Result<ExitCode> {
-        companion_runtime::sys::signals::install_termination_handler()?;
-        companion_runtime::sys::rt::tight_timer_slack();
-        refuse_plant_flags(a)?;
-        let term = Terminal::lines();
-        let default_duration = a.scenario.duration.unwrap_or(120.0);
-        let outcome = match SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
-            None => {
-                let s = a.scenario.scenario_with(default_duration, |b| b)?;
-                let cfg = resolve(a, &s, 3)?;
-                let law = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
-                let target = match cfg.endpoint.target {
-                    TargetTopics::Read => TargetSource::Topics,
-                    TargetTopics::Write => TargetSource::Generated(Generator::new(
-                        companion_runtime::run::sim::build_plant(&s)?,
-                        s.dt,
-                    )),
-                };
-                ros2::run(&cfg, law, target, &term)?
-            }
-            Some(arm) => {
-                let ss = a.scenario.spatial_scenario(arm, default_duration, |b| b)?;
-                match ss.arm.joints() {
-                    6 => spatial::<6>(a, &ss, &term)?,
-                    7 => spatial::<7>(a, &ss, &term)?,
-                    _ => spatial::<8>(a, &ss, &term)?,
-                }
-            }
-        };
-        let s = &outcome.summary;
-        println!(
-            "{} periods, {} steps; {} zero commands for an input fault, {} rejected by the law, {} late, {} skipped; \
-             measurement age p50 {:.3} ms max {:.3} ms; final ‖e_p‖ {:.3e}",
-            s.periods,
-            s.steps,
-            s.zero_commands,
-            s.rejections.total(),
-            s.late,
-            s.skipped_releases,
-            s.measurement_age_ns.p50 as f64 / 1e6,
-            s.measurement_age_ns.max as f64 / 1e6,
-            s.final_ep_norm
+#[cfg(feature = "ros2")]
+fn resolve(a: &Ros2Args, base: &Scenario, joints: usize) -> Result<NodeConfig> {
+    let n = settings(a)?;
+    let period = base.dt;
+    let period_ns = (period * 1e9).round() as u64;
+    let bound = admissible_delay(base, period);
+    let latency = within("--command-latency", n.command_latency.unwrap_or(0.0), 0.0, bound)?;
+    let max_age = match n.max_age {
+        Some(x) if x > bound => bail!(
+            "--max-age {} s exceeds the delay the law predicts over at this period ({} s: max_delay and 8 periods)",
+            short(x),
+            short(bound)
+        ),
+        Some(x) => within("--max-age", x, 1e-6, bound)?,
+        // What the law can predict over, less the robot's share.
+        None => bound - latency,
+    };
+    if max_age + latency > bound * (1.0 + 1e-12) {
+        bail!(
+            "--max-age {} s and --command-latency {} s add up to more than the delay the law predicts over at \
+             this period ({} s)",
+            short(max_age),
+            short(latency),
+            short(bound)
         );
-        println!("wrote {}", a.out.join("summary.json").display());
-        for f in &s.failures {
-            eprintln!("warning: ros2: RUN FAILED: {f}");
-        }
-        Ok(ExitCode::from(match s.end {
-            NodeEnd::Interrupted => EXIT_INTERRUPTED,
-            NodeEnd::Completed if outcome.rejected() => EXIT_REJECTED,
-            NodeEnd::Completed if !s.failures.is_empty() => EXIT_DEADLINES,
-            NodeEnd::Completed => 0,
-        }))
     }
-
-    fn spatial<const N: usize>(
-        a: &Ros2Args,
-        ss: &SpatialScenario,
-        term: &Terminal,
-    ) -> Result<ros2::NodeOutcome>
-    where
-        SpatialArm<f64, N>: companion_core::Manipulator<f64, N, Space = Spatial>,
-        SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
-    {
-        let cfg = resolve(a, &ss.base, N)?;
-        let law = boxed_spatial_controller::<N>(&ss.base.controller, &ss.arm)?;
-        let target = match cfg.endpoint.target {
-            TargetTopics::Read => TargetSource::Topics,
-            TargetTopics::Write => {
-                let chain = ss.arm.chain::<f64, N>()?;
-                let star = law.target_in_effector();
-                let plant = companion_runtime::run::spatial::build_plant(ss, &chain, &star)?;
-                TargetSource::Generated(Generator::new(plant, ss.base.dt))
+    let silence = match n.silence_ms {
+        Some(ms) => within("--silence-ms", ms, 0.001, 60_000.0)? * 1e-3,
+        None => (20e-3f64).max(3.0 * period),
+    };
+    let domain_id = match n.domain_id {
+        Some(d) => d,
+        None => match std::env::var("ROS_DOMAIN_ID") {
+            Ok(v) if !v.trim().is_empty() => {
+                v.trim().parse().map_err(|_| anyhow::anyhow!("ROS_DOMAIN_ID={v:?} is not a number"))?
             }
-        };
-        Ok(ros2::run(&cfg, law, target, term)?)
+            _ => 0,
+        },
+    };
+    if domain_id > 232 {
+        bail!("--domain-id must be in [0, 232] (ROS 2's), got {domain_id}");
     }
+    let depth = n.depth.unwrap_or(10);
+    if !(1..=1000).contains(&depth) {
+        bail!("--depth must be in [1, 1000], got {depth}");
+    }
+    let names = joint_names(&a.arm, joints, n.joint_names)?;
+    let command = command_joints(&names, n.command_joints)?;
+    let target = n.target.unwrap_or(TargetArg::Trajectory);
+    let duration_ns = a.scenario.duration.map(|d| (d * 1e9).round() as u64);
+    if let Some(p) = n.rt_priority {
+        if !(1..=99).contains(&p) {
+            bail!("--rt-priority must be in [1, 99], got {p}");
+        }
+    }
+    let st = within("--startup-timeout", n.startup_timeout.unwrap_or(20.0), 0.0, 86_400.0)?;
+    let endpoint = EndpointConfig {
+        domain_id,
+        node_name: n.node_name.unwrap_or_else(|| "companion".into()),
+        namespace: n.namespace.unwrap_or_else(|| "/".into()),
+        qos: Qos { reliable: n.reliability != Some(ReliabilityArg::BestEffort), depth },
+        joint_states: n.joint_states.unwrap_or_else(|| "/joint_states".into()),
+        base_pose: n.base_pose.unwrap_or_else(|| "/mobile_base_controller/odom".into()),
+        base_pose_kind: match n.base_pose_type.unwrap_or(BasePoseArg::Odometry) {
+            BasePoseArg::Odometry => BasePoseKind::Odometry,
+            BasePoseArg::PoseStamped => BasePoseKind::PoseStamped,
+        },
+        target_pose: n.target_pose.unwrap_or_else(|| "/companion/target_pose".into()),
+        target_twist: n.target_twist.unwrap_or_else(|| "/companion/target_twist".into()),
+        target: match target {
+            TargetArg::Topics => TargetTopics::Read,
+            TargetArg::Trajectory => TargetTopics::Write,
+        },
+        base_command: n.base_command.unwrap_or_else(|| "/mobile_base_controller/cmd_vel".into()),
+        twist: if n.twist_unstamped { TwistKind::Unstamped } else { TwistKind::Stamped },
+        joint_command: n.joint_command.unwrap_or_else(|| "/arm_velocity_controller/commands".into()),
+        diagnostics: n.diagnostics.unwrap_or_else(|| "/diagnostics".into()),
+        base_frame: n.base_frame.unwrap_or_else(|| "base_link".into()),
+        world_frame: n.world_frame.unwrap_or_else(|| "odom".into()),
+    };
+    let target_text = match (target, &a.scenario.target_file) {
+        (TargetArg::Topics, _) => "topics".to_string(),
+        (TargetArg::Trajectory, Some(f)) => format!("file {}", f.display()),
+        (TargetArg::Trajectory, None) if joints == 3 => format!("trajectory {}", a.scenario.trajectory),
+        (TargetArg::Trajectory, None) => format!("lifted trajectory {}", a.scenario.trajectory),
+    };
+    Ok(NodeConfig {
+        endpoint,
+        period_ns,
+        ages: Ages { max_age_ns: (max_age * 1e9).round() as u64, silence_ns: (silence * 1e9).round() as u64 },
+        command_latency_ns: (latency * 1e9).round() as u64,
+        rt_priority: n.rt.then(|| n.rt_priority.unwrap_or(80)),
+        startup_timeout_ns: (st * 1e9).round() as u64,
+        duration_ns,
+        joint_names: names,
+        command_joints: command,
+        diagnostics_hz: within("--diagnostics-hz", n.diagnostics_hz.unwrap_or(10.0), 0.0, 1000.0)?,
+        max_miss_fraction: within("--max-miss-fraction", n.max_miss_fraction.unwrap_or(0.05), 0.0, 1.0)?,
+        max_rejected: within("--max-rejected", a.scenario.max_rejected, 0.0, 1.0)?,
+        out: a.out.clone(),
+        describe: RunDescription {
+            arm: a.arm.clone(),
+            platform: companion_runtime::domain::controller::platform_name(base.controller.platform)
+                .to_string(),
+            run: RunDescription::run_letter(base.controller.choice),
+            target: target_text,
+        },
+    })
+}
+
+#[cfg(feature = "ros2")]
+/// The plant flags that simulate a robot: meaningless for a node that drives one.
+fn refuse_plant_flags(a: &Ros2Args) -> Result<()> {
+    let s = &a.scenario;
+    for (flag, given) in [
+        ("--noise", s.noise),
+        ("--actuator-lag", s.actuator_lag.is_some()),
+        ("--wheel-scale-error", s.wheel_scale_error.is_some()),
+    ] {
+        if given {
+            bail!("{flag} simulates a robot's imperfection; companion ros2 drives a real one");
+        }
+    }
+    if a.scenario.platform != super::args::PlatformArg::Unicycle
+        && a.scenario.platform != super::args::PlatformArg::Omni
+    {
+        bail!(
+            "companion ros2 drives a unicycle (differential drive: --platform unicycle) or an omnidirectional \
+             base (--platform omni); a car-like base needs its steering angle, which no standard message carries"
+        );
+    }
+    Ok(())
+}
+
+#[cfg(feature = "ros2")]
+fn run_node(a: &Ros2Args) -> Result<ExitCode> {
+    companion_runtime::sys::signals::install_termination_handler()?;
+    companion_runtime::sys::rt::tight_timer_slack();
+    refuse_plant_flags(a)?;
+    let term = Terminal::lines();
+    let default_duration = a.scenario.duration.unwrap_or(120.0);
+    let outcome = match SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
+        None => {
+            let s = a.scenario.scenario_with(default_duration, |b| b)?;
+            let cfg = resolve(a, &s, 3)?;
+            let law = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
+            let target = match cfg.endpoint.target {
+                TargetTopics::Read => TargetSource::Topics,
+                TargetTopics::Write => TargetSource::Generated(Generator::new(
+                    companion_runtime::run::sim::build_plant(&s)?,
+                    s.dt,
+                )),
+            };
+            ros2::run(&cfg, law, target, &term)?
+        }
+        Some(arm) => {
+            let ss = a.scenario.spatial_scenario(arm, default_duration, |b| b)?;
+            match ss.arm.joints() {
+                6 => spatial::<6>(a, &ss, &term)?,
+                7 => spatial::<7>(a, &ss, &term)?,
+                _ => spatial::<8>(a, &ss, &term)?,
+            }
+        }
+    };
+    let s = &outcome.summary;
+    println!(
+        "{} periods, {} steps; {} zero commands for an input fault, {} rejected by the law, {} late, {} skipped; \
+         measurement age p50 {:.3} ms max {:.3} ms; final ‖e_p‖ {:.3e}",
+        s.periods,
+        s.steps,
+        s.zero_commands,
+        s.rejections.total(),
+        s.late,
+        s.skipped_releases,
+        s.measurement_age_ns.p50 as f64 / 1e6,
+        s.measurement_age_ns.max as f64 / 1e6,
+        s.final_ep_norm
+    );
+    println!("wrote {}", a.out.join("summary.json").display());
+    for f in &s.failures {
+        eprintln!("warning: ros2: RUN FAILED: {f}");
+    }
+    Ok(ExitCode::from(match s.end {
+        NodeEnd::Interrupted => EXIT_INTERRUPTED,
+        NodeEnd::Completed if outcome.rejected() => EXIT_REJECTED,
+        NodeEnd::Completed if !s.failures.is_empty() => EXIT_DEADLINES,
+        NodeEnd::Completed => 0,
+    }))
+}
+
+#[cfg(feature = "ros2")]
+fn spatial<const N: usize>(a: &Ros2Args, ss: &SpatialScenario, term: &Terminal) -> Result<ros2::NodeOutcome>
+where
+    SpatialArm<f64, N>: companion_core::Manipulator<f64, N, Space = Spatial>,
+    SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
+{
+    let cfg = resolve(a, &ss.base, N)?;
+    let law = boxed_spatial_controller::<N>(&ss.base.controller, &ss.arm)?;
+    let target = match cfg.endpoint.target {
+        TargetTopics::Read => TargetSource::Topics,
+        TargetTopics::Write => {
+            let chain = ss.arm.chain::<f64, N>()?;
+            let star = law.target_in_effector();
+            let plant = companion_runtime::run::spatial::build_plant(ss, &chain, &star)?;
+            TargetSource::Generated(Generator::new(plant, ss.base.dt))
+        }
+    };
+    Ok(ros2::run(&cfg, law, target, term)?)
 }
 
 #[cfg(test)]
