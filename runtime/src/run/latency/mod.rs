@@ -13,7 +13,7 @@
 //!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's) and,
 //!    where network namespaces are permitted (root), across a veth pair into a namespace
 //!    (skipped with a warning otherwise); in a build with the `ros2` feature, a DDS ping-pong
-//!    (RustDDS on loopback UDP, as `companion ros2` talks to a robot: [`dds`]);
+//!    (RustDDS on loopback UDP, as `companion ros2` talks to a robot: module `dds`);
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
