@@ -146,6 +146,17 @@ class Robot:
         return pos, math.sqrt(pos * pos + rot * rot)
 
 
+class PlanarRobot(Robot):
+    """The unicycle carrying the paper's RPR arm: integrated as the spatial robot, not measured."""
+
+    def __init__(self):
+        self.q = [0.0, 0.35, 0.0]
+        self.base = (0.0, 0.0, 0.0)
+        self.v = (0.0, 0.0, 0.0)
+        self.qdot = [0.0] * 3
+        self.height = 0.0
+
+
 def qos(args, depth=None):
     rel = Policy.Reliability.Reliable(duration(milliseconds=100)) if args.reliable else Policy.Reliability.BestEffort
     return Qos(rel, Policy.History.KeepLast(depth or 10), Policy.Durability.Volatile)
@@ -153,7 +164,7 @@ def qos(args, depth=None):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--arm", required=True, help="arm file (TOML)")
+    p.add_argument("--arm", required=True, help="arm file (TOML), or rpr (the paper's planar arm)")
     p.add_argument("--joint-names", default=UR5_JOINTS)
     p.add_argument("--extra-joint", action="append", default=["torso_lift_joint"], help="listed too, first")
     p.add_argument("--rate", type=float, default=1000.0)
@@ -177,12 +188,17 @@ def main(argv=None):
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
 
-    chain = Chain(args.arm)
-    names = args.joint_names.split(",")
-    n = len(chain.joints)
+    if args.arm == "rpr":
+        # The paper's planar arm: its joints only (q(0) = (0, 0.35, 0)); no error measured here.
+        chain, names, n = None, args.joint_names.split(","), 3
+        robot = PlanarRobot()
+    else:
+        chain = Chain(args.arm)
+        names = args.joint_names.split(",")
+        n = len(chain.joints)
+        robot = Robot(chain, n)
     if len(names) != n:
         raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
-    robot = Robot(chain, n)
     traj = LiftedTrajectory1(robot.height)
     inject, inject_at = None, None
     if args.inject:
@@ -300,7 +316,7 @@ def main(argv=None):
                 if s0_ns is None:
                     s0_ns = stamp
                 res["target_messages"] += 1
-                if res["target_messages"] % every:
+                if res["target_messages"] % every or chain is None:
                     continue
                 want = traj.pose((stamp - s0_ns) * 1e-9)[1]
                 got = (s.pose.position.x, s.pose.position.y, s.pose.position.z)
@@ -343,7 +359,7 @@ def main(argv=None):
         # The error (forward kinematics in Python) at most 100 times a second: at 1 kHz every
         # publish would take the CPU the robot's own timing needs.
         tgt = target_at_real(now_ns) if res["published"] % every == 0 else None
-        if tgt is not None and first_cmd is not None:
+        if tgt is not None and first_cmd is not None and chain is not None:
             pos, full = robot.errors(tgt)
             res["errors"].append((now - first_cmd, pos, full))
 

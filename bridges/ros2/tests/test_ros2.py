@@ -223,14 +223,15 @@ def next_domain():
     return str(_domain[0])
 
 
-def closed_loop(node_bin, tmp_path, rate, duration, target="node", inject=None, node_extra=(), rt=True):
+def closed_loop(node_bin, tmp_path, rate, duration, target="node", inject=None, node_extra=(), rt=True,
+                arm=UR5, node_arm="ur5", standin_extra=()):
     """Starts the stand-in, runs the node to its end (`--duration`), then stops the stand-in
     (SIGINT: it writes its figures). Returns (node exit code, node summary, stand-in figures,
     node output)."""
     domain = next_domain()
     out = tmp_path / "standin.json"
-    standin = [sys.executable, STANDIN, "--arm", UR5, "--rate", str(rate), "--domain-id", domain,
-               "--target", target, "--final-at", str(duration), "--out", str(out)]  # fmt: skip
+    standin = [sys.executable, STANDIN, "--arm", arm, "--rate", str(rate), "--domain-id", domain,
+               "--target", target, "--final-at", str(duration), "--out", str(out), *standin_extra]  # fmt: skip
     if inject:
         standin += ["--inject", inject]
     pre = []
@@ -238,7 +239,7 @@ def closed_loop(node_bin, tmp_path, rate, duration, target="node", inject=None, 
         pre = ["chrt", "-f", "50"]
     robot = subprocess.Popen(pre + standin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
-        cmd = [node_bin, "ros2", "--arm", "ur5", "--dt", str(1.0 / rate), "--duration", str(duration),
+        cmd = [node_bin, "ros2", "--arm", node_arm, "--dt", str(1.0 / rate), "--duration", str(duration),
                "--domain-id", domain, "--target", "trajectory" if target == "node" else "topics",
                "--command-latency", COMMAND_LATENCY, "--startup-timeout", "30", "--out", str(tmp_path / "node")]  # fmt: skip
         if rt:
@@ -339,3 +340,27 @@ def test_a_termination_signal_ends_the_run_with_the_zero_command_and_the_summary
     assert s["end"] == "interrupted" and s["periods"] == s["steps"] >= 1, s
     # The robot's last command: the zero the node sent as it ended.
     assert f["nonzero_commands"] >= 1 and f["last_command_zero"] is True, f
+
+
+NAMES = "j_base,j_shoulder,j_elbow,j_wrist_1,j_wrist_2,j_wrist_3"
+
+
+@pytest.mark.parametrize(
+    "node_arm, arm, joints, names",
+    [
+        ("rpr", "rpr", 3, "rpr_joint_1,rpr_joint_2,rpr_joint_3"),
+        ("panda", os.path.join(ROOT, "examples", "arms", "panda.toml"), 7, ",".join(f"panda_joint{i}" for i in range(1, 8))),
+        (UR5, UR5, 6, NAMES),
+    ],
+    ids=["rpr", "panda", "ur5-file"],
+)
+def test_the_node_drives_every_arm_the_cli_knows(node_bin, tmp_path, node_arm, arm, joints, names):
+    extra = ("--joint-names", names) if node_arm == UR5 else ()
+    code, s, f, log = closed_loop(node_bin, tmp_path, 100, 3.0, node_arm=node_arm, arm=arm,
+                                  node_extra=extra, standin_extra=("--joint-names", names))  # fmt: skip
+    # Every period a step of the law, none rejected; every command of the arm's length, moving it.
+    assert s["joint_names"] == names.split(",") and s["end"] == "completed", s
+    rejected = sum(sum(v) if isinstance(v, list) else v for v in s["rejections"].values())
+    assert s["steps"] == s["periods"] >= 290 and rejected == 0, s
+    assert f["joint_commands"] >= s["periods"] and f["bad_command_length"] == 0 and f["nonzero_commands"] > 250, f
+    assert code == 0, log
