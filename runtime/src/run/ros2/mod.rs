@@ -11,7 +11,9 @@
 //! ## Time
 //!
 //! ROS 2's stamps are the system clock's (`CLOCK_REALTIME`). A step's measurement time is the
-//! older of the joint state's and the base pose's stamps; the law predicts over the delay from
+//! newer of the joint state's and the base pose's stamps, the older of the two moved to it by
+//! the command the node sent last (the robot's joint state and odometry of one instant come
+//! as two messages, which a release may fall between); the law predicts over the delay from
 //! that stamp to the moment it steps plus `--command-latency` (the robot's share: transport,
 //! its controller's cycle) — its delay compensation, as in the real-time HIL — and holds its
 //! command for one period. A target read from topics is moved from its own stamp to
@@ -32,7 +34,8 @@
 //!
 //! `summary.json` in `--out`: the node's settings, the counts, the measurement age and the
 //! tick's work time (p50 … max), the last `‖e_p‖`, how the run ended and why it failed if it
-//! did. Written when the run ends, also after SIGINT or SIGTERM.
+//! did. Written when the run ends, also after SIGINT or SIGTERM, after the node has sent the
+//! zero command every period for 0.1 s.
 //!
 //! ## The cost of a period
 //!
@@ -48,7 +51,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
-use companion_core::{Command, Measurement, PaperRun, Pose};
+use companion_core::{Command, Measurement, PaperRun, Pose, PoseSc};
 use serde::Serialize;
 
 use self::inputs::{Ages, Fault, FaultCounts, Input, Latest, Snapshot};
@@ -430,10 +433,20 @@ where
     if let Some(t) = diag_thread {
         let _ = t.join();
     }
-    // The robot's last command: zero, whatever the run's end.
-    let now = Time::from_ns(realtime_ns());
-    let _ = ep.send_base(now, Twist::default());
-    let _ = ep.send_joints(zero_joints(cfg));
+    // The robot's last command: zero, whatever the run's end — sent every period for
+    // LINGER_NS, so that it reaches the robot before the participant leaves the domain
+    // (ros2-client does not expose the writer's acknowledgements).
+    let until = rt::monotonic_ns() + LINGER_NS;
+    loop {
+        let now = Time::from_ns(realtime_ns());
+        let _ = ep.send_base(now, Twist::default());
+        let _ = ep.send_joints(zero_joints(cfg));
+        let t = rt::monotonic_ns();
+        if t >= until {
+            break;
+        }
+        rt::sleep_until_ns((t + cfg.period_ns).min(until));
+    }
     let summary = result?;
     let path = cfg.out.join("summary.json");
     std::fs::create_dir_all(&cfg.out).map_err(|source| NodeError::Write { path: cfg.out.clone(), source })?;
@@ -442,6 +455,9 @@ where
     std::fs::write(&path, text + "\n").map_err(|source| NodeError::Write { path, source })?;
     Ok(NodeOutcome { summary })
 }
+
+/// How long the node keeps sending the zero command after its run ended (ns).
+const LINGER_NS: u64 = 100_000_000;
 
 fn zero_joints(cfg: &NodeConfig) -> JointVelocities {
     JointVelocities { data: [0.0; MAX_COMMAND_JOINTS], len: cfg.command_joints.len().min(MAX_COMMAND_JOINTS) }
@@ -523,6 +539,9 @@ where
     // Set by the first step: its measurement's stamp, the platform there, its release.
     let mut epoch: Option<(i64, Pose<f64>, u64)> = None;
     let mut k: u64 = 1;
+    // The command the robot is executing (what the node sent last): the older of the joint
+    // state and the base pose is moved by it to the newer one's stamp.
+    let mut last_sent = Command::<f64, N>::zero();
     let end = loop {
         let release = t0 + k * period_ns;
         rt::sleep_until_ns(release);
@@ -578,10 +597,10 @@ where
                 StepReport::zero(None)
             }
             Ok(s) => {
-                let stamp = s.joints_stamp.as_ns().min(s.base_stamp.as_ns());
+                let stamp = s.joints_stamp.as_ns().max(s.base_stamp.as_ns());
                 let age_ns = (now_real - stamp).max(0) as u64;
                 let t = (stamp - epoch_stamp) as f64 * 1e-9;
-                match measurement::<S, P, N>(&s, t, stamp, &base0, target)? {
+                match measurement::<S, P, N>(&s, t, stamp, &base0, target, &last_sent)? {
                     None => {
                         let f = Fault::Malformed(Input::TargetPose);
                         c.faults.count(f);
@@ -615,6 +634,7 @@ where
         } else {
             Command::zero()
         };
+        last_sent = cmd;
         let p = &cmd.platform;
         let twist = Twist {
             linear: Vector3 { x: p.v, y: p.v_lat, z: 0.0 },
@@ -667,12 +687,22 @@ fn measurement<S, P, const N: usize>(
     stamp_ns: i64,
     base0: &Pose<f64>,
     target: &mut TargetSource<P, N>,
+    last: &Command<f64, N>,
 ) -> Result<Option<StepInputs<S, N>>, NodeError>
 where
     S: NodeSpace,
     P: companion_plant::Simulated<N, Space = S>,
 {
     let base = planar_pose(&s.base).unwrap_or(Pose::new(f64::NAN, f64::NAN, f64::NAN));
+    // The older input moved to the newer one's stamp by the command acting meanwhile (the joint
+    // state and the odometry of one instant reach the node as two messages, which a period's
+    // release may fall between; a robot's two publishers may keep different clocks' rates).
+    let p = &last.platform;
+    let base_lag = (stamp_ns - s.base_stamp.as_ns()) as f64 * 1e-9;
+    let base = PoseSc::new(base)
+        .compose(&PoseSc::exp(&companion_core::nalgebra::Vector3::new(p.v, p.v_lat, p.omega), base_lag))
+        .pose;
+    let joint_lag = (stamp_ns - s.joints_stamp.as_ns()) as f64 * 1e-9;
     let (pose, twist, out) = match target {
         TargetSource::Topics => {
             // Both are in a snapshot of a run that reads them, the quaternion checked; a
@@ -692,7 +722,7 @@ where
     };
     let mut joints = companion_core::nalgebra::SVector::<f64, N>::zeros();
     for i in 0..N {
-        joints[i] = s.joints[i];
+        joints[i] = s.joints[i] + last.joints[i] * joint_lag;
     }
     let meas = Measurement { t, base, steering: 0.0, joints, target: pose, target_velocity: twist };
     Ok(Some((meas, out)))
