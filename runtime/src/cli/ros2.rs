@@ -7,7 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context as _, Result};
 use clap::{Args, ValueEnum};
-use companion_runtime::domain::arm::ArmChoice;
+use companion_runtime::domain::arm::SpatialArmSpec;
 use companion_runtime::domain::scenario::short;
 use serde::Deserialize;
 
@@ -18,8 +18,6 @@ use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
 use super::terminal::Terminal;
 #[cfg(feature = "ros2")]
 use companion_core::{Manipulator, Spatial, SpatialArm};
-#[cfg(feature = "ros2")]
-use companion_runtime::domain::arm::SpatialArmSpec;
 #[cfg(feature = "ros2")]
 use companion_runtime::domain::controller::{boxed_spatial_controller, AnyController};
 #[cfg(feature = "ros2")]
@@ -191,25 +189,6 @@ pub struct Ros2Args {
     pub out: PathBuf,
 }
 
-/// The UR5's joints as its URDF names them (Universal Robots' description).
-pub const UR5_JOINTS: [&str; 6] = [
-    "shoulder_pan_joint",
-    "shoulder_lift_joint",
-    "elbow_joint",
-    "wrist_1_joint",
-    "wrist_2_joint",
-    "wrist_3_joint",
-];
-/// The Panda's joints as its URDF names them (Franka's description).
-pub const PANDA_JOINTS: [&str; 7] = [
-    "panda_joint1",
-    "panda_joint2",
-    "panda_joint3",
-    "panda_joint4",
-    "panda_joint5",
-    "panda_joint6",
-    "panda_joint7",
-];
 /// The paper's planar arm's joints (it has no URDF: these names are the node's own).
 pub const RPR_JOINTS: [&str; 3] = ["rpr_joint_1", "rpr_joint_2", "rpr_joint_3"];
 
@@ -266,29 +245,18 @@ fn settings(a: &Ros2Args) -> Result<NodeSettings> {
     Ok(a.node.clone().or(file))
 }
 
-/// The arm's joint names: given (checked against the arm's count), or the preset's.
+/// The arm's joint names: given (checked against the arm's count), or the arm's own (a
+/// URDF's, an arm file's `name` keys, the presets' URDF names; the planar RPR's are the node's,
+/// [`RPR_JOINTS`]).
 ///
 /// # Errors
-/// A count other than the arm's, a name given twice or empty, or an arm file without names.
-pub fn joint_names(arm: &str, joints: usize, given: Option<Vec<String>>) -> Result<Vec<String>> {
-    let names = match given {
-        Some(n) => n,
-        None => {
-            let preset: &[&str] = match ArmChoice::parse(arm) {
-                ArmChoice::Rpr => &RPR_JOINTS,
-                ArmChoice::Ur5 => &UR5_JOINTS,
-                ArmChoice::Panda => &PANDA_JOINTS,
-                ArmChoice::File(p) => bail!(
-                    "the arm file {} names no joints: give --joint-names (its {joints} joints as the robot's \
-                     JointState lists them, base first)",
-                    p.display()
-                ),
-            };
-            preset.iter().map(|s| (*s).to_string()).collect()
-        }
-    };
-    if names.len() != joints {
-        bail!("--joint-names lists {} names, the arm has {joints} joints", names.len());
+/// A count other than the arm's, or a name given twice or empty.
+pub fn joint_names(arm: Option<&SpatialArmSpec>, given: Option<Vec<String>>) -> Result<Vec<String>> {
+    let own = arm
+        .map_or_else(|| RPR_JOINTS.iter().map(|s| (*s).to_string()).collect(), SpatialArmSpec::joint_names);
+    let names = given.unwrap_or_else(|| own.clone());
+    if names.len() != own.len() {
+        bail!("--joint-names lists {} names, the arm has {} joints", names.len(), own.len());
     }
     unique("--joint-names", &names)?;
     Ok(names)
@@ -349,12 +317,7 @@ pub fn run(a: &Ros2Args) -> Result<ExitCode> {
     {
         // The flags checked as in a build with the node, then the missing feature said.
         let n = settings(a)?;
-        let joints =
-            match companion_runtime::domain::arm::SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
-                None => 3,
-                Some(arm) => arm.joints(),
-            };
-        let names = joint_names(&a.arm, joints, n.joint_names)?;
+        let names = joint_names(a.scenario.arm_spec(&a.arm)?.as_ref(), n.joint_names)?;
         command_joints(&names, n.command_joints)?;
         within("--max-miss-fraction", n.max_miss_fraction.unwrap_or(0.05), 0.0, 1.0)?;
         bail!(
@@ -371,7 +334,8 @@ fn admissible_delay(s: &Scenario, period: f64) -> f64 {
 }
 
 #[cfg(feature = "ros2")]
-fn resolve(a: &Ros2Args, base: &Scenario, joints: usize) -> Result<NodeConfig> {
+fn resolve(a: &Ros2Args, base: &Scenario, arm: Option<&SpatialArmSpec>) -> Result<NodeConfig> {
+    let joints = arm.map_or(3, SpatialArmSpec::joints);
     let n = settings(a)?;
     let period = base.dt;
     let period_ns = (period * 1e9).round() as u64;
@@ -416,7 +380,7 @@ fn resolve(a: &Ros2Args, base: &Scenario, joints: usize) -> Result<NodeConfig> {
     if !(1..=1000).contains(&depth) {
         bail!("--depth must be in [1, 1000], got {depth}");
     }
-    let names = joint_names(&a.arm, joints, n.joint_names)?;
+    let names = joint_names(arm, n.joint_names)?;
     let command = command_joints(&names, n.command_joints)?;
     let target = n.target.unwrap_or(TargetArg::Trajectory);
     let duration_ns = a.scenario.duration.map(|d| (d * 1e9).round() as u64);
@@ -511,10 +475,10 @@ fn run_node(a: &Ros2Args) -> Result<ExitCode> {
     refuse_plant_flags(a)?;
     let term = Terminal::lines();
     let default_duration = a.scenario.duration.unwrap_or(120.0);
-    let outcome = match SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
+    let outcome = match a.scenario.arm_spec(&a.arm)? {
         None => {
             let s = a.scenario.scenario_with(default_duration, |b| b)?;
-            let cfg = resolve(a, &s, 3)?;
+            let cfg = resolve(a, &s, None)?;
             let law = AnyController::new(&s.controller).map_err(ScenarioError::Param)?;
             let target = match cfg.endpoint.target {
                 TargetTopics::Read => TargetSource::Topics,
@@ -566,7 +530,7 @@ where
     SpatialArm<f64, N>: companion_core::Manipulator<f64, N, Space = Spatial>,
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
 {
-    let cfg = resolve(a, &ss.base, N)?;
+    let cfg = resolve(a, &ss.base, Some(&ss.arm))?;
     let law = boxed_spatial_controller::<N>(&ss.base.controller, &ss.arm)?;
     let target = match cfg.endpoint.target {
         TargetTopics::Read => TargetSource::Topics,
@@ -583,7 +547,7 @@ where
 #[cfg(test)]
 mod tests {
     use clap::Parser;
-    use companion_runtime::domain::arm::SpatialArmSpec;
+    use companion_runtime::domain::arm::ArmChoice;
 
     use super::*;
 
@@ -594,15 +558,18 @@ mod tests {
     }
 
     #[test]
-    fn joint_names_default_to_the_presets_and_are_checked() {
-        assert_eq!(joint_names("ur5", 6, None).unwrap()[0], "shoulder_pan_joint");
-        assert_eq!(joint_names("panda", 7, None).unwrap()[6], "panda_joint7");
-        let e = joint_names("examples/arms/ur5.toml", 6, None).unwrap_err().to_string();
-        assert!(e.contains("--joint-names"), "{e}");
+    fn joint_names_default_to_the_arms_own_and_are_checked() {
+        let spec = |arm: &str| SpatialArmSpec::from_choice(&ArmChoice::parse(arm)).unwrap();
+        assert_eq!(joint_names(spec("ur5").as_ref(), None).unwrap()[0], "shoulder_pan_joint");
+        assert_eq!(joint_names(spec("panda").as_ref(), None).unwrap()[6], "panda_joint7");
+        assert_eq!(joint_names(None, None).unwrap(), RPR_JOINTS);
+        // An arm file without `name` keys: the reader's `joint1` … `joint6`.
+        let file = spec(concat!(env!("CARGO_MANIFEST_DIR"), "/../examples/arms/ur5.toml"));
+        assert_eq!(joint_names(file.as_ref(), None).unwrap(), file.unwrap().joint_names());
         let two = |v: &[&str]| Some(v.iter().map(|s| s.to_string()).collect::<Vec<_>>());
-        let e = joint_names("rpr", 3, two(&["a", "b"])).unwrap_err().to_string();
+        let e = joint_names(None, two(&["a", "b"])).unwrap_err().to_string();
         assert_eq!(e, "--joint-names lists 2 names, the arm has 3 joints");
-        let e = joint_names("rpr", 3, two(&["a", "b", "a"])).unwrap_err().to_string();
+        let e = joint_names(None, two(&["a", "b", "a"])).unwrap_err().to_string();
         assert_eq!(e, "--joint-names: \"a\" is listed twice");
         let arm: Vec<String> = ["a", "b", "c"].iter().map(|s| s.to_string()).collect();
         assert_eq!(command_joints(&arm, None).unwrap(), arm);
@@ -625,14 +592,6 @@ mod tests {
         let e = format!("{:#}", NodeSettings::load(&f).unwrap_err());
         assert!(e.contains("unknown field `joint_state`"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
-    }
-
-    #[test]
-    fn the_presets_joint_counts_match_the_arms() {
-        for (arm, names) in [("ur5", UR5_JOINTS.len()), ("panda", PANDA_JOINTS.len())] {
-            let spec = SpatialArmSpec::from_choice(&ArmChoice::parse(arm)).unwrap().unwrap();
-            assert_eq!(spec.joints(), names, "{arm}");
-        }
     }
 
     #[cfg(feature = "ros2")]
