@@ -69,100 +69,148 @@ pub enum ReliabilityArg {
 #[derive(Args, Clone, Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct NodeSettings {
-    /// ROS_DOMAIN_ID (0–232) [default: $ROS_DOMAIN_ID, else 0].
+    /// ROS_DOMAIN_ID (0–232)
+    ///
+    /// [default: $ROS_DOMAIN_ID, else 0].
     #[arg(long, value_name = "ID")]
     pub domain_id: Option<u16>,
-    /// The node's name [default: companion].
+    /// The node's name
+    ///
+    /// [default: companion].
     #[arg(long, value_name = "NAME")]
     pub node_name: Option<String>,
-    /// The node's namespace [default: /].
+    /// The node's namespace
+    ///
+    /// [default: /].
     #[arg(long, value_name = "NS")]
     pub namespace: Option<String>,
-    /// The robot's `sensor_msgs/JointState` [default: /joint_states, joint_state_broadcaster's].
+    /// The robot's sensor_msgs/JointState topic
+    ///
+    /// [default: /joint_states, joint_state_broadcaster's].
     #[arg(long, value_name = "TOPIC")]
     pub joint_states: Option<String>,
-    /// The platform's pose [default: /mobile_base_controller/odom, the TIAGo's
-    /// diff_drive_controller].
+    /// The platform's pose topic
+    ///
+    /// [default: /mobile_base_controller/odom, the TIAGo's diff_drive_controller].
     #[arg(long, value_name = "TOPIC")]
     pub base_pose: Option<String>,
-    /// The base pose's type [default: odometry].
+    /// The base pose's type
+    ///
+    /// [default: odometry].
     #[arg(long, value_enum, value_name = "TYPE")]
     pub base_pose_type: Option<BasePoseArg>,
-    /// Where the target comes from [default: trajectory].
+    /// The target's source
+    ///
+    /// [default: trajectory].
     #[arg(long, value_enum)]
     pub target: Option<TargetArg>,
-    /// The target's pose: read (`--target topics`) or published (`trajectory`)
+    /// The target's pose topic, read or published
+    ///
+    /// Read with `--target topics`, published with `--target trajectory`
     /// [default: /companion/target_pose].
     #[arg(long, value_name = "TOPIC")]
     pub target_pose: Option<String>,
-    /// The target's body twist, read with `--target topics` [default: /companion/target_twist].
+    /// The target's body twist topic (--target topics)
+    ///
+    /// [default: /companion/target_twist].
     #[arg(long, value_name = "TOPIC")]
     pub target_twist: Option<String>,
-    /// The platform's velocity command [default: /mobile_base_controller/cmd_vel, Jazzy's
-    /// diff_drive_controller: TwistStamped].
+    /// The platform's velocity command topic
+    ///
+    /// [default: /mobile_base_controller/cmd_vel, Jazzy's diff_drive_controller: TwistStamped].
     #[arg(long, value_name = "TOPIC")]
     pub base_command: Option<String>,
-    /// Send the base command as `geometry_msgs/Twist` (Humble's diff_drive_controller with
-    /// use_stamped_vel false, on ~/cmd_vel_unstamped).
+    /// Send the base command as geometry_msgs/Twist (Humble)
+    ///
+    /// Humble's diff_drive_controller with use_stamped_vel false, on ~/cmd_vel_unstamped.
     #[arg(long)]
     #[serde(default)]
     pub twist_unstamped: bool,
-    /// The joint velocities, a `std_msgs/Float64MultiArray` for a JointGroupVelocityController
+    /// The joint velocities' topic (Float64MultiArray)
+    ///
+    /// A std_msgs/Float64MultiArray for a JointGroupVelocityController
     /// [default: /arm_velocity_controller/commands].
     #[arg(long, value_name = "TOPIC")]
     pub joint_command: Option<String>,
-    /// The node's `diagnostic_msgs/DiagnosticArray` [default: /diagnostics].
+    /// The node's diagnostics topic
+    ///
+    /// A diagnostic_msgs/DiagnosticArray [default: /diagnostics].
     #[arg(long, value_name = "TOPIC")]
     pub diagnostics: Option<String>,
-    /// Diagnostics per second, 0 for none [default: 10].
+    /// Diagnostics per second, 0 for none
+    ///
+    /// [default: 10].
     #[arg(long, value_name = "HZ")]
     pub diagnostics_hz: Option<f64>,
-    /// The arm's joint names in its order, as the robot's JointState lists them [default: the
-    /// preset's URDF names; an arm file's are required].
+    /// The arm's joint names in its order, as JointState lists them
+    ///
+    /// [default: the arm's own: a URDF's, an arm file's `name` keys, the presets' URDF names].
     #[arg(long, value_name = "A,B,…", value_delimiter = ',')]
     pub joint_names: Option<Vec<String>>,
-    /// The velocity controller's joints in its order: every joint of the arm once, and any
-    /// other joint of the controller (sent 0) [default: --joint-names].
+    /// The velocity controller's joints in its order
+    ///
+    /// Every joint of the arm once, and any other joint of the controller (sent 0)
+    /// [default: --joint-names].
     #[arg(long, value_name = "A,B,…", value_delimiter = ',')]
     pub command_joints: Option<Vec<String>>,
-    /// Every topic's reliability [default: reliable].
-    #[arg(long, value_enum)]
+    /// QoS reliability
+    ///
+    /// [default: reliable].
+    #[arg(long, value_enum, value_name = "R")]
     pub reliability: Option<ReliabilityArg>,
-    /// Every topic's history depth, keep last N (1–1000) [default: 10].
+    /// Every topic's history depth, keep last N (1–1000)
+    ///
+    /// [default: 10].
     #[arg(long, value_name = "N")]
     pub depth: Option<u16>,
-    /// A measurement older than this (by its stamp against the system clock) gives the zero
-    /// command (s) [default and largest: the delay the law predicts over, min(0.05, 8 periods), less --command-latency].
+    /// A measurement older than this gives the zero command (s)
+    ///
+    /// By its stamp against the system clock [default and largest: the delay the law predicts
+    /// over, min(0.05, 8 periods), less --command-latency].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub max_age: Option<f64>,
-    /// A publisher silent for this long (on the node's clock) gives the zero command (ms)
-    /// [default: 20, at least 3 periods].
+    /// A publisher silent this long gives the zero command (ms)
+    ///
+    /// On the node's clock [default: 20, at least 3 periods].
     #[arg(long, value_name = "MS")]
     pub silence_ms: Option<f64>,
-    /// The expected time from the node sending a command to the robot applying it (s): the
-    /// transport and the robot's controller cycle (ros2_control: about half its update
+    /// The time from sending a command to the robot applying it (s)
+    ///
+    /// The transport and the robot's controller cycle (ros2_control: about half its update
     /// period); added to the delay the law predicts over [default: 0].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub command_latency: Option<f64>,
-    /// Real-time setup: SCHED_FIFO for the node's threads (RustDDS's among them) at
-    /// --rt-priority, memory locked (a missing privilege is a warning).
+    /// Real-time setup: SCHED_FIFO threads, memory locked
+    ///
+    /// SCHED_FIFO for the node's threads (RustDDS's among them) at --rt-priority, memory
+    /// locked (a missing privilege is a warning).
     #[arg(long)]
     #[serde(default)]
     pub rt: bool,
-    /// SCHED_FIFO priority with --rt (1–99) [default: 80].
+    /// SCHED_FIFO priority with --rt (1–99)
+    ///
+    /// [default: 80].
     #[arg(long, value_name = "P")]
     pub rt_priority: Option<i32>,
-    /// Give up (exit code 2) when an input has not come after this long (s) [default: 20].
+    /// Exit 2 if an input has not come after this long (s)
+    ///
+    /// [default: 20].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub startup_timeout: Option<f64>,
+    /// Exit 7 above this fraction of faulty periods
+    ///
     /// A run whose periods were more than this fraction zero commands for an input fault,
     /// late or skipped fails (exit code 7) [default: 0.05].
     #[arg(long, value_name = "FRACTION", allow_hyphen_values = true)]
     pub max_miss_fraction: Option<f64>,
-    /// The base command's frame [default: base_link].
+    /// The base command's frame
+    ///
+    /// [default: base_link].
     #[arg(long, value_name = "FRAME")]
     pub base_frame: Option<String>,
-    /// The generated target's frame, the odometry's [default: odom].
+    /// The generated target's frame, the odometry's
+    ///
+    /// [default: odom].
     #[arg(long, value_name = "FRAME")]
     pub world_frame: Option<String>,
 }
@@ -174,14 +222,17 @@ pub struct Ros2Args {
     /// The law and the generated target (`--dt` is the node's period; `--duration` the run's
     /// length from its first step, none: until SIGINT or SIGTERM).
     pub scenario: ScenarioArgs,
-    /// The arm: `rpr`, `ur5`, `panda` or a TOML arm file (as `companion hil --arm`).
-    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
+    ///
+    /// As `companion hil --arm`; a URDF with --base-link, --tip-link and --home.
+    #[arg(long, default_value = "rpr", hide_default_value = true, value_name = "ARM")]
     pub arm: String,
     #[command(flatten)]
     /// The node.
     pub node: NodeSettings,
-    /// The node's settings as TOML, the keys of the flags above in snake_case (a flag given
-    /// on the command line wins).
+    /// The node's settings as TOML (a flag wins)
+    ///
+    /// The keys of the flags above in snake_case; a flag given on the command line wins.
     #[arg(long, value_name = "FILE")]
     pub ros_config: Option<PathBuf>,
     /// Where `summary.json` goes.
