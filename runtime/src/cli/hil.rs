@@ -22,7 +22,8 @@ use companion_runtime::run::hil::plant::PlantLock;
 use companion_runtime::run::hil::report::LatencyReport;
 use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
-    ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+    ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, ReleaseTimer, RtPlan, Timing, WaitMode,
+    MAX_COMMAND_AGE,
 };
 use companion_runtime::sys::lock::{self, NameLock, Role};
 use companion_runtime::sys::process::ChildGuard;
@@ -80,6 +81,30 @@ impl From<WaitMode> for WaitArg {
     }
 }
 
+/// `--release-timer`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ReleaseTimerArg {
+    /// clock_nanosleep(TIMER_ABSTIME) to the release.
+    Sleep,
+    /// A timerfd armed to the release.
+    Timerfd,
+    /// clock_nanosleep to --spin-margin-us before the release, then spin.
+    Margin,
+    /// clock_nanosleep under SCHED_FIFO (the plant's loop thread, where permitted).
+    Fifo,
+}
+
+impl From<ReleaseTimerArg> for ReleaseTimer {
+    fn from(r: ReleaseTimerArg) -> Self {
+        match r {
+            ReleaseTimerArg::Sleep => Self::Sleep,
+            ReleaseTimerArg::Timerfd => Self::Timerfd,
+            ReleaseTimerArg::Margin => Self::Margin,
+            ReleaseTimerArg::Fifo => Self::Fifo,
+        }
+    }
+}
+
 /// The longest `--peer-timeout` (s).
 const MAX_PEER_TIMEOUT_S: f64 = 3600.0;
 /// The longest `--startup-timeout` (s).
@@ -120,6 +145,11 @@ pub struct HilArgs {
     /// measures every mode idle and under load).
     #[arg(long, value_enum, default_value = "adaptive")]
     pub wait: WaitArg,
+    /// How the plant sleeps to each release where its wait mode sleeps (event, adaptive on the
+    /// event): clock_nanosleep, a timerfd, clock_nanosleep to --spin-margin-us before it then
+    /// spin, or clock_nanosleep under SCHED_FIFO (where permitted).
+    #[arg(long, value_enum, default_value = "sleep", value_name = "TIMER")]
+    pub release_timer: ReleaseTimerArg,
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
     /// privilege is a warning).
     #[arg(long)]
@@ -295,6 +325,7 @@ impl HilArgs {
             deadline_ns,
             hold_periods: self.hold_periods,
             wait: self.wait.into(),
+            release: self.release_timer.into(),
             spin_margin_ns: self.spin_margin_us * 1000,
             silence_ns: self.silence_ms * 1_000_000,
             peer_timeout_ns: secs_to_ns(peer_timeout),

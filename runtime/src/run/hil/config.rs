@@ -38,6 +38,13 @@ impl WaitMode {
         }
     }
 
+    /// Whether the mode sleeps to the plant's release time (at least at times), so that the
+    /// plant's [`ReleaseTimer`] matters: `event`, and `adaptive` while it waits on the event
+    /// (`spin` spins to it, `hybrid` sleeps to its own margin).
+    pub fn sleeps_to_release(self) -> bool {
+        matches!(self, Self::Event | Self::Adaptive)
+    }
+
     /// Whether the mode needs the iceoryx2 event services (the sender then notifies every
     /// message).
     pub fn uses_events(self) -> bool {
@@ -60,6 +67,39 @@ impl WaitMode {
     }
 }
 
+/// How the plant sleeps to its release time where its wait mode sleeps for it (`event`, and
+/// `adaptive` while it waits on the event; `spin` spins to it, `hybrid` sleeps to its own
+/// margin): `--release-timer`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReleaseTimer {
+    /// `clock_nanosleep(TIMER_ABSTIME)` to the release (timer slack 1 ns).
+    #[default]
+    Sleep,
+    /// A `timerfd` armed to the release, read.
+    Timerfd,
+    /// `clock_nanosleep` to `--spin-margin-us` before the release, then spin.
+    Margin,
+    /// `clock_nanosleep` under `SCHED_FIFO` (the plant's loop thread, where permitted; not
+    /// pinned, memory not locked: what `--rt` adds).
+    Fifo,
+}
+
+impl ReleaseTimer {
+    /// Every timer, in the command line's order.
+    pub const ALL: [Self; 4] = [Self::Sleep, Self::Timerfd, Self::Margin, Self::Fifo];
+
+    /// The command-line spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Sleep => "sleep",
+            Self::Timerfd => "timerfd",
+            Self::Margin => "margin",
+            Self::Fifo => "fifo",
+        }
+    }
+}
+
 /// The timing options both loops use.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Timing {
@@ -71,7 +111,9 @@ pub struct Timing {
     pub hold_periods: u32,
     /// The wait mode.
     pub wait: WaitMode,
-    /// Hybrid spin margin (ns).
+    /// How the plant sleeps to its release (where its wait mode sleeps for it).
+    pub release: ReleaseTimer,
+    /// Hybrid spin margin (ns); also the margin of `--release-timer margin`.
     pub spin_margin_ns: u64,
     /// Silence before a liveness check (ns).
     pub silence_ns: u64,
@@ -84,6 +126,18 @@ pub struct Timing {
     /// `n` came and it is the newest answer yet (a network whose round trip is longer than the
     /// deadline). 0: only the answer to `n` (iceoryx2 on one machine).
     pub max_command_age: u32,
+}
+
+impl Timing {
+    /// How long before a release the plant wakes to spin the rest, where it sleeps to it
+    /// (`--release-timer margin`: the spin margin; otherwise 0).
+    pub fn release_margin_ns(&self) -> u64 {
+        if self.release == ReleaseTimer::Margin {
+            self.spin_margin_ns
+        } else {
+            0
+        }
+    }
 }
 
 /// The largest `--max-command-age`: the law predicts over at most 8 periods.

@@ -82,8 +82,8 @@
 //! Domain first, then the loops, then the processes:
 //! [`config`] (typed options and the run's scenario), [`end`] (how a run ended), [`stats`]
 //! (what is counted), [`hold`] (hold, then stop), [`messages`] (the one header builder,
-//! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the three wait
-//! modes), [`law`] (what the controller serves);
+//! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the wait
+//! modes), [`wakes`] (why the controller took a measurement late), [`law`] (what the controller serves);
 //! [`plant_loop`] (real time and lockstep), [`serve`] (the controller's loop), [`fault`]
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
 //! and [`control`] (the two processes).
@@ -104,7 +104,10 @@ pub mod report;
 pub mod serve;
 pub mod stats;
 pub mod wait;
+pub mod wakes;
 pub mod watch;
 
-pub use self::config::{ChaosConfig, HilConfig, HilScenario, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE};
+pub use self::config::{
+    ChaosConfig, HilConfig, HilScenario, ReleaseTimer, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+};
 pub use self::end::{ControlEnd, PlantEnd};

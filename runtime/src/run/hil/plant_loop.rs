@@ -258,7 +258,8 @@ impl<const N: usize> Cycle<N> {
             delay: 0.0,
             published: [0; PUBLISHED],
             applied: None,
-            idler: Idler::new(timing.wait, timing.spin_margin_ns),
+            idler: Idler::new(timing.wait, timing.spin_margin_ns)
+                .with_release_margin(timing.release_margin_ns()),
             policy: HoldPolicy::new(timing.hold_periods),
             watch: PeerWatch::new(timing.silence_ns, now),
             misses: MissLedger::default(),

@@ -25,9 +25,10 @@
 
 use std::time::Duration;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::config::WaitMode;
+use super::wakes::Step;
 use crate::sys::clock::Clock;
 use crate::transport::link::LinkError;
 
@@ -53,7 +54,7 @@ pub const PRESSURE_LIMIT: f64 = 10.0;
 pub type PressureSource = fn() -> Option<f64>;
 
 /// What the adaptive mode did (all zero in the other modes).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 pub struct WaitCounts {
     /// Preemptions noticed while spinning.
     pub preemptions: u64,
@@ -164,12 +165,31 @@ pub struct Idler {
     margin_ns: u64,
     spin_start: Option<u64>,
     adaptive: Adaptive,
+    /// What the last idle step was ([`Idler::last_step`]).
+    step: Step,
+    /// Where the mode sleeps to a release time (`event`, `adaptive` on the event): how long
+    /// before it to wake and spin the rest (`--release-timer margin`; 0: sleep to it).
+    release_margin_ns: u64,
 }
 
 impl Idler {
     /// An idler for `mode`; `margin_ns` is the hybrid spin margin.
     pub fn new(mode: WaitMode, margin_ns: u64) -> Self {
-        Self { mode, margin_ns, spin_start: None, adaptive: Adaptive::new() }
+        Self {
+            mode,
+            margin_ns,
+            spin_start: None,
+            adaptive: Adaptive::new(),
+            step: Step::Work,
+            release_margin_ns: 0,
+        }
+    }
+
+    /// The same, waking `margin_ns` before a release it sleeps to and spinning the rest.
+    #[must_use]
+    pub fn with_release_margin(mut self, margin_ns: u64) -> Self {
+        self.release_margin_ns = margin_ns;
+        self
     }
 
     /// The same, reading the CPU pressure from `source` (tests).
@@ -186,20 +206,28 @@ impl Idler {
         self.adaptive.last_spin_ns = 0;
     }
 
+    /// What the last idle step was: a spin iteration, or a wait on the event or a timer and
+    /// when it returned (for the controller's [wake log](super::wakes)).
+    #[inline]
+    pub fn last_step(&self) -> Step {
+        self.step
+    }
+
     /// What the adaptive mode did so far.
     pub fn counts(&self) -> WaitCounts {
         self.adaptive.counts
     }
 
     /// Waits until `t_ns`: spinning on the clock (`spin`, and `adaptive` while it spins),
-    /// sleeping to the absolute time (`event`, and `adaptive` after a preemption), or
-    /// sleeping until the margin before it and spinning the rest (`hybrid`).
+    /// sleeping to the absolute time (`event`, and `adaptive` after a preemption; to the
+    /// release margin before it, if one is set, and spinning the rest), or sleeping until the
+    /// hybrid margin before it and spinning the rest (`hybrid`).
     #[inline]
     pub fn until<C: Clock>(&mut self, clock: &C, t_ns: u64) {
         let now = clock.now_ns();
         match self.mode {
             WaitMode::Spin => {}
-            WaitMode::Event => clock.sleep_until_ns(t_ns),
+            WaitMode::Event => clock.sleep_until_ns(t_ns.saturating_sub(self.release_margin_ns)),
             WaitMode::Hybrid => {
                 if now + self.margin_ns < t_ns {
                     clock.sleep_until_ns(t_ns - self.margin_ns);
@@ -207,7 +235,7 @@ impl Idler {
             }
             WaitMode::Adaptive => {
                 if self.adaptive.event_phase(now) {
-                    clock.sleep_until_ns(t_ns);
+                    clock.sleep_until_ns(t_ns.saturating_sub(self.release_margin_ns));
                 } else {
                     self.adaptive.last_spin_ns = 0;
                     loop {
@@ -218,7 +246,7 @@ impl Idler {
                         self.adaptive.spun(now);
                         if self.adaptive.event_until_ns != 0 {
                             // Preempted: sleep the rest.
-                            clock.sleep_until_ns(t_ns);
+                            clock.sleep_until_ns(t_ns.saturating_sub(self.release_margin_ns));
                             break;
                         }
                         clock.spin_hint();
@@ -248,19 +276,25 @@ impl Idler {
     ) -> Result<(), LinkError> {
         let now = clock.now_ns();
         let event = || Duration::from_nanos(limit_ns.saturating_sub(now).clamp(1_000, MAX_EVENT_WAIT_NS));
+        self.step = Step::Spin;
         match self.mode {
             WaitMode::Spin => clock.spin_hint(),
-            WaitMode::Event => event_wait(event())?,
+            WaitMode::Event => {
+                event_wait(event())?;
+                self.step = Step::Event { woke_ns: clock.now_ns() };
+            }
             WaitMode::Hybrid => {
                 if let Some(e) = expected_ns {
                     if now + self.margin_ns < e {
                         clock.sleep_until_ns((e - self.margin_ns).min(limit_ns));
+                        self.step = Step::Timer { woke_ns: clock.now_ns() };
                         return Ok(());
                     }
                 }
                 let start = *self.spin_start.get_or_insert(now);
                 if now - start > SPIN_BUDGET_NS {
                     clock.sleep_until_ns((now + NAP_NS).min(limit_ns));
+                    self.step = Step::Timer { woke_ns: clock.now_ns() };
                 } else {
                     clock.spin_hint();
                 }
@@ -268,6 +302,7 @@ impl Idler {
             WaitMode::Adaptive => {
                 if self.adaptive.event_phase(now) {
                     event_wait(event())?;
+                    self.step = Step::Event { woke_ns: clock.now_ns() };
                 } else {
                     self.adaptive.spun(now);
                     if self.adaptive.event_until_ns == 0 {
@@ -300,6 +335,46 @@ mod tests {
             Idler::new(mode, 100_000).with_pressure(calm).until(&c, 1_000_000);
             assert!(c.now_ns() >= 1_000_000 && c.now_ns() < 1_000_200, "{mode:?}: {}", c.now_ns());
         }
+    }
+
+    /// A clock that counts its sleeps and where they ended.
+    struct Sleeps {
+        inner: FakeClock,
+        woke: std::cell::Cell<Option<u64>>,
+    }
+
+    impl Clock for Sleeps {
+        fn now_ns(&self) -> u64 {
+            self.inner.now_ns()
+        }
+        fn sleep_until_ns(&self, t_ns: u64) {
+            self.inner.sleep_until_ns(t_ns);
+            self.woke.set(Some(self.inner.now_ns()));
+        }
+        fn spin_hint(&self) {
+            self.inner.spin_hint();
+        }
+    }
+
+    #[test]
+    fn a_release_margin_wakes_before_the_release_and_spins_the_rest() {
+        for (mode, margin, woke) in [
+            (WaitMode::Event, 0, Some(1_000_000)),
+            (WaitMode::Event, 100_000, Some(900_000)),
+            (WaitMode::Spin, 100_000, None),
+        ] {
+            let c = Sleeps { inner: FakeClock::new(0, 100), woke: std::cell::Cell::new(None) };
+            Idler::new(mode, 0).with_release_margin(margin).until(&c, 1_000_000);
+            assert_eq!(c.woke.get(), woke, "{mode:?} margin {margin}");
+            assert!(c.now_ns() >= 1_000_000 && c.now_ns() < 1_000_100, "{mode:?}: {}", c.now_ns());
+        }
+        // Adaptive on the event (under CPU pressure) sleeps to the margin too.
+        let c = Sleeps { inner: FakeClock::new(0, 100), woke: std::cell::Cell::new(None) };
+        Idler::new(WaitMode::Adaptive, 0)
+            .with_pressure(busy)
+            .with_release_margin(50_000)
+            .until(&c, 1_000_000);
+        assert_eq!(c.woke.get(), Some(950_000));
     }
 
     #[test]

@@ -95,6 +95,7 @@ fn timing() -> Timing {
         deadline_ns: MS / 2,
         hold_periods: 2,
         wait: WaitMode::Spin,
+        release: crate::run::hil::config::ReleaseTimer::Sleep,
         spin_margin_ns: 100_000,
         silence_ns: 20 * MS,
         peer_timeout_ns: 2_000 * MS,
