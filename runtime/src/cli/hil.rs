@@ -980,7 +980,12 @@ fn print_latency(r: &LatencyReport) {
             );
         }
         let w = r.wait_counts;
-        if w.preemptions + w.pressure_holds > 0 {
+        if w.no_spare_cpu {
+            println!(
+                "adaptive waiting: {} CPUs, none to spare for spinning: waited on the event throughout",
+                r.machine.cpus
+            );
+        } else if w.preemptions + w.pressure_holds > 0 {
             println!(
                 "adaptive waiting: {} preemptions noticed while spinning, {} fallbacks to event waiting, {} back-offs \
                  for CPU pressure ({:.1} s on the event)",

@@ -209,7 +209,9 @@ impl ControlStats {
         let d = self.delay.percentiles();
         let why = if self.rejected > 0 { format!(": {}", self.rejections.describe()) } else { String::new() };
         let w = self.wait;
-        let adaptive = if w.fallbacks + w.pressure_holds > 0 {
+        let adaptive = if w.no_spare_cpu {
+            "; adaptive waiting: no CPU to spare for spinning, on the event throughout".to_string()
+        } else if w.fallbacks + w.pressure_holds > 0 {
             format!(
                 "; adaptive waiting: {} preemptions, {} fallbacks, {} back-offs for CPU pressure ({:.1} s on the event)",
                 w.preemptions,

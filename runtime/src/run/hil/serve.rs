@@ -235,7 +235,7 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
         }
         if let (Some(m), Some(s)) = (newest, &mut served) {
             let t_rx = clock.now_ns();
-            idler.reset();
+            idler.reset(t_rx);
             watch.heard(t_rx);
             let Ok(meas) = m.read::<N, F::Space>() else {
                 stats.invalid += 1;
