@@ -45,17 +45,39 @@ pub const DEFAULT_DURATION: f64 = 30.0;
 /// The default `--out` of the HIL commands.
 const DEFAULT_OUT: &str = "out/hil";
 
+/// `--wait --help`: which mode to pick when.
+pub const WAIT_LONG_HELP: &str = "\
+How each process waits for the other's message (and the plant for its release time).
+
+Which to pick:
+  adaptive  (the default) when in doubt. On 1-2 CPUs it waits on the iceoryx2 event, as
+            `event` does: two loops spinning there take every CPU, and whatever else wakes
+            preempts one of them. With 3 or more CPUs it spins, and after a preemption or
+            under CPU pressure waits on the event for a back-off.
+  event     a shared or virtual machine, a laptop, anything that also runs other work: each
+            process sleeps until the other's notification (round trip ~40-60 us on this
+            project's 2-vCPU VMs); the plant sleeps to each release by --release-timer.
+  spin      a core of its own for each process and nothing else running on them (e.g. CPUs
+            isolated with isolcpus, with --rt): the lowest round trip (~10 us), but a
+            spinner that is preempted loses whole time slices - about half the deadlines
+            missed with other work on 2 CPUs.
+  hybrid    sleep on a timer until --spin-margin-us before the expected message, then spin
+            (200 us at most, then 50 us naps): for comparison; on the VMs it missed more
+            than the others when idle.
+
+`companion latency --repeat 10` measures every mode on your machine, idle and under load, in
+interleaved rounds; the latency chapter of the docs has this project's figures.";
+
 /// `--wait`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WaitArg {
-    /// Busy-poll while the process keeps its CPU; wait on the iceoryx2 event for a while after
-    /// it is preempted (the default).
+    /// The event on 1-2 CPUs; with more, spin while the process keeps its CPU (the default).
     Adaptive,
-    /// Busy-poll.
+    /// Busy-poll: a free core per process.
     Spin,
-    /// iceoryx2 event service with bounded `timed_wait`.
+    /// Sleep until the other's notification (iceoryx2 event service).
     Event,
-    /// Sleep until shortly before the expected message, then spin.
+    /// Timer sleep until shortly before the expected message, then spin.
     Hybrid,
 }
 
@@ -88,7 +110,7 @@ pub enum ReleaseTimerArg {
     Sleep,
     /// A timerfd armed to the release.
     Timerfd,
-    /// clock_nanosleep to --spin-margin-us before the release, then spin.
+    /// clock_nanosleep to --spin-margin-us before the release, then spin (the default).
     Margin,
     /// clock_nanosleep under SCHED_FIFO (the plant's loop thread, where permitted).
     Fifo,
@@ -139,16 +161,20 @@ pub struct HilArgs {
     /// plant announces (it warns that it ignores the flag).
     #[arg(long)]
     pub lockstep: bool,
-    /// How each process waits for the other's message: `adaptive` busy-polls while it keeps
-    /// its CPU and waits on the iceoryx2 event for a while after it is preempted (on a shared
-    /// machine busy-polling alone missed 70-84 % of the deadlines; `companion latency`
-    /// measures every mode idle and under load).
-    #[arg(long, value_enum, default_value = "adaptive")]
+    /// How each process waits for the other's message ([`WAIT_LONG_HELP`]).
+    #[arg(
+        long,
+        value_enum,
+        default_value = "adaptive",
+        help = "How each process waits: keep adaptive; spin only with a free core per process; more in --help",
+        long_help = WAIT_LONG_HELP
+    )]
     pub wait: WaitArg,
-    /// How the plant sleeps to each release where its wait mode sleeps (event, adaptive on the
-    /// event): clock_nanosleep, a timerfd, clock_nanosleep to --spin-margin-us before it then
-    /// spin, or clock_nanosleep under SCHED_FIFO (where permitted).
-    #[arg(long, value_enum, default_value = "sleep", value_name = "TIMER")]
+    /// How the plant sleeps to each release where its wait mode sleeps (event; adaptive on the
+    /// event): margin (clock_nanosleep to --spin-margin-us before it, then spin; it missed
+    /// least on this project's VMs), sleep (clock_nanosleep to it), timerfd, or fifo
+    /// (clock_nanosleep under SCHED_FIFO, where permitted).
+    #[arg(long, value_enum, default_value = "margin", value_name = "TIMER")]
     pub release_timer: ReleaseTimerArg,
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
     /// privilege is a warning).
@@ -190,8 +216,8 @@ pub struct HilArgs {
     /// 7, with a warning); so does one in which the robot was stopped.
     #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_hyphen_values = true)]
     pub max_miss_fraction: f64,
-    /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs,
-    /// at most 1 s).
+    /// Hybrid waiting: how long before the expected message to stop sleeping and spin; also
+    /// how long before a release `--release-timer margin` wakes (µs, at most 1 s).
     #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000), allow_hyphen_values = true)]
     pub spin_margin_us: u64,
     /// Silence (no message) after which a process checks whether its peer is alive (ms,

@@ -32,7 +32,7 @@ pub struct LatencyArgs {
     pub hil_modes: Vec<WaitArg>,
     /// The plant's release timers to measure, each with every mode that sleeps to the release
     /// (event, adaptive); spin and hybrid run once. Default: the default timer only.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "sleep", value_name = "TIMERS")]
+    #[arg(long, value_enum, value_delimiter = ',', default_value = "margin", value_name = "TIMERS")]
     pub release_timers: Vec<ReleaseTimerArg>,
     /// Rounds of the HIL runs: each round runs every mode, then the paced bare transport, under
     /// each load, so that the machine's drift falls on all alike; the table gives each

@@ -45,16 +45,20 @@
 //!
 //! ## Waiting (`--wait`)
 //!
-//! - `spin` (default on two or more CPUs without `--rt`): busy-poll `receive()` (and the
-//!   clock, for the plant's release time). Lowest latency; one core per process.
-//! - `event`: the iceoryx2 event service: the sender notifies, the receiver sleeps in
-//!   `timed_wait` (always bounded) and re-checks `receive()` after every wake; the plant sleeps
-//!   to its release time with `clock_nanosleep(TIMER_ABSTIME)`.
+//! - `adaptive` (the default): waits on the event, as `event` does, on a machine of one or
+//!   two CPUs (two loops spinning there leave no CPU for anything else); with three or more it
+//!   spins, and after a preemption or under CPU pressure waits on the event for a back-off
+//!   ([`wait`] has the details, `companion latency --repeat` the figures).
+//! - `spin`: busy-poll `receive()` (and the clock, for the plant's release time). Lowest
+//!   latency; one core per process, and nothing else that wants it.
+//! - `event`: the iceoryx2 event service: the sender notifies, the receiver sleeps on the
+//!   listener's descriptor (always bounded) and re-checks `receive()` after every wake; the
+//!   plant sleeps to its release time by its `--release-timer` ([`ReleaseTimer`]; by default
+//!   to 100 µs before it, then spins).
 //! - `hybrid`: sleep until `--spin-margin-us` before the expected message (the
 //!   plant: before its release time; the controller: before the next period's measurement),
 //!   then spin. A spin that finds nothing for 200 µs falls back to 50 µs sleeps, so a silent
-//!   peer does not cost a core. The default with `--rt` or on one CPU
-//!   ([`WaitMode::default_for`] says why).
+//!   peer does not cost a core.
 //!
 //! ## Faults
 //!

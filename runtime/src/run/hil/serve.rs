@@ -259,10 +259,20 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
             cmd.compute_ns = clock.now_ns() - t_rx;
             link.publish(&cmd)?;
             stats.compute.record(cmd.compute_ns);
+            // The periods since the last answer, this one's included, and when the oldest was
+            // published: its stamp, or, if the transport's queue overwrote it, the newest's less
+            // the periods between.
+            let (count, first_pub) = match last_seq {
+                Some(l) if m.seq > l => {
+                    let est = m.plant_time_ns.saturating_sub((m.seq - l - 1).saturating_mul(m.period_ns));
+                    (m.seq - l, first_pub.map_or(est, |f: u64| f.min(est)))
+                }
+                _ => (fresh.max(1), first_pub.unwrap_or(m.plant_time_ns)),
+            };
             let took = Took {
-                first_pub: first_pub.unwrap_or(m.plant_time_ns),
+                first_pub,
                 last_pub: m.plant_time_ns,
-                count: fresh.max(1),
+                count,
                 look,
                 received: t_rx,
                 compute: cmd.compute_ns,

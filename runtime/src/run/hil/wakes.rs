@@ -6,9 +6,11 @@
 //! nothing it takes one idle step ([`Step`]: a spin iteration, a wait on the event, a sleep on
 //! a timer) and looks again. Each look is stamped (`CLOCK_MONOTONIC`, one vDSO read, no system
 //! call). A measurement carries its publication stamp `t_pub` (the plant's, on the same
-//! clock); the controller takes it at `t_rx`. Its *wake* is `t_rx − t_pub` of the oldest new
-//! measurement in the drain (a wake that comes after several have arrived answers only the
-//! newest: the older ones are missed too). A wake longer than half the deadline is *late*,
+//! clock); the controller takes it at `t_rx`. Its *wake* is `t_rx − t_pub` of the oldest
+//! period not answered since the last answer (a wake that comes after several have arrived
+//! answers only the newest: the older ones are missed too; one the transport's queue
+//! overwrote meanwhile is dated from the newest's stamp less the periods between). A wake
+//! longer than half the deadline is *late*,
 //! and put down to what happened between the last look that found nothing (`prev`) and the
 //! look that found it:
 //!
@@ -174,11 +176,12 @@ impl LateWakes {
 /// One drain that found new measurements, as the controller answered it (ns).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Took {
-    /// `t_pub` of the oldest new measurement.
+    /// `t_pub` of the oldest period not answered since the last answer.
     pub first_pub: u64,
     /// `t_pub` of the newest (the one answered).
     pub last_pub: u64,
-    /// New measurements in the drain (the newest and the ones it superseded).
+    /// The periods since the last answer, the newest included (the ones it superseded, and
+    /// the ones the transport's queue overwrote).
     pub count: u64,
     /// The look that found them.
     pub look: u64,

@@ -395,7 +395,7 @@ impl Repeated {
                 "| {name} | {} | {} | {} | {whose} | {} | {} |",
                 c.load.as_str(),
                 counts(&c.misses),
-                c.beyond_bare.as_ref().map_or("—".to_string(), |b| signed_counts(b)),
+                c.beyond_bare.as_ref().map_or("—".to_string(), signed_counts),
                 times(&c.round_trip_p50_ns),
                 times(&c.round_trip_p99_9_ns),
             );
@@ -472,7 +472,9 @@ impl Repeated {
                 r.values(c, |h| h.round_trip_ns.p99_9 as f64 / 1e6, |b| b.round_trip_ns.p99_9 as f64 / 1e6)
             }),
         ];
-        let mut values: Vec<(String, &str, Vec<(String, Vec<f64>)>)> = Vec::new();
+        // (title, y axis, each box's label and values)
+        type Panel<'y> = (String, &'y str, Vec<(String, Vec<f64>)>);
+        let mut values: Vec<Panel<'_>> = Vec::new();
         for (title, y, pick) in rows {
             for &load in &loads {
                 // (The bare transport has no misses beyond its own: no box there.)
@@ -561,7 +563,7 @@ mod tests {
             round,
             load,
             label: wait.as_str().into(),
-            contender: Contender { wait, release: ReleaseTimer::Sleep },
+            contender: Contender { wait, release: ReleaseTimer::default() },
             misses,
             bare_misses: bare,
             beyond_bare: misses as i64 - bare as i64,
@@ -583,7 +585,7 @@ mod tests {
         BareRun { round, load, over_deadline: over, round_trip_ns: percentiles(5_000) }
     }
 
-    const EVENT: Contender = Contender { wait: WaitMode::Event, release: ReleaseTimer::Sleep };
+    const EVENT: Contender = Contender { wait: WaitMode::Event, release: ReleaseTimer::Margin };
 
     /// Three rounds of `event` and `spin` idle and busy: the spreads per cell, the bare
     /// transport last in each load, the aims judged on the medians.
@@ -646,7 +648,7 @@ mod tests {
         assert!(r.aims[2].measured.contains("50.0 µs against 5.0 µs (10.0×)"), "{}", r.aims[2].measured);
         // With spin as the default, idle: median beyond the bare transport 5 (9−4, 8−10, 30−6:
         // 5, −2, 24): not met; event misses least, at a higher median.
-        let spin = Contender { wait: WaitMode::Spin, release: ReleaseTimer::Sleep };
+        let spin = Contender { wait: WaitMode::Spin, release: ReleaseTimer::Margin };
         let r = Repeated::new(3, 10_000, 500_000, spin, r.runs, r.bare);
         assert_eq!(r.aims[0].met, Some(false));
         assert_eq!(r.aims[1].met, Some(false), "busy: 5 000 against 1 500");
@@ -681,7 +683,7 @@ mod tests {
     fn contenders_pair_each_mode_that_sleeps_to_the_release_with_each_timer() {
         let all = Contender::all(
             &[WaitMode::Adaptive, WaitMode::Spin, WaitMode::Event],
-            &[ReleaseTimer::Sleep, ReleaseTimer::Timerfd],
+            &[ReleaseTimer::Margin, ReleaseTimer::Timerfd],
         );
         let labels: Vec<String> = all.iter().map(Contender::label).collect();
         assert_eq!(labels, ["adaptive", "adaptive+timerfd", "spin", "event", "event+timerfd"]);

@@ -333,6 +333,17 @@ fn the_wake_log_says_why_a_measurement_was_taken_late() {
     assert_eq!(late.preempted, WakeCount { wakes: 1, missed: 1 });
     assert_eq!((late.wakes(), late.missed()), (1, 1));
     assert_eq!(st.wakes.wake.count(), 2, "measurements 1 and 2-3; the handshake is not timed");
+    // The same, but the transport's queue kept only the newest (4): 2 and 3 were overwritten.
+    // The wake is dated from 2's publication (4's less two periods), and both are missed.
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    for seq in [0, 1, 4] {
+        link.inbox.push_back((seq * 1_000_000, notifying(seq, if seq == 4 { flags::END_OF_RUN } else { 0 })));
+    }
+    link.stall = Some((1_900_000, 2_200_000));
+    let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(st.wakes.late.preempted, WakeCount { wakes: 1, missed: 2 });
+    assert!(st.wakes.wake.quantile(1.0) >= 2_090_000, "{}", st.wakes.wake.quantile(1.0));
     // Waiting on the event, which (on this fake link) returns only after 10 ms: measurement 1
     // is taken 9 ms late, asleep on the event, and missed.
     let (clock, mut link) = fake(PeerState::Alive(1));
