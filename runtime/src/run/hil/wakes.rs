@@ -29,11 +29,15 @@
 //!
 //! Each late wake also counts the periods the plant will miss because of it (the skipped
 //! older measurements, never answered, and the newest if its answer goes out after
-//! `t_pub + deadline`): their sum is this process's own count of what the plant calls
-//! `controller_wake` (the plant's deadline runs from the release, a little before `t_pub`:
-//! the plant's count can be a little higher). A period missed although the wake was in time
-//! is the step's ([`LateWakes::long_step`]); older measurements taken in time with a newer one
-//! were published late, bunched ([`LateWakes::bunched`]: the plant's misses).
+//! `t_pub + deadline`): a count of the controller's misses made apart from the plant's
+//! (`latency.json` `controller_wake + controller_compute`). The two need not match: the
+//! plant's deadline runs from the release, a little before `t_pub`; the plant puts a period
+//! down to its own late release before anything else; and it takes a command that came after
+//! the deadline as fresh when it looked for it no sooner itself (a plant not scheduled). In
+//! 16 short runs on a loaded machine the controller's count was never the smaller (`companion
+//! latency --repeat` prints both). A period missed although the wake was in time is the step's
+//! ([`LateWakes::long_step`]); older measurements taken in time with a newer one were
+//! published late, bunched ([`LateWakes::bunched`]: the plant's misses).
 
 use serde::{Deserialize, Serialize};
 

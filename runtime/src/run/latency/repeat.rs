@@ -178,6 +178,13 @@ pub struct Cell {
     pub round_trip_p99_9_ns: Spread,
     /// The controller's late wakes over all runs, by cause.
     pub late_wakes: Option<LateWakes>,
+    /// The plant's count of the controller's misses over the runs that have a
+    /// `controller.json` (`controller_wake + controller_compute`), to set against the
+    /// controller's own count ([`LateWakes::missed`]). They need not match: the plant's
+    /// deadline runs from the release, the controller's from the publication stamp; the plant
+    /// puts a period down to its own late release first; and it takes a command that came
+    /// after the deadline as fresh if it looked for it no sooner itself.
+    pub plant_counted_controller: u64,
     /// Runs in which the robot was stopped.
     pub runs_with_stops: u64,
 }
@@ -267,6 +274,7 @@ impl Repeated {
                     round_trip_p50_ns: p50,
                     round_trip_p99_9_ns: p999,
                     late_wakes: None,
+                    plant_counted_controller: 0,
                     runs_with_stops: 0,
                 });
             }
@@ -290,6 +298,11 @@ impl Repeated {
             round_trip_p99_9_ns: spread(rs.iter().map(|r| r.round_trip_ns.p99_9 as f64))?,
             late_wakes: (!controller.is_empty())
                 .then(|| controller.iter().fold(LateWakes::default(), |a, f| a.sum(&f.wakes.late_wakes))),
+            plant_counted_controller: rs
+                .iter()
+                .filter(|r| r.controller.is_some())
+                .map(|r| r.causes.controller())
+                .sum(),
             runs_with_stops: rs.iter().filter(|r| r.stop_events > 0).count() as u64,
         })
     }
@@ -411,24 +424,29 @@ impl Repeated {
             .iter()
             .filter_map(|c| {
                 let w = c.late_wakes?;
-                (w.wakes() > 0).then(|| {
-                    let causes: Vec<String> = w
-                        .causes()
-                        .iter()
-                        .filter(|(_, k)| k.wakes > 0)
-                        .map(|(name, k)| {
-                            format!("{} {} ({} missed)", name.replace('_', " "), k.wakes, k.missed)
-                        })
-                        .collect();
-                    format!("{} {}: {}", c.label, c.load.as_str(), causes.join(", "))
-                })
+                let causes: Vec<String> = w
+                    .causes()
+                    .iter()
+                    .filter(|(_, k)| k.wakes > 0)
+                    .map(|(name, k)| format!("{} {} ({} missed)", name.replace('_', " "), k.wakes, k.missed))
+                    .collect();
+                Some(format!(
+                    "{} {}: {} — {} periods missed by its own count, {} by the plant's",
+                    c.label,
+                    c.load.as_str(),
+                    if causes.is_empty() { "none".to_string() } else { causes.join(", ") },
+                    w.missed(),
+                    c.plant_counted_controller
+                ))
             })
             .collect();
         if !late.is_empty() {
             let _ = writeln!(
                 s,
                 "\nThe controller's late wakes (over half the deadline) in all runs, by what it was doing \
-                 (`controller.json`): {}.",
+                 (`controller.json`), and the periods missed through the controller by its own count against \
+                 the plant's (`controller_wake + controller_compute`; they need not match: the plant puts a \
+                 period down to its own late release first, and judges from the release, not the stamp): {}.",
                 late.join("; ")
             );
         }
