@@ -30,6 +30,7 @@
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
 pub mod error;
+pub mod figures;
 pub mod hops;
 pub mod pingpong;
 pub mod repeat;
@@ -41,11 +42,12 @@ use std::process::{Command as Process, Stdio};
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use self::error::{os, LatencyError};
+pub use self::figures::{ControllerFigures, HilFigures, Load, RtFigures};
 use self::pingpong::{PeerOptions, RtScope, SecondClock, Transport};
-use self::repeat::{BareRun, Contender, ControllerFigures, HilRun, Repeated};
+use self::repeat::{BareRun, Contender, HilRun, Repeated};
 use crate::domain::controller::{platform_name, AnyController, Scalar};
 use crate::domain::histogram::{fmt_ns, LatencyHistogram, Percentiles};
 use crate::domain::observe::{Causes, Observer};
@@ -81,26 +83,6 @@ pub struct LatencyOptions {
     pub zenoh_only: bool,
     /// Only part (4).
     pub hil_only: bool,
-}
-
-/// The load on the machine while a HIL run is measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Load {
-    /// Nothing added (other programs may run).
-    Idle,
-    /// [`BusyLoad`]: one busy-looping thread per online CPU.
-    Busy,
-}
-
-impl Load {
-    /// `idle` or `busy`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Idle => "idle",
-            Self::Busy => "busy",
-        }
-    }
 }
 
 /// The load generator: `threads` threads of this process, each busy-looping (a spin hint and
@@ -181,30 +163,6 @@ pub fn controller_step(
 /// The deadline of the HIL runs of part (4): `companion hil`'s default `--deadline-us`.
 pub const HIL_DEADLINE_NS: u64 = 500_000;
 
-/// One HIL run's figures as the benchmark reads them from its `latency.json` (every key
-/// must be there: a missing one is an error, not a zero).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct HilFigures {
-    /// Round trip (ns).
-    pub round_trip_ns: Percentiles,
-    /// Controller compute (ns).
-    pub controller_compute_ns: Percentiles,
-    /// Release jitter (ns).
-    pub release_jitter_ns: Percentiles,
-    /// Cycles.
-    pub cycles: u64,
-    /// Deadline misses.
-    pub deadline_misses: u64,
-    /// Their causes.
-    pub miss_causes: MissCauses,
-    /// The deadline (ns).
-    pub deadline_ns: u64,
-    /// Times the robot was stopped.
-    pub stop_events: u64,
-    /// The real-time setup in force.
-    pub rt: RtFigures,
-}
-
 /// The bare transport under one load, paced at the HIL's period, as many round trips as the
 /// HIL runs have cycles: what the loop's misses are measured against.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -257,13 +215,6 @@ impl MissAccount {
             p50_ratio: ratio(f.round_trip_ns.p50, t.round_trip_ns.p50),
         }
     }
-}
-
-/// The part of `latency.json`'s `rt` the benchmark reads.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-pub struct RtFigures {
-    /// Whether `SCHED_FIFO` was in force.
-    pub fifo: bool,
 }
 
 /// Part (4): a real-time `companion hil` run of `cycles` periods at 1 kHz in `mode` with the

@@ -18,15 +18,14 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use super::{HilFigures, Load};
+use super::figures::{ControllerFigures, HilFigures, Load};
 use crate::domain::histogram::{fmt_ns, Percentiles};
 use crate::domain::plots::{boxes_svg, BoxPanel, BoxSeries, PlotError};
 use crate::domain::spread::Spread;
 use crate::run::hil::misses::MissCauses;
-use crate::run::hil::wait::WaitCounts;
-use crate::run::hil::wakes::{LateWakes, WakeReport};
+use crate::run::hil::wakes::LateWakes;
 use crate::run::hil::{ReleaseTimer, WaitMode};
 
 /// One contender of the HIL runs: a wait mode and the plant's release timer.
@@ -63,15 +62,6 @@ impl Contender {
         out.dedup();
         out
     }
-}
-
-/// What the benchmark reads of a run's `controller.json` (every key must be there).
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-pub struct ControllerFigures {
-    /// What the adaptive wait did.
-    pub wait_counts: WaitCounts,
-    /// The wake log.
-    pub wakes: WakeReport,
 }
 
 /// One HIL run of one round.
