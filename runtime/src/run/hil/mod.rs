@@ -76,7 +76,8 @@
 //!
 //! One cycle allocates nothing, takes no lock of its own and makes no system call but the
 //! transport's (iceoryx2 send/receive are shared-memory operations; `--wait event` adds the
-//! event's syscalls, `hybrid`/`event` one `clock_nanosleep`). Latency samples go into
+//! event's syscalls, `hybrid`/`event` one `clock_nanosleep`, or a timerfd's arming and read
+//! with `--release-timer timerfd`). Latency samples go into
 //! preallocated HDR histograms; log rows go into a preallocated lock-free ring buffer that a
 //! normal-priority thread drains into `timeseries.csv`, flushing every 50 ms — so the file
 //! is on disk up to the last ~50 ms if the plant is killed.
