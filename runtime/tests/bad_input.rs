@@ -154,6 +154,10 @@ fn bad_flag_values_are_refused_by_name_and_rule_before_anything_starts() {
         &["--max-rejected must be a fraction in [0, 1], got -0.1"],
     );
     refused(&d, &["latency", "--cycles", "0"], &["--cycles must be at least 1"]);
+    refused(&d, &["latency", "--repeat", "0"], &["--repeat", "1..=1000"]);
+    refused(&d, &["latency", "--release-timers", "sleep,never"], &["--release-timers", "never"]);
+    refused(&d, &["latency", "--hil-only", "--skip-hil"], &["--hil-only", "--skip-hil"]);
+    refused(&d, &["hil", "--release-timer", "soon"], &["--release-timer", "soon"]);
     // --mcap: a path that cannot be written is refused before the run starts; with a bad
     // flag, no replay file is made either.
     let here = d.to_str().unwrap();

@@ -561,6 +561,22 @@ fn stopped_controller_misses_are_counted_held_then_stopped_then_resumed() {
     let controller = cause("controller_wake") + cause("controller_compute");
     assert!(controller + cause("plant_late") >= run, "{lat:#}");
     assert!(controller >= 100 || starved, "{lat:#}");
+    // The controller's own account of it (controller.json, from its own stamps): a
+    // measurement taken at least 150 ms after its publication, late for a reason that says
+    // the controller was not running (stopped asleep on the event, in its work, or between
+    // a look and its drain), with periods missed through it.
+    let ctl = json(&d.join("controller.json"));
+    assert!(ctl["wakes"]["wake_ns"]["max"].as_u64().unwrap() >= 150_000_000, "{ctl:#}");
+    let late = &ctl["wakes"]["late_wakes"];
+    let stopped = |k: &str| late[k]["wakes"].as_u64().unwrap();
+    assert!(stopped("asleep_on_event") + stopped("busy") + stopped("preempted") >= 1, "{ctl:#}");
+    assert!(
+        late["asleep_on_event"]["missed"].as_u64().unwrap()
+            + late["busy"]["missed"].as_u64().unwrap()
+            + late["preempted"]["missed"].as_u64().unwrap()
+            >= 1,
+        "{ctl:#}"
+    );
     assert!(lat["command_gaps_over_hold"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["stop_events"].as_u64().unwrap() >= 1, "{lat:#}");
     assert!(lat["held_periods"].as_u64().unwrap() >= 20, "{lat:#}");

@@ -90,6 +90,7 @@ const TIMING: Timing = Timing {
     deadline_ns: 500_000,
     hold_periods: 20,
     wait: WaitMode::Spin,
+    release: companion_runtime::run::hil::ReleaseTimer::Sleep,
     spin_margin_ns: 100_000,
     silence_ns: 20_000_000,
     peer_timeout_ns: 2_000_000_000,
@@ -255,6 +256,7 @@ fn real_time_allocations(duration: f64) -> (u64, u64, u64) {
         startup_timeout_ns: 20_000_000_000,
         forward_interrupt: false,
         delay_compensation: true,
+        deadline_ns: 500_000,
     };
     let mut stats = ControlStats::default();
     let silent = companion_runtime::domain::observe::Silent;
@@ -511,6 +513,7 @@ fn serve_allocations(s: &Scenario, last: u64) -> u64 {
         startup_timeout_ns: 2_000_000_000,
         forward_interrupt: false,
         delay_compensation: true,
+        deadline_ns: 500_000,
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();
@@ -662,6 +665,7 @@ fn spatial_serve_allocations(
         startup_timeout_ns: 2_000_000_000,
         forward_interrupt: false,
         delay_compensation: true,
+        deadline_ns: 500_000,
     };
     let clock = FakeClock::new(0, 100);
     let mut stats = ControlStats::default();

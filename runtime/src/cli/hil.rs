@@ -21,7 +21,8 @@ use companion_runtime::run::hil::plant::PlantLock;
 use companion_runtime::run::hil::report::LatencyReport;
 use companion_runtime::run::hil::stats::LiveFigures;
 use companion_runtime::run::hil::{
-    ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+    ChaosConfig, ControlEnd, HilConfig, HilScenario, PlantEnd, ReleaseTimer, RtPlan, Timing, WaitMode,
+    MAX_COMMAND_AGE,
 };
 use companion_runtime::sys::lock::{self, NameLock, Role};
 use companion_runtime::sys::process::ChildGuard;
@@ -43,17 +44,39 @@ pub const DEFAULT_DURATION: f64 = 30.0;
 /// The default `--out` of the HIL commands.
 const DEFAULT_OUT: &str = "out/hil";
 
+/// `--wait --help`: which mode to pick when.
+pub const WAIT_LONG_HELP: &str = "\
+How each process waits for the other's message (and the plant for its release time).
+
+Which to pick:
+  adaptive  (the default) when in doubt. On 1-2 CPUs it waits on the iceoryx2 event, as
+            `event` does: two loops spinning there take every CPU, and whatever else wakes
+            preempts one of them. With 3 or more CPUs it spins, and after a preemption or
+            under CPU pressure waits on the event for a back-off.
+  event     a shared or virtual machine, a laptop, anything that also runs other work: each
+            process sleeps until the other's notification (round trip ~40-60 us on this
+            project's 2-vCPU VMs); the plant sleeps to each release by --release-timer.
+  spin      a core of its own for each process and nothing else running on them (e.g. CPUs
+            isolated with isolcpus, with --rt): the lowest round trip (~10 us), but a
+            spinner that is preempted loses whole time slices - about half the deadlines
+            missed with other work on 2 CPUs.
+  hybrid    sleep on a timer until --spin-margin-us before the expected message, then spin
+            (200 us at most, then 50 us naps): for comparison; on the VMs it missed more
+            than the others when idle.
+
+`companion latency --repeat 10` measures every mode on your machine, idle and under load, in
+interleaved rounds; the latency chapter of the docs has this project's figures.";
+
 /// `--wait`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum WaitArg {
-    /// Busy-poll while the process keeps its CPU; wait on the iceoryx2 event for a while after
-    /// it is preempted (the default).
+    /// The event on 1-2 CPUs; with more, spin while the process keeps its CPU (the default).
     Adaptive,
-    /// Busy-poll.
+    /// Busy-poll: a free core per process.
     Spin,
-    /// iceoryx2 event service with bounded `timed_wait`.
+    /// Sleep until the other's notification (iceoryx2 event service).
     Event,
-    /// Sleep until shortly before the expected message, then spin.
+    /// Timer sleep until shortly before the expected message, then spin.
     Hybrid,
 }
 
@@ -75,6 +98,30 @@ impl From<WaitMode> for WaitArg {
             WaitMode::Spin => Self::Spin,
             WaitMode::Event => Self::Event,
             WaitMode::Hybrid => Self::Hybrid,
+        }
+    }
+}
+
+/// `--release-timer`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum ReleaseTimerArg {
+    /// clock_nanosleep(TIMER_ABSTIME) to the release.
+    Sleep,
+    /// A timerfd armed to the release.
+    Timerfd,
+    /// clock_nanosleep to --spin-margin-us before the release, then spin (the default).
+    Margin,
+    /// clock_nanosleep under SCHED_FIFO (the plant's loop thread, where permitted).
+    Fifo,
+}
+
+impl From<ReleaseTimerArg> for ReleaseTimer {
+    fn from(r: ReleaseTimerArg) -> Self {
+        match r {
+            ReleaseTimerArg::Sleep => Self::Sleep,
+            ReleaseTimerArg::Timerfd => Self::Timerfd,
+            ReleaseTimerArg::Margin => Self::Margin,
+            ReleaseTimerArg::Fifo => Self::Fifo,
         }
     }
 }
@@ -119,17 +166,26 @@ pub struct HilArgs {
     /// plant announces (it warns that it ignores the flag).
     #[arg(long)]
     pub lockstep: bool,
-    /// Waiting: adaptive, spin, event or hybrid.
-    ///
-    /// How each process waits for the other's message: `adaptive` busy-polls while it keeps
-    /// its CPU and waits on the iceoryx2 event for a while after it is preempted (on a shared
-    /// machine busy-polling alone missed 70-84 % of the deadlines; `companion latency`
-    /// measures every mode idle and under load); `spin` busy-polls; `event` waits on the
-    /// iceoryx2 event service with a bounded wait; `hybrid` sleeps until shortly before the
-    /// expected message, then spins. The book's Latency chapter (docs/book/src/latency.md)
-    /// compares them.
-    #[arg(long, value_enum, default_value = "adaptive", value_name = "MODE", hide_possible_values = true)]
+    /// How each process waits for the other's message ([`WAIT_LONG_HELP`]).
+    #[arg(
+        long,
+        value_enum,
+        default_value = "adaptive",
+        value_name = "MODE",
+        hide_possible_values = true,
+        hide_default_value = true,
+        help = "How each process waits [default: adaptive]; others: --help",
+        long_help = WAIT_LONG_HELP
+    )]
     pub wait: WaitArg,
+    /// How the plant sleeps to a release (see --help)
+    ///
+    /// Where its wait mode sleeps (event; adaptive on the event): margin (clock_nanosleep to
+    /// --spin-margin-us before it, then spin; it missed least on this project's VMs), sleep
+    /// (clock_nanosleep to it), timerfd, or fifo (clock_nanosleep under SCHED_FIFO, where
+    /// permitted).
+    #[arg(long, value_enum, default_value = "margin", value_name = "TIMER", hide_possible_values = true)]
+    pub release_timer: ReleaseTimerArg,
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process.
     ///
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
@@ -186,10 +242,10 @@ pub struct HilArgs {
     /// 7, with a warning); so does one in which the robot was stopped.
     #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRAC", allow_hyphen_values = true)]
     pub max_miss_fraction: f64,
-    /// --wait hybrid: µs to spin before the message.
+    /// µs of spinning before a message or release
     ///
-    /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs,
-    /// at most 1 s).
+    /// Hybrid waiting: how long before the expected message to stop sleeping and spin; also
+    /// how long before a release `--release-timer margin` wakes (µs, at most 1 s).
     #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000), allow_hyphen_values = true)]
     pub spin_margin_us: u64,
     /// Silence before checking the peer is alive, in ms.
@@ -359,6 +415,7 @@ impl HilArgs {
             deadline_ns,
             hold_periods: self.hold_periods,
             wait: self.wait.into(),
+            release: self.release_timer.into(),
             spin_margin_ns: self.spin_margin_us * 1000,
             silence_ns: self.silence_ms * 1_000_000,
             peer_timeout_ns: secs_to_ns(peer_timeout),
@@ -1013,7 +1070,12 @@ fn print_latency(r: &LatencyReport) {
             );
         }
         let w = r.wait_counts;
-        if w.preemptions + w.pressure_holds > 0 {
+        if w.no_spare_cpu {
+            println!(
+                "adaptive waiting: {} CPUs, none to spare for spinning: waited on the event throughout",
+                r.machine.cpus
+            );
+        } else if w.preemptions + w.pressure_holds > 0 {
             println!(
                 "adaptive waiting: {} preemptions noticed while spinning, {} fallbacks to event waiting, {} back-offs \
                  for CPU pressure ({:.1} s on the event)",

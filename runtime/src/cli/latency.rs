@@ -7,9 +7,9 @@ use clap::Args;
 use companion_runtime::domain::histogram::fmt_ns;
 use companion_runtime::run::latency::pingpong::{PeerOptions, Transport};
 use companion_runtime::run::latency::run_peer as peer;
-use companion_runtime::run::latency::{Benchmark, LatencyOptions, Load};
+use companion_runtime::run::latency::{Benchmark, LatencyOptions, Load, REPEAT_MD, REPEAT_SVG};
 
-use super::hil::WaitArg;
+use super::hil::{ReleaseTimerArg, WaitArg};
 use super::terminal::Terminal;
 
 /// `companion latency` flags.
@@ -46,7 +46,32 @@ pub struct LatencyArgs {
         hide_possible_values = true
     )]
     pub hil_modes: Vec<WaitArg>,
-    /// The loads: idle and/or busy (a busy thread per CPU).
+    /// The plant's release timers to measure
+    ///
+    /// Each with every mode that sleeps to the release (event, adaptive); spin and hybrid run
+    /// once. Default: the default timer only.
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "margin",
+        value_name = "TIMERS",
+        hide_possible_values = true
+    )]
+    pub release_timers: Vec<ReleaseTimerArg>,
+    /// Rounds of the HIL runs, interleaved (1-1000).
+    ///
+    /// Each round runs every mode, then the paced bare transport, under each load, so that the
+    /// machine's drift falls on all alike; the table gives each mode's median, interquartile
+    /// range and worst run.
+    #[arg(long, default_value_t = 1, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
+    /// Only part (4): the HIL runs and the paced bare transport
+    ///
+    /// The HIL runs and the bare transport paced beside them, nothing else.
+    #[arg(long, conflicts_with_all = ["skip_hil", "zenoh_only"])]
+    pub hil_only: bool,
+    /// idle and/or busy (a busy thread per CPU)
     ///
     /// The loads to measure each HIL wait mode under: `idle` (the machine as it is) and
     /// `busy` (this program runs one busy-looping thread per online CPU, at normal priority,
@@ -106,16 +131,27 @@ pub fn run(a: &LatencyArgs) -> Result<()> {
         } else {
             a.hil_modes.iter().map(|m| (*m).into()).collect()
         },
+        release_timers: a.release_timers.iter().map(|r| (*r).into()).collect(),
         loads: a.loads.iter().map(|l| (*l).into()).collect(),
+        repeat: a.repeat,
         zenoh_only: a.zenoh_only,
+        hil_only: a.hil_only,
     };
     let bench = companion_runtime::run::latency::run(&opts, &Terminal::lines())?;
     print_table(&bench);
-    println!(
-        "wrote {} and {}",
-        a.out.join("latency-benchmark.json").display(),
-        a.out.join("latency-benchmark.svg").display()
-    );
+    if let Some(md) = bench.repeated_markdown() {
+        println!("\nThe HIL runs, for the docs (also in {}):\n", a.out.join(REPEAT_MD).display());
+        println!("{md}");
+    }
+    let mut wrote = vec![a.out.join("latency-benchmark.json")];
+    if !a.hil_only {
+        wrote.push(a.out.join("latency-benchmark.svg"));
+    }
+    if bench.repeated.is_some() {
+        wrote.extend([a.out.join(REPEAT_SVG), a.out.join(REPEAT_MD)]);
+    }
+    let wrote: Vec<String> = wrote.iter().map(|p| p.display().to_string()).collect();
+    println!("wrote {} (open {})", wrote.join(", "), a.out.join("index.html").display());
     let off: Vec<&str> =
         bench.second_clock.iter().filter(|(_, c)| !c.agrees()).map(|(n, _)| n.as_str()).collect();
     if !off.is_empty() {
@@ -215,7 +251,8 @@ fn print_table(b: &Benchmark) {
             fmt_ns(p.max)
         );
     }
-    if !b.hil.is_empty() {
+    let one_round = b.repeated.as_ref().is_none_or(|r| r.rounds == 1);
+    if !b.hil.is_empty() && one_round {
         println!(
             "HIL runs (500 µs deadline; busy = {} busy-looping threads of this program):",
             b.load_threads
@@ -225,7 +262,7 @@ fn print_table(b: &Benchmark) {
             "wait", "load", "cycles", "misses", "miss %", "stops", "rt p50", "rt p99.9", "rt max"
         );
     }
-    for (mode, load, f) in &b.hil {
+    for (mode, load, f) in b.hil.iter().filter(|_| one_round) {
         let pct = if f.cycles > 0 { 100.0 * f.deadline_misses as f64 / f.cycles as f64 } else { 0.0 };
         println!(
             "  {:<9} {:<5} {:>8} {:>8} {:>6.2}% {:>6} {:>10} {:>10} {:>10}{}",
@@ -241,7 +278,7 @@ fn print_table(b: &Benchmark) {
             if b.rt && !f.rt.fifo { " (SCHED_FIFO refused)" } else { "" }
         );
     }
-    if !b.miss_account.is_empty() {
+    if !b.miss_account.is_empty() && one_round {
         println!("HIL misses against the bare transport paced at 1 kHz under the same load, in this run:");
         for t in &b.paced_transport {
             println!(
@@ -283,7 +320,9 @@ fn print_table(b: &Benchmark) {
             );
         }
     }
-    println!("ratios of medians:");
+    if !b.ratios.is_empty() {
+        println!("ratios of medians:");
+    }
     for (name, r) in &b.ratios {
         println!("  {name:<54} {r:>6.2}");
     }
@@ -315,9 +354,11 @@ fn print_table(b: &Benchmark) {
             if h.agrees() { "" } else { "  DISAGREE" }
         );
     }
-    println!(
-        "second clock (back-to-back ping-pongs: the samples' sum against the batch by CLOCK_MONOTONIC_RAW):"
-    );
+    if !b.second_clock.is_empty() {
+        println!(
+            "second clock (back-to-back ping-pongs: the samples' sum against the batch by CLOCK_MONOTONIC_RAW):"
+        );
+    }
     for (name, c) in &b.second_clock {
         println!("  {name:<52} {:>6.1} %{}", 100.0 * c.share(), if c.agrees() { "" } else { "  DISAGREE" });
     }

@@ -9,8 +9,8 @@
 //! - [`plant_setup`]: the simulated plant a scenario asks for;
 //! - [`record`]: `timeseries.csv`, `summary.json`, MCAP, digests, verdicts, the spatial
 //!   records;
-//! - [`plots`], [`histogram`] (latency histograms), [`observe`] (progress and messages, for
-//!   the command line to show).
+//! - [`plots`], [`histogram`] (latency histograms), [`spread`] (a figure over repeated runs),
+//!   [`observe`] (progress and messages, for the command line to show).
 
 pub mod arm;
 pub mod controller;
@@ -21,3 +21,4 @@ pub mod platform_config;
 pub mod plots;
 pub mod record;
 pub mod scenario;
+pub mod spread;

@@ -34,6 +34,34 @@ impl Clock for MonotonicClock {
     }
 }
 
+/// The machine's `CLOCK_MONOTONIC`, whose sleeps wait on a [`TimerFd`](crate::sys::rt::TimerFd)
+/// when it has one, else in `clock_nanosleep` (the plant's clock: `--release-timer`).
+#[derive(Debug, Default)]
+pub struct ReleaseClock {
+    timer: Option<crate::sys::rt::TimerFd>,
+}
+
+impl ReleaseClock {
+    /// Sleeping on `timer` (`None`: `clock_nanosleep`, as [`MonotonicClock`]).
+    pub fn new(timer: Option<crate::sys::rt::TimerFd>) -> Self {
+        Self { timer }
+    }
+}
+
+impl Clock for ReleaseClock {
+    #[inline]
+    fn now_ns(&self) -> u64 {
+        crate::sys::rt::monotonic_ns()
+    }
+
+    fn sleep_until_ns(&self, t_ns: u64) {
+        match &self.timer {
+            Some(t) => t.sleep_until_ns(t_ns),
+            None => crate::sys::rt::sleep_until_ns(t_ns),
+        }
+    }
+}
+
 /// A clock that moves only when told: `sleep_until_ns` jumps to the deadline, each
 /// `spin_hint` advances by `spin_step_ns`, and [`FakeClock::advance`] moves it by hand.
 #[derive(Debug)]

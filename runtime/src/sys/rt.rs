@@ -72,6 +72,68 @@ pub fn sleep_until_ns(t_ns: u64) {
     }
 }
 
+/// A `timerfd` on `CLOCK_MONOTONIC`, armed to an absolute time and read: another way to
+/// sleep to a time than [`sleep_until_ns`] (the plant's `--release-timer timerfd`). Both are
+/// the kernel's high-resolution timers; they differ in how the waiting task is woken (a
+/// file's wait queue against the sleeping task itself), which on a virtual machine may shift
+/// the wake-up.
+#[derive(Debug)]
+pub struct TimerFd {
+    fd: std::os::fd::OwnedFd,
+}
+
+impl TimerFd {
+    /// A new timer (not armed).
+    ///
+    /// # Errors
+    /// `timerfd_create` failed (out of descriptors).
+    pub fn new() -> std::io::Result<Self> {
+        use std::os::fd::FromRawFd;
+        // SAFETY: timerfd_create takes a clock id and flags and returns a new descriptor or -1.
+        let fd = unsafe { libc::timerfd_create(libc::CLOCK_MONOTONIC, libc::TFD_CLOEXEC) };
+        if fd < 0 {
+            return Err(std::io::Error::last_os_error());
+        }
+        // SAFETY: `fd` is a descriptor just created and owned by nothing else.
+        Ok(Self { fd: unsafe { std::os::fd::OwnedFd::from_raw_fd(fd) } })
+    }
+
+    /// Sleeps until `CLOCK_MONOTONIC` reaches `t_ns` (returns at once if it has), resuming
+    /// after signals. If the timer cannot be armed, sleeps with [`sleep_until_ns`].
+    pub fn sleep_until_ns(&self, t_ns: u64) {
+        use std::os::fd::AsRawFd;
+        if monotonic_ns() >= t_ns {
+            return;
+        }
+        let spec = libc::itimerspec {
+            it_interval: libc::timespec { tv_sec: 0, tv_nsec: 0 },
+            it_value: libc::timespec {
+                tv_sec: (t_ns / 1_000_000_000) as libc::time_t,
+                tv_nsec: (t_ns % 1_000_000_000) as libc::c_long,
+            },
+        };
+        let fd = self.fd.as_raw_fd();
+        // SAFETY: a valid descriptor and itimerspec; the old-value pointer may be null. A
+        // non-zero absolute time (t_ns > now > 0) arms the timer.
+        if unsafe { libc::timerfd_settime(fd, libc::TFD_TIMER_ABSTIME, &spec, std::ptr::null_mut()) } != 0 {
+            sleep_until_ns(t_ns);
+            return;
+        }
+        loop {
+            let mut expirations = 0u64;
+            // SAFETY: reads 8 bytes into a u64 on the stack.
+            let r = unsafe { libc::read(fd, (&raw mut expirations).cast::<libc::c_void>(), 8) };
+            if r == 8 {
+                return;
+            }
+            let interrupted = r < 0 && std::io::Error::last_os_error().raw_os_error() == Some(libc::EINTR);
+            if !interrupted || crate::sys::signals::termination_requested() {
+                return;
+            }
+        }
+    }
+}
+
 /// What [`apply`] should do.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct RtConfig {
@@ -306,6 +368,17 @@ pub fn wait_readable(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_timerfd_sleeps_to_its_time_and_not_for_a_past_one() {
+        let t = TimerFd::new().unwrap();
+        let a = monotonic_ns();
+        t.sleep_until_ns(a + 2_000_000);
+        assert!(monotonic_ns() >= a + 2_000_000);
+        // A time passed returns at once (a blocking read of an unarmed timer would hang).
+        t.sleep_until_ns(a);
+        t.sleep_until_ns(1);
+    }
 
     #[test]
     fn monotonic_clock_moves_forward_and_sleep_reaches_deadline() {

@@ -7,6 +7,7 @@ use plotters::prelude::*;
 
 use super::error::PlotError;
 use crate::domain::histogram::LatencyHistogram;
+use crate::domain::spread::Spread;
 
 const COLORS: [RGBColor; 8] = [
     RGBColor(31, 119, 180),
@@ -156,9 +157,138 @@ pub fn latency_svg(
     Ok(())
 }
 
+/// One box of [`boxes_svg`]: its label and the values it summarises (one per run).
+#[derive(Clone, Copy, Debug)]
+pub struct BoxSeries<'a> {
+    /// Under the box.
+    pub label: &'a str,
+    /// The runs' values.
+    pub values: &'a [f64],
+}
+
+/// One panel of [`boxes_svg`].
+#[derive(Clone, Debug)]
+pub struct BoxPanel<'a> {
+    /// Its title.
+    pub title: String,
+    /// The y axis's description.
+    pub y_desc: &'a str,
+    /// Its boxes, left to right.
+    pub boxes: Vec<BoxSeries<'a>>,
+}
+
+/// Draws `panels` (`columns` to a row) into `path`: per box the interquartile range, the
+/// median as a thick line, whiskers to the best and worst run, and every run as a dot —
+/// a box per wait mode and load of `companion latency --repeat`.
+///
+/// # Errors
+/// The file cannot be written.
+pub fn boxes_svg(path: &Path, title: &str, panels: &[BoxPanel<'_>], columns: usize) -> Result<(), PlotError> {
+    let columns = columns.max(1);
+    let rows = panels.len().div_ceil(columns).max(1);
+    let root = SVGBackend::new(path, (640 * columns as u32, 330 * rows as u32)).into_drawing_area();
+    root.fill(&WHITE).map_err(e)?;
+    let body = root.titled(title, ("sans-serif", 20)).map_err(e)?;
+    let areas = body.split_evenly((rows, columns));
+    for (panel, area) in panels.iter().zip(areas.iter()) {
+        let spreads: Vec<Option<Spread>> = panel.boxes.iter().map(|b| Spread::of(b.values)).collect();
+        let (lo, hi) = spreads
+            .iter()
+            .flatten()
+            .fold((0.0f64, f64::NEG_INFINITY), |(lo, hi), s| (lo.min(s.best), hi.max(s.worst)));
+        let hi = if hi.is_finite() && hi > lo { hi } else { lo + 1.0 };
+        let pad = 0.08 * (hi - lo);
+        let n = panel.boxes.len().max(1) as f64;
+        let mut chart = ChartBuilder::on(area)
+            .caption(&panel.title, ("sans-serif", 15))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(70)
+            .build_cartesian_2d(-0.5f64..n - 0.5, (lo - if lo < 0.0 { pad } else { 0.0 })..hi + pad)
+            .map_err(e)?;
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(0)
+            .y_desc(panel.y_desc)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(e)?;
+        for (i, (b, s)) in panel.boxes.iter().zip(&spreads).enumerate() {
+            let c = COLORS[i % COLORS.len()];
+            let x = i as f64;
+            let (px, py) = chart.backend_coord(&(x, lo - if lo < 0.0 { pad } else { 0.0 }));
+            root.draw(&Text::new(
+                b.label.to_string(),
+                (px, py + 6),
+                ("sans-serif", 12).into_font().color(&BLACK).pos(plotters::style::text_anchor::Pos::new(
+                    plotters::style::text_anchor::HPos::Center,
+                    plotters::style::text_anchor::VPos::Top,
+                )),
+            ))
+            .map_err(e)?;
+            let Some(s) = s else { continue };
+            let w = 0.28;
+            chart
+                .draw_series([
+                    Rectangle::new([(x - w, s.q1), (x + w, s.q3)], c.mix(0.25).filled()),
+                    Rectangle::new([(x - w, s.q1), (x + w, s.q3)], c.stroke_width(1)),
+                ])
+                .map_err(e)?;
+            let lines = [
+                vec![(x - w, s.median), (x + w, s.median)],
+                vec![(x, s.q3), (x, s.worst)],
+                vec![(x, s.q1), (x, s.best)],
+                vec![(x - w / 2.0, s.worst), (x + w / 2.0, s.worst)],
+                vec![(x - w / 2.0, s.best), (x + w / 2.0, s.best)],
+            ];
+            for (k, l) in lines.into_iter().enumerate() {
+                chart
+                    .draw_series(LineSeries::new(l, c.stroke_width(if k == 0 { 3 } else { 1 })))
+                    .map_err(e)?;
+            }
+            chart
+                .draw_series(b.values.iter().map(|v| Circle::new((x + w + 0.06, *v), 2, c.filled())))
+                .map_err(e)?;
+        }
+    }
+    root.present().map_err(e)?;
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn draws_a_box_per_series_with_its_label() {
+        let dir = std::env::temp_dir().join(format!("companion-boxes-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("b.svg");
+        let a = [3.0, 7.0, 1.0, 12.0];
+        let panels = [
+            BoxPanel {
+                title: "misses, idle".into(),
+                y_desc: "misses per run",
+                boxes: vec![
+                    BoxSeries { label: "event", values: &a },
+                    BoxSeries { label: "bare iceoryx2", values: &[-2.0, 0.0] },
+                ],
+            },
+            BoxPanel {
+                title: "nothing yet".into(),
+                y_desc: "µs",
+                boxes: vec![BoxSeries { label: "spin", values: &[] }],
+            },
+        ];
+        boxes_svg(&p, "test", &panels, 2).unwrap();
+        let s = std::fs::read_to_string(&p).unwrap();
+        assert!(s.starts_with("<svg"));
+        for text in ["misses, idle", "event", "bare iceoryx2", "nothing yet", "spin"] {
+            assert!(s.contains(text), "{text} missing");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn draws_an_svg() {

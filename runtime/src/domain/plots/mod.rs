@@ -16,7 +16,7 @@ use companion_core::{PaperRun, PlatformCommand, PlatformKind, Space};
 use companion_plant::PaperTrajectory;
 
 pub use self::error::PlotError;
-pub use self::latency::latency_svg;
+pub use self::latency::{boxes_svg, latency_svg, BoxPanel, BoxSeries};
 use crate::domain::controller::run_name;
 use crate::domain::record::{Row, RunOutcome};
 use crate::domain::scenario::Target;

@@ -357,6 +357,7 @@ mod tests {
             deadline_ns: 500_000,
             hold_periods: 20,
             wait: WaitMode::Adaptive,
+            release: crate::run::hil::config::ReleaseTimer::Sleep,
             spin_margin_ns: 100_000,
             silence_ns: 20_000_000,
             peer_timeout_ns: 2_000_000_000,

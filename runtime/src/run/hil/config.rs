@@ -22,8 +22,9 @@ pub enum WaitMode {
     Event,
     /// Sleep until shortly before the expected message, then spin.
     Hybrid,
-    /// Busy-poll while the process keeps its CPU; after a preemption, wait on the iceoryx2
-    /// event for a while (see [`super::wait`]). The default.
+    /// Wait on the iceoryx2 event below three CPUs; with more, busy-poll while the process
+    /// keeps its CPU and wait on the event for a while after a preemption (see
+    /// [`super::wait`]). The default.
     Adaptive,
 }
 
@@ -38,6 +39,13 @@ impl WaitMode {
         }
     }
 
+    /// Whether the mode sleeps to the plant's release time (at least at times), so that the
+    /// plant's [`ReleaseTimer`] matters: `event`, and `adaptive` while it waits on the event
+    /// (`spin` spins to it, `hybrid` sleeps to its own margin).
+    pub fn sleeps_to_release(self) -> bool {
+        matches!(self, Self::Event | Self::Adaptive)
+    }
+
     /// Whether the mode needs the iceoryx2 event services (the sender then notifies every
     /// message).
     pub fn uses_events(self) -> bool {
@@ -46,17 +54,63 @@ impl WaitMode {
 
     /// The default: `adaptive`, with or without `--rt`, on any number of CPUs.
     ///
-    /// No fixed mode is right on a shared machine. On this project's 2-vCPU VMs, otherwise
-    /// idle, a timed sleep at 1 kHz wakes ~30 µs late at the median but milliseconds late at
-    /// p99, so the modes that sleep miss more 500 µs deadlines than spinning does (10 s runs:
-    /// spin 19 and 23 misses, hybrid 26 and 793, event 69 and 1 102); with other work running
-    /// it is the other way round (3 s runs: spin 2 162 and 2 784 misses and the robot stopped,
-    /// hybrid 204 and 42, event 1 and 2). With `SCHED_FIFO` a spinner is parked for ~50 ms of
-    /// every second by the kernel's real-time throttling, and on one CPU two spinners take
-    /// turns by time slices. `adaptive` spins while that works and waits on the event when it
-    /// does not (`companion latency` measures every mode idle and under load).
+    /// No fixed mode is right everywhere. A spinner that keeps its CPU has the lowest latency,
+    /// and one that is preempted loses whole time slices: with other work on two CPUs `spin`
+    /// missed about half its deadlines. On this project's 2-vCPU VMs even an otherwise idle
+    /// machine preempts a spinner: two loops spinning take both CPUs, and every other thread
+    /// that wakes has to preempt one of them — there `adaptive`, when it spun, missed 1–53
+    /// deadlines in ten 10 s runs (29 and 33 of 34 and 38 in two more the controller waking
+    /// late), and `event` 1–12 in eight, none of them the controller's where that was
+    /// recorded (issue 39). So `adaptive` waits on the event below three CPUs,
+    /// and spins, falling back to the event after a preemption or under CPU pressure, where
+    /// a CPU is left over ([`super::wait`]). With `SCHED_FIFO` a spinner is parked for ~50 ms
+    /// of every second by the kernel's real-time throttling, which `adaptive` notices as a
+    /// preemption. `companion latency --repeat N` measures every mode, idle and under load,
+    /// in interleaved rounds.
     pub fn default_for(_rt: bool) -> Self {
         Self::Adaptive
+    }
+}
+
+/// How the plant sleeps to its release time where its wait mode sleeps for it (`event`, and
+/// `adaptive` while it waits on the event; `spin` spins to it, `hybrid` sleeps to its own
+/// margin): `--release-timer`.
+///
+/// The default is `margin`: on this project's 2-vCPU VMs a timed sleep at 1 kHz wakes ~30 µs
+/// late at the median and 0.1–3 ms late at the tail (the hypervisor has to run the halted
+/// vCPU again), and a plant that publishes more than half the deadline late misses it. Waking
+/// `--spin-margin-us` (100 µs) early and spinning the rest absorbs the lateness up to the
+/// margin, at a tenth of a CPU at 1 kHz. In interleaved repeated runs (`companion latency
+/// --hil-modes event --release-timers sleep,timerfd,margin,fifo`) `margin` missed least;
+/// `timerfd` was no better than `sleep`; `fifo` kept the plant's releases on time, but the
+/// controller's misses went up more than the plant's came down.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ReleaseTimer {
+    /// `clock_nanosleep(TIMER_ABSTIME)` to the release (timer slack 1 ns).
+    Sleep,
+    /// A `timerfd` armed to the release, read.
+    Timerfd,
+    /// `clock_nanosleep` to `--spin-margin-us` before the release, then spin.
+    #[default]
+    Margin,
+    /// `clock_nanosleep` under `SCHED_FIFO` (the plant's loop thread, where permitted; not
+    /// pinned, memory not locked: what `--rt` adds).
+    Fifo,
+}
+
+impl ReleaseTimer {
+    /// Every timer, in the command line's order.
+    pub const ALL: [Self; 4] = [Self::Sleep, Self::Timerfd, Self::Margin, Self::Fifo];
+
+    /// The command-line spelling.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Sleep => "sleep",
+            Self::Timerfd => "timerfd",
+            Self::Margin => "margin",
+            Self::Fifo => "fifo",
+        }
     }
 }
 
@@ -71,7 +125,9 @@ pub struct Timing {
     pub hold_periods: u32,
     /// The wait mode.
     pub wait: WaitMode,
-    /// Hybrid spin margin (ns).
+    /// How the plant sleeps to its release (where its wait mode sleeps for it).
+    pub release: ReleaseTimer,
+    /// Hybrid spin margin (ns); also the margin of `--release-timer margin`.
     pub spin_margin_ns: u64,
     /// Silence before a liveness check (ns).
     pub silence_ns: u64,
@@ -84,6 +140,18 @@ pub struct Timing {
     /// `n` came and it is the newest answer yet (a network whose round trip is longer than the
     /// deadline). 0: only the answer to `n` (iceoryx2 on one machine).
     pub max_command_age: u32,
+}
+
+impl Timing {
+    /// How long before a release the plant wakes to spin the rest, where it sleeps to it
+    /// (`--release-timer margin`: the spin margin; otherwise 0).
+    pub fn release_margin_ns(&self) -> u64 {
+        if self.release == ReleaseTimer::Margin {
+            self.spin_margin_ns
+        } else {
+            0
+        }
+    }
 }
 
 /// The largest `--max-command-age`: the law predicts over at most 8 periods.

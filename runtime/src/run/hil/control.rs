@@ -101,6 +101,7 @@ pub fn serve_options(cfg: &HilConfig, s: &Scenario) -> ServeOptions {
         startup_timeout_ns: startup.max(t.peer_timeout_ns),
         forward_interrupt: true,
         delay_compensation: s.delay_compensation,
+        deadline_ns: if t.lockstep { 0 } else { t.deadline_ns },
     }
 }
 
@@ -208,7 +209,9 @@ impl ControlStats {
         let d = self.delay.percentiles();
         let why = if self.rejected > 0 { format!(": {}", self.rejections.describe()) } else { String::new() };
         let w = self.wait;
-        let adaptive = if w.fallbacks + w.pressure_holds > 0 {
+        let adaptive = if w.no_spare_cpu {
+            "; adaptive waiting: no CPU to spare for spinning, on the event throughout".to_string()
+        } else if w.fallbacks + w.pressure_holds > 0 {
             format!(
                 "; adaptive waiting: {} preemptions, {} fallbacks, {} back-offs for CPU pressure ({:.1} s on the event)",
                 w.preemptions,
@@ -239,7 +242,40 @@ impl ControlStats {
             ));
         }
         line.push_str(&adaptive);
+        if let Some(w) = self.wakes_line() {
+            line.push_str("; ");
+            line.push_str(&w);
+        }
         line
+    }
+
+    /// The wake log in a few words (`None` before real time: lockstep, or no answer yet).
+    pub fn wakes_line(&self) -> Option<String> {
+        let w = &self.wakes;
+        let p = w.wake.percentiles();
+        if p.count == 0 {
+            return None;
+        }
+        let late = w.late;
+        let causes: Vec<String> = late
+            .causes()
+            .iter()
+            .chain(&[("long step", late.long_step)])
+            .filter(|(_, c)| c.wakes > 0)
+            .map(|(n, c)| format!("{} {} ({} periods missed)", n.replace('_', " "), c.wakes, c.missed))
+            .chain((late.bunched.missed > 0).then(|| {
+                format!("and {} measurements the plant sent late, bunched with the next", late.bunched.missed)
+            }))
+            .collect();
+        Some(format!(
+            "taken after publication p50 {} p99.9 {} max {}; {} late (over half the deadline){}{}",
+            fmt_ns(p.p50),
+            fmt_ns(p.p99_9),
+            fmt_ns(p.max),
+            late.wakes(),
+            if causes.is_empty() { "" } else { ": " },
+            causes.join(", ")
+        ))
     }
 
     /// Why the run must not count as a success although it reached its end: the plant
@@ -365,6 +401,7 @@ pub fn run_as_parent(
             // The plant writes its files and plots, then exits with the run's status.
             let plant = child.finish(Duration::from_secs(600))?;
             observer.note(&stats.line());
+            controller_report(cfg, &stats, observer);
             if let Some(c) = link {
                 link_report(cfg, c, observer)?;
             }
@@ -529,6 +566,42 @@ fn link_report(
     std::fs::write(&path, serde_json::to_string_pretty(&report)? + "\n")
         .map_err(|source| ControlRunError::Write { path, source })?;
     Ok(report)
+}
+
+/// `controller.json`: what the controller's side of a run measured: its answers, its waiting
+/// and its wakes ([`super::wakes`]).
+#[derive(Debug, Serialize)]
+pub struct ControllerReport {
+    /// The wait mode.
+    pub wait: super::config::WaitMode,
+    /// Measurements answered.
+    pub answered: u64,
+    /// Measurements skipped as superseded.
+    pub skipped: u64,
+    /// The step's time per answer (ns).
+    pub compute_ns: crate::domain::histogram::Percentiles,
+    /// What the adaptive wait did (zero in the other modes).
+    pub wait_counts: super::wait::WaitCounts,
+    /// Every wake and the late ones by cause.
+    pub wakes: super::wakes::WakeReport,
+}
+
+/// Writes `controller.json` into the run's folder (a warning if it cannot: the run's own files
+/// are the plant's).
+fn controller_report(cfg: &HilConfig, stats: &ControlStats, observer: &dyn Observer) {
+    let r = ControllerReport {
+        wait: cfg.timing.wait,
+        answered: stats.answered,
+        skipped: stats.skipped,
+        compute_ns: stats.compute.percentiles(),
+        wait_counts: stats.wait,
+        wakes: stats.wakes.report(),
+    };
+    let path = cfg.out.join("controller.json");
+    let text = serde_json::to_string_pretty(&r).map(|t| t + "\n");
+    if let Err(e) = text.map_err(std::io::Error::other).and_then(|t| std::fs::write(&path, t)) {
+        observer.warn(&format!("writing {}: {e}", path.display()));
+    }
 }
 
 /// `--chaos`: reads what the plant counted, compares it with what was injected, writes

@@ -6,16 +6,17 @@
 //! `received_ns`, and how long it took, `compute_ns`):
 //!
 //! ```text
-//!   release ──plant── t_pub ──to the controller── received ──compute── sent ──back── taken
+//!   release ──plant── t_pub ─send─ t_sent ──to the controller── received ──compute── sent ──back── taken
 //!   └──────────────────────────── deadline (release + --deadline-us) ─────┘
 //! ```
 //!
 //! When the answer to a missed period comes after all (late), the miss is put down to, in
 //! this order:
 //!
-//! - [`MissCause::PlantLate`]: the plant published more than half the deadline after the
-//!   release (it was not scheduled in time; [`super::stats::PlantStats::plant_stalls`] counts
-//!   the worse case of a skipped release);
+//! - [`MissCause::PlantLate`]: the plant's send of the measurement returned (`t_sent`: the
+//!   message and its notification out) more than half the deadline after the release (it was
+//!   not scheduled in time, or was held up between its stamp `t_pub` and the end of the send;
+//!   [`super::stats::PlantStats::plant_stalls`] counts the worse case of a skipped release);
 //! - [`MissCause::ReturnPath`]: the controller *sent* before the deadline, so the time went
 //!   on the way back — the transport, or the plant's own wait not waking for it;
 //! - [`MissCause::ControllerWake`]: sent after the deadline, and more of the time before
@@ -122,8 +123,10 @@ pub struct Period {
     pub seq: u64,
     /// The scheduled release.
     pub release: u64,
-    /// The publication.
+    /// The publication's stamp (in the measurement).
     pub t_pub: u64,
+    /// When the plant's send returned (the measurement and its notification out).
+    pub t_sent: u64,
     /// The deadline of its answer.
     pub deadline: u64,
 }
@@ -163,7 +166,7 @@ impl MissLedger {
 /// The cause of a miss answered with the controller's stamps `received` and `compute` (ns).
 fn cause(p: &Period, received: u64, compute: u64) -> MissCause {
     let budget = p.deadline.saturating_sub(p.release);
-    if p.t_pub.saturating_sub(p.release) > budget / 2 {
+    if p.t_sent.max(p.t_pub).saturating_sub(p.release) > budget / 2 {
         return MissCause::PlantLate;
     }
     if received < p.t_pub {
@@ -189,7 +192,13 @@ mod tests {
     /// Period 5 released at 5 ms, published 10 µs later, deadline 500 µs after the release.
     fn period(seq: u64) -> Period {
         let release = seq * 1_000 * US;
-        Period { seq, release, t_pub: release + 10 * US, deadline: release + 500 * US }
+        Period {
+            seq,
+            release,
+            t_pub: release + 10 * US,
+            t_sent: release + 12 * US,
+            deadline: release + 500 * US,
+        }
     }
 
     fn command(seq: u64, received: u64, compute: u64) -> CommandMsg {
@@ -219,8 +228,12 @@ mod tests {
         // Sent 100 µs after publication, well before the deadline: the way back.
         assert_eq!(attributed(p, p.t_pub + 40 * US, 60 * US).return_path, 1);
         // Published 300 µs after the release (more than half the 500 µs): the plant's.
-        let late = Period { t_pub: p.release + 300 * US, ..p };
+        let late = Period { t_pub: p.release + 300 * US, t_sent: p.release + 302 * US, ..p };
         assert_eq!(attributed(late, late.t_pub + 10 * US, 10 * US).plant_late, 1);
+        // Stamped in time but held up in its send for 400 µs (the controller could not have
+        // had it before): the plant's, though the stamp says the controller took it late.
+        let held = Period { t_sent: p.release + 410 * US, ..p };
+        assert_eq!(attributed(held, held.t_sent + 10 * US, 10 * US).plant_late, 1);
         // Another machine's clock: a step over the whole deadline is still the step's.
         assert_eq!(attributed(p, 3, 600 * US).controller_compute, 1);
         assert_eq!(attributed(p, 3, 100 * US).clocks_apart, 1);

@@ -45,16 +45,20 @@
 //!
 //! ## Waiting (`--wait`)
 //!
-//! - `spin` (default on two or more CPUs without `--rt`): busy-poll `receive()` (and the
-//!   clock, for the plant's release time). Lowest latency; one core per process.
-//! - `event`: the iceoryx2 event service: the sender notifies, the receiver sleeps in
-//!   `timed_wait` (always bounded) and re-checks `receive()` after every wake; the plant sleeps
-//!   to its release time with `clock_nanosleep(TIMER_ABSTIME)`.
+//! - `adaptive` (the default): waits on the event, as `event` does, on a machine of one or
+//!   two CPUs (two loops spinning there leave no CPU for anything else); with three or more it
+//!   spins, and after a preemption or under CPU pressure waits on the event for a back-off
+//!   ([`wait`] has the details, `companion latency --repeat` the figures).
+//! - `spin`: busy-poll `receive()` (and the clock, for the plant's release time). Lowest
+//!   latency; one core per process, and nothing else that wants it.
+//! - `event`: the iceoryx2 event service: the sender notifies, the receiver sleeps on the
+//!   listener's descriptor (always bounded) and re-checks `receive()` after every wake; the
+//!   plant sleeps to its release time by its `--release-timer` ([`ReleaseTimer`]; by default
+//!   to 100 µs before it, then spins).
 //! - `hybrid`: sleep until `--spin-margin-us` before the expected message (the
 //!   plant: before its release time; the controller: before the next period's measurement),
 //!   then spin. A spin that finds nothing for 200 µs falls back to 50 µs sleeps, so a silent
-//!   peer does not cost a core. The default with `--rt` or on one CPU
-//!   ([`WaitMode::default_for`] says why).
+//!   peer does not cost a core.
 //!
 //! ## Faults
 //!
@@ -72,7 +76,8 @@
 //!
 //! One cycle allocates nothing, takes no lock of its own and makes no system call but the
 //! transport's (iceoryx2 send/receive are shared-memory operations; `--wait event` adds the
-//! event's syscalls, `hybrid`/`event` one `clock_nanosleep`). Latency samples go into
+//! event's syscalls, `hybrid`/`event` one `clock_nanosleep`, or a timerfd's arming and read
+//! with `--release-timer timerfd`). Latency samples go into
 //! preallocated HDR histograms; log rows go into a preallocated lock-free ring buffer that a
 //! normal-priority thread drains into `timeseries.csv`, flushing every 50 ms — so the file
 //! is on disk up to the last ~50 ms if the plant is killed.
@@ -82,8 +87,8 @@
 //! Domain first, then the loops, then the processes:
 //! [`config`] (typed options and the run's scenario), [`end`] (how a run ended), [`stats`]
 //! (what is counted), [`hold`] (hold, then stop), [`messages`] (the one header builder,
-//! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the three wait
-//! modes), [`law`] (what the controller serves);
+//! command ↔ report), [`watch`] (the one peer-liveness check), [`misses`] (whose deadline miss), [`wait`] (the wait
+//! modes), [`wakes`] (why the controller took a measurement late), [`law`] (what the controller serves);
 //! [`plant_loop`] (real time and lockstep), [`serve`] (the controller's loop), [`fault`]
 //! (the fault-injecting link decorator, for tests); [`report`] (`latency.json`), [`plant`]
 //! and [`control`] (the two processes).
@@ -104,7 +109,10 @@ pub mod report;
 pub mod serve;
 pub mod stats;
 pub mod wait;
+pub mod wakes;
 pub mod watch;
 
-pub use self::config::{ChaosConfig, HilConfig, HilScenario, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE};
+pub use self::config::{
+    ChaosConfig, HilConfig, HilScenario, ReleaseTimer, RtPlan, Timing, WaitMode, MAX_COMMAND_AGE,
+};
 pub use self::end::{ControlEnd, PlantEnd};

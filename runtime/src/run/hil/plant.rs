@@ -8,7 +8,7 @@ use companion_core::{Chain, Manipulator, Space, Spatial, SpatialArm};
 use companion_plant::Simulated;
 
 use super::chaos::{Agent, ChaosError, Plan};
-use super::config::{HilConfig, HilScenario};
+use super::config::{HilConfig, HilScenario, ReleaseTimer};
 use super::end::PlantEnd;
 use super::handshake::controller_hash;
 use super::messages::Stamp;
@@ -34,7 +34,7 @@ use crate::domain::scenario::Scenario;
 use crate::run::robot::Robot;
 use crate::run::sim::{self, LoopEnd, LoopError};
 use crate::run::spatial::{self, SpatialRunError, SpatialScenario};
-use crate::sys::clock::MonotonicClock;
+use crate::sys::clock::ReleaseClock;
 use crate::sys::lock::NameLock;
 use crate::sys::lock::{DemoName, LockError, NameInUse, Role};
 use crate::transport::error::{OpenError, StartError};
@@ -341,14 +341,38 @@ fn chaos_agent(plan: Option<Plan>, cfg: &HilConfig) -> Result<Option<Agent>, Cha
     }
 }
 
-/// The real-time setup of the plant's loop thread, if asked for (its warning to `observer`).
+/// The real-time setup of the plant's loop thread, if asked for (its warning to `observer`):
+/// `--rt`'s, or `--release-timer fifo`'s `SCHED_FIFO` alone.
 fn apply_rt(cfg: &HilConfig, observer: &dyn Observer) -> Option<crate::sys::rt::RtReport> {
-    let rt = cfg.rt_config(Role::Plant)?;
+    let rt = cfg.rt_config(Role::Plant).or_else(|| {
+        (cfg.timing.release == ReleaseTimer::Fifo).then_some(crate::sys::rt::RtConfig {
+            priority: super::report::DEFAULT_PRIORITY,
+            cpu: None,
+            lock_memory: false,
+            prefault_stack: 0,
+            inherited: false,
+        })
+    })?;
     let r = crate::sys::rt::apply(&rt);
     if let Some(w) = r.warning("plant") {
         observer.warn(&w);
     }
     Some(r)
+}
+
+/// The plant's clock: its sleeps on a timerfd with `--release-timer timerfd` (a warning and
+/// `clock_nanosleep` if none can be made).
+fn release_clock(timing: &super::config::Timing, observer: &dyn Observer) -> ReleaseClock {
+    if timing.release != ReleaseTimer::Timerfd {
+        return ReleaseClock::new(None);
+    }
+    match crate::sys::rt::TimerFd::new() {
+        Ok(t) => ReleaseClock::new(Some(t)),
+        Err(e) => {
+            observer.warn(&format!("plant: no timerfd ({e}); sleeping with clock_nanosleep"));
+            ReleaseClock::new(None)
+        }
+    }
 }
 
 /// After the loop: the transport's warnings, a dead controller's shared memory cleaned.
@@ -461,7 +485,7 @@ fn run_arm<P: Simulated<N, Space: Task + WireSpace>, const N: usize>(
     let log = Log::<P::Space, N>::create(dir, kind, s.log_every, expected_rows(s))?.with_replay(replay);
     let mut recorder = Recorder { log, summary };
     let agent = chaos_agent(plan, cfg)?;
-    let clock = MonotonicClock;
+    let clock = release_clock(&timing, observer);
     let mut stats = PlantStats::default();
     let wall = Instant::now();
     let mut robot = Robot { plant: &mut plant, target_in_effector: star };

@@ -258,7 +258,8 @@ impl<const N: usize> Cycle<N> {
             delay: 0.0,
             published: [0; PUBLISHED],
             applied: None,
-            idler: Idler::new(timing.wait, timing.spin_margin_ns),
+            idler: Idler::new(timing.wait, timing.spin_margin_ns)
+                .with_release_margin(timing.release_margin_ns()),
             policy: HoldPolicy::new(timing.hold_periods),
             watch: PeerWatch::new(timing.silence_ns, now),
             misses: MissLedger::default(),
@@ -282,8 +283,10 @@ fn slot(seq: u64) -> usize {
 struct Released {
     /// The scheduled release.
     release: u64,
-    /// The publication time.
+    /// The publication time (the measurement's stamp).
     t_pub: u64,
+    /// When the send returned.
+    t_sent: u64,
     /// The deadline for its answer.
     deadline: u64,
 }
@@ -342,6 +345,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
             cy.watch.excuse(behind - period);
         }
         let t_pub = self.publish(n, fl, cy.delay, meas)?;
+        let t_sent = self.clock.now_ns();
         cy.published[slot(n)] = t_pub;
         // The handshake's answer (a cold first step) and, at the end of a completed run, the
         // last answer (the controller's confirmation) are awaited up to the peer timeout.
@@ -354,7 +358,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         if t_pub > deadline {
             self.stats.plant_overruns += 1;
         }
-        Ok(Released { release, t_pub, deadline })
+        Ok(Released { release, t_pub, t_sent, deadline })
     }
 
     /// **Await the command**: drains and waits until the answer to `n` (or a refusal) came or
@@ -367,7 +371,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         deadline: u64,
     ) -> Result<Heard, LinkError> {
         let mut heard = Heard::default();
-        cy.idler.reset();
+        cy.idler.reset(self.clock.now_ns());
         let peer_lost = matches!(cy.end, PlantEnd::ControllerDied { .. } | PlantEnd::ControllerGone { .. });
         if !peer_lost {
             let want = Wanted { n, max_age: u64::from(self.timing.max_command_age), applied: cy.applied };
@@ -409,7 +413,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
         heard: Heard,
         t: f64,
     ) -> Applied<N> {
-        let Released { release, t_pub, deadline } = released;
+        let Released { release, t_pub, t_sent, deadline } = released;
         let timing = self.timing;
         let (period, dt) = (timing.period_ns, self.stamp.dt);
         let stats = &mut *self.stats;
@@ -450,7 +454,7 @@ impl<C: Clock, L: PlantLink> PlantSide<'_, C, L> {
             }
             Heard { fresh: None, refused: None } => {
                 stats.deadline_misses += 1;
-                cy.misses.missed(Period { seq: n, release, t_pub, deadline }, &mut stats.miss_causes);
+                cy.misses.missed(Period { seq: n, release, t_pub, t_sent, deadline }, &mut stats.miss_causes);
                 let was_stopped = cy.policy.stopped();
                 let r = cy.policy.missed();
                 // A stop event is the hold running out on a moving robot (not the start of a

@@ -49,6 +49,8 @@ pub struct LatencyReport {
     pub mode: &'static str,
     /// The wait mode.
     pub wait: WaitMode,
+    /// How the plant slept to its releases where its wait mode sleeps (`--release-timer`).
+    pub release_timer: super::config::ReleaseTimer,
     /// Control rate (Hz); 0 in lockstep.
     pub rate_hz: f64,
     /// Deadline after release (ns).
@@ -159,6 +161,7 @@ impl LatencyReport {
             scenario: s.name.clone(),
             mode: if t.lockstep { "lockstep" } else { "real-time" },
             wait: t.wait,
+            release_timer: t.release,
             rate_hz,
             deadline_ns: if t.lockstep { 0 } else { t.deadline_ns },
             hold_periods: t.hold_periods,

@@ -16,6 +16,7 @@ use super::law::{Law as _, LawError, PlanarLaw, Served, SpatialLaw};
 use super::messages::answer;
 use super::stats::ControlStats;
 use super::wait::Idler;
+use super::wakes::Took;
 use super::watch::{PeerLoss, PeerWatch};
 use crate::domain::arm::ArmError;
 use crate::domain::controller::ControllerSpec;
@@ -48,6 +49,9 @@ pub struct ServeOptions {
     pub forward_interrupt: bool,
     /// Pass the plant's announced delay to the law (else 0).
     pub delay_compensation: bool,
+    /// Each answer's deadline after its period's release (ns; 0: none, lockstep): what the
+    /// [wake log](super::wakes) judges wakes against.
+    pub deadline_ns: u64,
 }
 
 /// The controller refused the plant (it sent the refusal and ends the run).
@@ -189,8 +193,14 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
     let mut interrupted_at = None;
     let end_of_run =
         |interrupted: bool| if interrupted { ControlEnd::Interrupted } else { ControlEnd::EndOfRun };
+    stats.wakes.judge_against(opt.deadline_ns);
     loop {
+        // Each look is stamped for the wake log: what happened since the last one that found
+        // nothing says why a measurement was taken late.
+        let look = clock.now_ns();
         let mut newest: Option<MeasurementMsg> = None;
+        // The oldest new measurement's publication, and how many came in this drain.
+        let (mut first_pub, mut fresh) = (None, 0u64);
         while let Some(m) = link.try_receive()? {
             let Some(s) = &served else {
                 let s = admit::<L, N, F>(link, law, &identity, &m, notify, clock.now_ns())?;
@@ -211,16 +221,21 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
                     Some(old) if m.seq <= old.seq => stats.invalid += 1,
                     Some(_) => {
                         skipped_since += 1;
+                        fresh += 1;
                         newest = Some(m);
                     }
-                    None => newest = Some(m),
+                    None => {
+                        first_pub.get_or_insert(m.plant_time_ns);
+                        fresh += 1;
+                        newest = Some(m);
+                    }
                 },
                 Err(_) => stats.invalid += 1,
             }
         }
         if let (Some(m), Some(s)) = (newest, &mut served) {
             let t_rx = clock.now_ns();
-            idler.reset();
+            idler.reset(t_rx);
             watch.heard(t_rx);
             let Ok(meas) = m.read::<N, F::Space>() else {
                 stats.invalid += 1;
@@ -244,6 +259,25 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
             cmd.compute_ns = clock.now_ns() - t_rx;
             link.publish(&cmd)?;
             stats.compute.record(cmd.compute_ns);
+            // The periods since the last answer, this one's included, and when the oldest was
+            // published: its stamp, or, if the transport's queue overwrote it, the newest's less
+            // the periods between.
+            let (count, first_pub) = match last_seq {
+                Some(l) if m.seq > l => {
+                    let est = m.plant_time_ns.saturating_sub((m.seq - l - 1).saturating_mul(m.period_ns));
+                    (m.seq - l, first_pub.map_or(est, |f: u64| f.min(est)))
+                }
+                _ => (fresh.max(1), first_pub.unwrap_or(m.plant_time_ns)),
+            };
+            let took = Took {
+                first_pub,
+                last_pub: m.plant_time_ns,
+                count,
+                look,
+                received: t_rx,
+                compute: cmd.compute_ns,
+            };
+            stats.wakes.took(&took, last_seq.is_some() && m.period_ns > 0);
             stats.delay.record(if delay.is_finite() { (delay * 1e9) as u64 } else { 0 });
             stats.answered += 1;
             stats.skipped += u64::from(skipped_since);
@@ -283,6 +317,7 @@ pub fn serve_law<C: Clock, L: ControlLink, const N: usize, F: Served<N>>(
             }
         }
         idler.idle(clock, expected, u64::MAX, |d| link.wait_event(d))?;
+        stats.wakes.idled(look, idler.last_step());
     }
 }
 

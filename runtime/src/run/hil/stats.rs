@@ -6,6 +6,7 @@ use serde::{Deserialize, Serialize};
 
 use super::misses::MissCauses;
 use super::wait::WaitCounts;
+use super::wakes::WakeLog;
 use crate::domain::histogram::LatencyHistogram;
 use crate::domain::record::Rejections;
 use crate::transport::wire::{CommandMsg, WireError};
@@ -156,6 +157,8 @@ pub struct ControlStats {
     pub first_stop_seq: Option<u64>,
     /// Waiting on the measurement event was given up because the plant does not notify it.
     pub event_fallback: bool,
+    /// Every wake, and why the late ones were late ([`super::wakes`]).
+    pub wakes: WakeLog,
 }
 
 /// Live figures of the plant's loop for a progress line (written with relaxed stores, read by

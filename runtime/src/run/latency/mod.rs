@@ -33,8 +33,10 @@
 #[cfg(feature = "ros2")]
 pub mod dds;
 pub mod error;
+pub mod figures;
 pub mod hops;
 pub mod pingpong;
+pub mod repeat;
 #[cfg(feature = "zenoh")]
 pub mod zenoh;
 
@@ -43,16 +45,18 @@ use std::process::{Command as Process, Stdio};
 
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use self::error::{os, LatencyError};
+pub use self::figures::{ControllerFigures, HilFigures, Load, RtFigures};
 use self::pingpong::{PeerOptions, RtScope, SecondClock, Transport};
+use self::repeat::{BareRun, Contender, HilRun, Repeated};
 use crate::domain::controller::{platform_name, AnyController, Scalar};
 use crate::domain::histogram::{fmt_ns, LatencyHistogram, Percentiles};
 use crate::domain::observe::{Causes, Observer};
 use crate::domain::scenario::{Scenario, ScenarioError};
 use crate::run::hil::misses::MissCauses;
-use crate::run::hil::WaitMode;
+use crate::run::hil::{ReleaseTimer, WaitMode};
 use crate::sys::clock::{Clock, MonotonicClock};
 use crate::sys::machine::Machine;
 use crate::sys::rt;
@@ -70,31 +74,18 @@ pub struct LatencyOptions {
     pub rt: bool,
     /// The HIL wait modes to measure (none: skip part 4).
     pub hil_modes: Vec<WaitMode>,
+    /// The plant's release timers to measure with the modes that sleep to the release
+    /// ([`Contender::all`]).
+    pub release_timers: Vec<ReleaseTimer>,
     /// The loads to measure them under.
     pub loads: Vec<Load>,
+    /// Rounds of part (4), interleaved ([`repeat`]).
+    pub repeat: u32,
     /// Only the Zenoh ping-pongs and the Unix socket they are compared with (parts 1, 2 and
     /// 4 skipped).
     pub zenoh_only: bool,
-}
-
-/// The load on the machine while a HIL run is measured.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Load {
-    /// Nothing added (other programs may run).
-    Idle,
-    /// [`BusyLoad`]: one busy-looping thread per online CPU.
-    Busy,
-}
-
-impl Load {
-    /// `idle` or `busy`.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Self::Idle => "idle",
-            Self::Busy => "busy",
-        }
-    }
+    /// Only part (4).
+    pub hil_only: bool,
 }
 
 /// The load generator: `threads` threads of this process, each busy-looping (a spin hint and
@@ -175,30 +166,6 @@ pub fn controller_step(
 /// The deadline of the HIL runs of part (4): `companion hil`'s default `--deadline-us`.
 pub const HIL_DEADLINE_NS: u64 = 500_000;
 
-/// One HIL run's figures as the benchmark reads them from its `latency.json` (every key
-/// must be there: a missing one is an error, not a zero).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct HilFigures {
-    /// Round trip (ns).
-    pub round_trip_ns: Percentiles,
-    /// Controller compute (ns).
-    pub controller_compute_ns: Percentiles,
-    /// Release jitter (ns).
-    pub release_jitter_ns: Percentiles,
-    /// Cycles.
-    pub cycles: u64,
-    /// Deadline misses.
-    pub deadline_misses: u64,
-    /// Their causes.
-    pub miss_causes: MissCauses,
-    /// The deadline (ns).
-    pub deadline_ns: u64,
-    /// Times the robot was stopped.
-    pub stop_events: u64,
-    /// The real-time setup in force.
-    pub rt: RtFigures,
-}
-
 /// The bare transport under one load, paced at the HIL's period, as many round trips as the
 /// HIL runs have cycles: what the loop's misses are measured against.
 #[derive(Clone, Copy, Debug, Serialize)]
@@ -253,15 +220,9 @@ impl MissAccount {
     }
 }
 
-/// The part of `latency.json`'s `rt` the benchmark reads.
-#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
-pub struct RtFigures {
-    /// Whether `SCHED_FIFO` was in force.
-    pub fifo: bool,
-}
-
-/// Part (4): a real-time `companion hil` run of `cycles` periods at 1 kHz in `mode`, its output
-/// in `dir`.
+/// Part (4): a real-time `companion hil` run of `cycles` periods at 1 kHz in `mode` with the
+/// plant's `release` timer, its output in `dir`: the plant's figures and the controller's
+/// (`None` if it wrote none).
 ///
 /// # Errors
 /// The run failed.
@@ -269,9 +230,10 @@ pub fn hil_run(
     exe: &Path,
     dir: &Path,
     mode: WaitMode,
+    release: ReleaseTimer,
     cycles: u64,
     use_rt: bool,
-) -> Result<HilFigures, LatencyError> {
+) -> Result<(HilFigures, Option<ControllerFigures>), LatencyError> {
     std::fs::create_dir_all(dir)?;
     let duration = format!("{}", cycles as f64 * 1e-3);
     let name = format!("latency-{}-{}", std::process::id(), mode.as_str());
@@ -284,6 +246,8 @@ pub fn hil_run(
         &duration,
         "--wait",
         mode.as_str(),
+        "--release-timer",
+        release.as_str(),
         "--name",
         &name,
         "--deadline-us",
@@ -306,7 +270,91 @@ pub fn hil_run(
     }
     let path = dir.join("latency.json");
     let text = std::fs::read_to_string(&path).map_err(os(|| format!("reading {}", path.display())))?;
-    serde_json::from_str(&text).map_err(|source| LatencyError::Json { path, source })
+    let f = serde_json::from_str(&text).map_err(|source| LatencyError::Json { path, source })?;
+    let path = dir.join("controller.json");
+    let controller = match std::fs::read_to_string(&path) {
+        Ok(text) => Some(serde_json::from_str(&text).map_err(|source| LatencyError::Json { path, source })?),
+        Err(_) => None,
+    };
+    Ok((f, controller))
+}
+
+/// The box plot of part (4)'s runs ([`Repeated::plot`]), in the output folder.
+pub const REPEAT_SVG: &str = "latency-repeat.svg";
+/// Part (4)'s table for the docs ([`Repeated::markdown`]), in the output folder.
+pub const REPEAT_MD: &str = "latency-repeat.md";
+
+impl Benchmark {
+    /// Part (4)'s table for the docs, with the command and the machine (`None`: no HIL runs).
+    pub fn repeated_markdown(&self) -> Option<String> {
+        let r = self.repeated.as_ref()?;
+        let m = &self.machine;
+        let machine = format!(
+            "{} CPUs, load average {} at the start, {} at the end{}",
+            m.cpus,
+            self.load_average_at_start,
+            m.load_average,
+            if self.rt { ", --rt" } else { "" }
+        );
+        Some(r.markdown(&self.command, &machine))
+    }
+
+    /// `index.html`: the figures and part (4)'s table.
+    pub fn index_html(&self) -> String {
+        let esc = |t: &str| t.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;");
+        let mut html = String::from(
+            "<!doctype html><meta charset=utf-8><title>companion latency</title>\n<h1>companion latency</h1>\n",
+        );
+        html.push_str(&format!("<p><code>{}</code></p>\n", esc(&self.command)));
+        if let Some(md) = self.repeated_markdown() {
+            html.push_str(&format!(
+                "<h2>HIL runs against the bare transport</h2>\n<p><a href=\"{REPEAT_SVG}\"><img src=\"{REPEAT_SVG}\" \
+                 style=\"max-width:100%\"></a></p>\n<p>The table for the docs (<a href=\"{REPEAT_MD}\">{REPEAT_MD}</a>):</p>\n\
+                 <pre>{}</pre>\n",
+                esc(&md)
+            ));
+        }
+        if !self.rows.iter().all(|r| r.part == "4") {
+            html.push_str(
+                "<h2>Step and transports</h2>\n<p><img src=\"latency-benchmark.svg\" style=\"max-width:100%\"></p>\n",
+            );
+        }
+        html.push_str("<p>All figures: <a href=\"latency-benchmark.json\">latency-benchmark.json</a>.</p>\n");
+        html
+    }
+}
+
+/// Part (4)'s progress: runs done of all, and the time left at the pace so far.
+#[derive(Debug)]
+struct Progress {
+    total: usize,
+    done: usize,
+    start: std::time::Instant,
+}
+
+impl Progress {
+    fn new(total: usize) -> Self {
+        Self { total, done: 0, start: std::time::Instant::now() }
+    }
+
+    fn done(&mut self) {
+        self.done += 1;
+    }
+
+    /// ` (run k of n, about T left)`.
+    fn eta(&self) -> String {
+        if self.total <= 1 {
+            return String::new();
+        }
+        let left = if self.done == 0 {
+            String::new()
+        } else {
+            let per = self.start.elapsed().as_secs_f64() / self.done as f64;
+            let s = (per * (self.total - self.done) as f64).round() as u64;
+            format!(", about {} min {} s left", s / 60, s % 60)
+        };
+        format!(" (run {} of {}{left})", self.done + 1, self.total)
+    }
 }
 
 /// One row of the table.
@@ -351,6 +399,9 @@ pub struct Benchmark {
     pub paced_transport: Vec<PacedTransport>,
     /// Each HIL run's misses against it.
     pub miss_account: Vec<MissAccount>,
+    /// Every round of part (4) (`hil`, `paced_transport`, `miss_account` and the rows are the
+    /// first round's).
+    pub repeated: Option<Repeated>,
 }
 
 fn ratio(a: u64, b: u64) -> f64 {
@@ -385,7 +436,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
         rows.push(Row { part, name: name.clone(), ns: h.percentiles() });
         hists.push((name, h));
     };
-    let parts_1_2 = !a.zenoh_only;
+    let parts_1_2 = !a.zenoh_only && !a.hil_only;
     if parts_1_2 {
         observer.note(&format!("(1) controller step, {} steps per platform and scalar type", a.cycles));
     }
@@ -434,27 +485,33 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
         iox_ev_p50 = iox_ev.percentiles().p50;
         push("2", "iceoryx2 ping-pong, events".into(), iox_ev, &mut rows);
     }
-    observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
-    let (uds, c) = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
-    checked("unix datagram socket ping-pong", c);
-    let uds_p50 = uds.percentiles().p50;
-    push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    let mut uds_p50 = 0;
+    if !a.hil_only {
+        observer.note(&format!("(3) Unix-domain socket ping-pong, {} round trips", a.cycles));
+        let (uds, c) = pingpong::unix_socket(&exe, a.cycles, a.warmup, a.rt, observer)?;
+        checked("unix datagram socket ping-pong", c);
+        uds_p50 = uds.percentiles().p50;
+        push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    }
     #[cfg(feature = "ros2")]
-    let dds_p50 = {
+    let mut dds_p50 = 0;
+    #[cfg(feature = "ros2")]
+    if !a.hil_only {
         observer.note(&format!(
             "(3) DDS ping-pong (RustDDS on loopback UDP, as companion ros2), {} round trips",
             a.cycles
         ));
         let (h, c) = dds::round_trips(&exe, a.cycles, a.warmup, a.rt, observer)?;
         checked("dds ping-pong", c);
-        let p50 = h.percentiles().p50;
+        dds_p50 = h.percentiles().p50;
         push("3", "dds ping-pong (RustDDS), reliable, poll".into(), h, &mut rows);
-        p50
-    };
+    }
     #[cfg_attr(not(feature = "zenoh"), allow(unused_mut))]
     let mut zenoh_hops: Vec<hops::HopReport> = Vec::new();
     #[cfg(feature = "zenoh")]
-    let (zenoh_p50, zenoh_tls_p50) = {
+    let (zenoh_p50, zenoh_tls_p50) = if a.hil_only {
+        (0, 0)
+    } else {
         let mut note_hops = |r: hops::HopReport| {
             observer.note(&format!(
                 "  hops: {}; their medians add up to {:.1} % of the round trip's, their means to {:.1} %, \
@@ -546,21 +603,81 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
     let mut hil = Vec::new();
     let (mut paced_transport, mut miss_account) = (Vec::new(), Vec::new());
     let load_threads = crate::sys::rt::online_cpus();
-    for load in &a.loads {
-        let _busy = match load {
-            Load::Idle => None,
-            Load::Busy => Some(BusyLoad::start(load_threads)?),
-        };
-        let paced = if a.hil_modes.is_empty() {
-            None
-        } else {
+    let contenders = Contender::all(&a.hil_modes, &a.release_timers);
+    let rounds = a.repeat.max(1);
+    let (mut runs, mut bare) = (Vec::new(), Vec::new());
+    let mut progress = Progress::new(if contenders.is_empty() {
+        0
+    } else {
+        rounds as usize * a.loads.len() * (contenders.len() + 1)
+    });
+    for round in (1..=rounds).filter(|_| !contenders.is_empty()) {
+        for load in &a.loads {
+            let _busy = match load {
+                Load::Idle => None,
+                Load::Busy => Some(BusyLoad::start(load_threads)?),
+            };
+            let mut done = Vec::with_capacity(contenders.len());
+            for c in &contenders {
+                let label = c.label();
+                observer.note(&format!(
+                    "(4) {}HIL cycle, --wait {}{}, {}, {} cycles at 1 kHz{}",
+                    if rounds > 1 { format!("round {round}/{rounds}: ") } else { String::new() },
+                    c.wait.as_str(),
+                    if c.release == ReleaseTimer::default() {
+                        String::new()
+                    } else {
+                        format!(" --release-timer {}", c.release.as_str())
+                    },
+                    load.as_str(),
+                    a.cycles,
+                    progress.eta()
+                ));
+                let dir = if rounds == 1 {
+                    a.out.join(format!("hil-{label}-{}", load.as_str()))
+                } else {
+                    a.out.join("runs").join(format!("{round:02}-{label}-{}", load.as_str()))
+                };
+                let (f, controller) = hil_run(&exe, &dir, c.wait, c.release, a.cycles, a.rt)?;
+                progress.done();
+                let late = controller.map_or(String::new(), |k| {
+                    let w = k.wakes.late_wakes;
+                    format!(
+                        "; the controller's late wakes {}{}",
+                        w.wakes(),
+                        w.main_cause()
+                            .map_or(String::new(), |m| format!(" (most missed: {})", m.replace('_', " ")))
+                    )
+                });
+                observer.note(&format!(
+                    "  round trip p50 {}  max {}; {} deadline misses (plant {}, controller {}), {} robot stops{late}",
+                    fmt_ns(f.round_trip_ns.p50),
+                    fmt_ns(f.round_trip_ns.max),
+                    f.deadline_misses,
+                    f.miss_causes.plant_late,
+                    f.miss_causes.controller(),
+                    f.stop_events
+                ));
+                if f.deadline_ns != HIL_DEADLINE_NS {
+                    return Err(LatencyError::DeadlineMismatch {
+                        hil_ns: f.deadline_ns,
+                        transport_ns: HIL_DEADLINE_NS,
+                    });
+                }
+                done.push((*c, f, controller, dir));
+            }
+            // The bare transport last in the round, under the same load.
             observer.note(&format!(
-                "(4) the bare transport under the same load: iceoryx2 ping-pong, busy-poll, one per ms, {}, {} round trips",
+                "(4) {}the bare transport under the same load: iceoryx2 ping-pong, busy-poll, one per ms, {}, {} round \
+                 trips{}",
+                if rounds > 1 { format!("round {round}/{rounds}: ") } else { String::new() },
                 load.as_str(),
-                a.cycles
+                a.cycles,
+                progress.eta()
             ));
             let (h, _) =
                 pingpong::iceoryx(&exe, a.cycles, a.warmup.min(100), false, a.rt, Some(1_000_000), observer)?;
+            progress.done();
             let t = PacedTransport {
                 load: *load,
                 round_trip_ns: h.percentiles(),
@@ -574,69 +691,62 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
                 t.over_deadline,
                 fmt_ns(HIL_DEADLINE_NS)
             ));
-            paced_transport.push(t);
-            Some(t)
-        };
-        for mode in &a.hil_modes {
-            observer.note(&format!(
-                "(4) HIL cycle, --wait {}, {}, {} cycles at 1 kHz",
-                mode.as_str(),
-                load.as_str(),
-                a.cycles
-            ));
-            let dir = a.out.join(format!("hil-{}-{}", mode.as_str(), load.as_str()));
-            let f = hil_run(&exe, &dir, *mode, a.cycles, a.rt)?;
-            observer.note(&format!(
-                "  round trip p50 {}  max {}; {} deadline misses, {} robot stops",
-                fmt_ns(f.round_trip_ns.p50),
-                fmt_ns(f.round_trip_ns.max),
-                f.deadline_misses,
-                f.stop_events
-            ));
-            if let Some(t) = &paced {
-                if f.deadline_ns != t.deadline_ns {
-                    return Err(LatencyError::DeadlineMismatch {
-                        hil_ns: f.deadline_ns,
-                        transport_ns: t.deadline_ns,
-                    });
-                }
-                let m = MissAccount::new(*mode, *load, &f, t);
-                observer.note(&format!(
-                    "  against the bare transport: {} misses beyond its {} (controller {}, plant {}, way back {}, \
-                     unanswered {}); round trip {:.2}× its median",
-                    m.beyond_transport,
-                    m.transport_misses,
-                    m.causes.controller(),
-                    m.causes.plant_late,
-                    m.causes.return_path,
-                    m.causes.unanswered,
-                    m.p50_ratio
-                ));
-                miss_account.push(m);
-            }
-            rows.push(Row {
-                part: "4",
-                name: format!("HIL cycle round trip, {}, {}", mode.as_str(), load.as_str()),
-                ns: f.round_trip_ns,
+            bare.push(BareRun {
+                round,
+                load: *load,
+                over_deadline: t.over_deadline,
+                round_trip_ns: t.round_trip_ns,
             });
-            hil.push((*mode, *load, f));
+            for (c, f, controller, dir) in done {
+                let run = HilRun::new(round, *load, c, &f, controller, t.over_deadline, dir);
+                observer.note(&format!(
+                    "  {} {}: {} misses, {:+} beyond the bare transport's {}",
+                    run.label,
+                    load.as_str(),
+                    run.misses,
+                    run.beyond_bare,
+                    t.over_deadline
+                ));
+                runs.push(run);
+                if round == 1 {
+                    miss_account.push(MissAccount::new(c.wait, *load, &f, &t));
+                    rows.push(Row {
+                        part: "4",
+                        name: format!("HIL cycle round trip, {}, {}", c.label(), load.as_str()),
+                        ns: f.round_trip_ns,
+                    });
+                    if c.release == ReleaseTimer::default() {
+                        hil.push((c.wait, *load, f));
+                    }
+                }
+            }
+            if round == 1 {
+                paced_transport.push(t);
+            }
         }
     }
+    let repeated = (!runs.is_empty()).then(|| {
+        let default = Contender { wait: WaitMode::default_for(a.rt), release: ReleaseTimer::default() };
+        Repeated::new(rounds, a.cycles, HIL_DEADLINE_NS, default, runs, bare)
+    });
     let mut ratios = Vec::new();
     if parts_1_2 {
         ratios.push(("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)));
         ratios.push(("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)));
     }
     #[cfg(feature = "ros2")]
-    ratios.push(("dds / unix socket".to_string(), ratio(dds_p50, uds_p50)));
+    if !a.hil_only {
+        ratios.push(("dds / unix socket".to_string(), ratio(dds_p50, uds_p50)));
+    }
     #[cfg(feature = "zenoh")]
-    ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
-    #[cfg(feature = "zenoh")]
-    ratios.push((
-        "zenoh quic+mtls / zenoh tcp (aim: at most 1.3)".to_string(),
-        ratio(zenoh_tls_p50, zenoh_p50),
-    ));
-    for (mode, _, f) in hil.iter().filter(|h| h.1 == Load::Idle) {
+    if !a.hil_only {
+        ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
+        ratios.push((
+            "zenoh quic+mtls / zenoh tcp (aim: at most 1.3)".to_string(),
+            ratio(zenoh_tls_p50, zenoh_p50),
+        ));
+    }
+    for (mode, _, f) in hil.iter().filter(|h| h.1 == Load::Idle && parts_1_2) {
         ratios.push((
             format!("HIL {} / iceoryx2 busy-poll", mode.as_str()),
             ratio(f.round_trip_ns.p50, iox_p50),
@@ -670,6 +780,7 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
         zenoh_hops,
         paced_transport,
         miss_account,
+        repeated,
     };
     let path = a.out.join("latency-benchmark.json");
     let text = serde_json::to_string_pretty(&bench).map_err(LatencyError::Serialize)?;
@@ -677,14 +788,28 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
     let series: Vec<(&str, &LatencyHistogram)> =
         hists.iter().filter(|(n, _)| !n.contains("f32")).map(|(n, h)| (n.as_str(), h)).collect();
     let svg = a.out.join("latency-benchmark.svg");
-    if let Err(e) = crate::domain::plots::latency_svg(
-        &svg,
-        "companion latency: step, transports (HIL runs: see hil-*/)",
-        &series,
-        None,
-    ) {
-        observer.warn(&format!("plot: {}", Causes(&e)));
+    if !series.is_empty() {
+        if let Err(e) = crate::domain::plots::latency_svg(
+            &svg,
+            "companion latency: step, transports (HIL runs: see hil-*/)",
+            &series,
+            None,
+        ) {
+            observer.warn(&format!("plot: {}", Causes(&e)));
+        }
     }
+    if let Some(r) = &bench.repeated {
+        let path = a.out.join(REPEAT_SVG);
+        if let Err(e) = r.plot(&path) {
+            observer.warn(&format!("plot: {}", Causes(&e)));
+        }
+    }
+    if let Some(md) = bench.repeated_markdown() {
+        let path = a.out.join(REPEAT_MD);
+        std::fs::write(&path, &md).map_err(os(|| format!("writing {}", path.display())))?;
+    }
+    let path = a.out.join("index.html");
+    std::fs::write(&path, bench.index_html()).map_err(os(|| format!("writing {}", path.display())))?;
     Ok(bench)
 }
 
@@ -748,6 +873,7 @@ mod tests {
             deadline_ns: 500_000,
             hold_periods: 20,
             wait: WaitMode::Spin,
+            release: crate::run::hil::config::ReleaseTimer::Sleep,
             spin_margin_ns: 0,
             silence_ns: 1,
             peer_timeout_ns: 1,

@@ -95,6 +95,7 @@ fn timing() -> Timing {
         deadline_ns: MS / 2,
         hold_periods: 2,
         wait: WaitMode::Spin,
+        release: crate::run::hil::config::ReleaseTimer::Sleep,
         spin_margin_ns: 100_000,
         silence_ns: 20 * MS,
         peer_timeout_ns: 2_000 * MS,
@@ -149,7 +150,7 @@ fn release_publishes_at_the_release_and_awaits_until_the_deadline() {
         (r0, r1)
     });
     // The handshake at once, awaited up to the peer timeout; period 1 at its release.
-    assert_eq!(r0, Released { release: 0, t_pub: 0, deadline: 2_000 * MS });
+    assert_eq!(r0, Released { release: 0, t_pub: 0, t_sent: 0, deadline: 2_000 * MS });
     assert!((MS..MS + 2_000).contains(&r1.t_pub), "{r1:?}");
     assert_eq!(r1.deadline, MS + MS / 2);
     assert_eq!(link.sent.iter().map(|m| m.seq).collect::<Vec<_>>(), [0, 1]);
@@ -317,7 +318,7 @@ fn a_refusal_stops_the_robot_and_ends_the_run_at_its_step() {
         let a = side.apply(
             cy,
             4,
-            Released { release: 0, t_pub: 0, deadline: 0 },
+            Released { release: 0, t_pub: 0, t_sent: 0, deadline: 0 },
             Heard { fresh: None, refused: Some(why) },
             4e-3,
         );

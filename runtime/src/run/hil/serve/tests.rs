@@ -22,6 +22,9 @@ struct Fake {
     clock: Rc<FakeClock>,
     peer: PeerState,
     checks: u32,
+    /// `(at, ns)`: the first receive at or after `at` is held up for `ns` (the process was
+    /// preempted in it).
+    stall: Option<(u64, u64)>,
 }
 
 impl Link for Fake {
@@ -32,6 +35,12 @@ impl Link for Fake {
         Ok(())
     }
     fn try_receive(&mut self) -> Result<Option<MeasurementMsg>, LinkError> {
+        if let Some((at, ns)) = self.stall {
+            if self.clock.now_ns() >= at {
+                self.clock.advance(ns);
+                self.stall = None;
+            }
+        }
         match self.inbox.front() {
             Some((at, _)) if *at <= self.clock.now_ns() => Ok(self.inbox.pop_front().map(|x| x.1)),
             _ => Ok(None),
@@ -63,12 +72,14 @@ fn options() -> ServeOptions {
         startup_timeout_ns: 20_000_000_000,
         forward_interrupt: false,
         delay_compensation: true,
+        deadline_ns: 500_000,
     }
 }
 
 fn fake(peer: PeerState) -> (Rc<FakeClock>, Fake) {
     let clock = Rc::new(FakeClock::new(0, 1_000));
-    let link = Fake { inbox: VecDeque::new(), sent: Vec::new(), clock: clock.clone(), peer, checks: 0 };
+    let link =
+        Fake { inbox: VecDeque::new(), sent: Vec::new(), clock: clock.clone(), peer, checks: 0, stall: None };
     (clock, link)
 }
 
@@ -295,4 +306,66 @@ fn measurements_whose_announcement_changes_are_dropped() {
     let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
     assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
     assert_eq!((st.answered, st.invalid), (2, 1));
+}
+
+/// The wake log names what the controller was doing when a measurement it took late had
+/// arrived, and counts the periods the plant misses through it.
+#[test]
+fn the_wake_log_says_why_a_measurement_was_taken_late() {
+    use crate::run::hil::wakes::WakeCount;
+    let s = scenario();
+    let plant = crate::run::sim::build_plant(&s).unwrap();
+    let notifying = |seq: u64, fl: u32| {
+        let mut st = stamp(&s, false);
+        st.flags |= flags::NOTIFIES;
+        st.message(seq, fl, seq * 1_000_000, 0.0, &plant.measure())
+    };
+    // Spinning, preempted for 1.5 ms in a receive at 1.9 ms: measurements 2 and 3 wait, 3 is
+    // answered at 3.4 ms (in time for its deadline at 3.5 ms), 2 is missed.
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    for seq in 0..4 {
+        link.inbox.push_back((seq * 1_000_000, notifying(seq, if seq == 3 { flags::END_OF_RUN } else { 0 })));
+    }
+    link.stall = Some((1_900_000, 1_500_000));
+    let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    let late = st.wakes.late;
+    assert_eq!(late.preempted, WakeCount { wakes: 1, missed: 1 });
+    assert_eq!((late.wakes(), late.missed()), (1, 1));
+    assert_eq!(st.wakes.wake.count(), 2, "measurements 1 and 2-3; the handshake is not timed");
+    // The same, but the transport's queue kept only the newest (4): 2 and 3 were overwritten.
+    // The wake is dated from 2's publication (4's less two periods), and both are missed.
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    for seq in [0, 1, 4] {
+        link.inbox.push_back((seq * 1_000_000, notifying(seq, if seq == 4 { flags::END_OF_RUN } else { 0 })));
+    }
+    link.stall = Some((1_900_000, 2_200_000));
+    let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(st.wakes.late.preempted, WakeCount { wakes: 1, missed: 2 });
+    assert!(st.wakes.wake.quantile(1.0) >= 2_090_000, "{}", st.wakes.wake.quantile(1.0));
+    // Waiting on the event, which (on this fake link) returns only after 10 ms: measurement 1
+    // is taken 9 ms late, asleep on the event, and missed.
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    link.inbox.push_back((0, notifying(0, 0)));
+    link.inbox.push_back((1_000_000, notifying(1, flags::END_OF_RUN)));
+    let (end, st) = run(&mut link, clock.as_ref(), &s, &ServeOptions { wait: WaitMode::Event, ..options() });
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(st.wakes.late.asleep_on_event, WakeCount { wakes: 1, missed: 1 });
+    assert_eq!(st.wakes.late.wakes(), 1);
+    // Spinning all along, but measurement 1, stamped at 1 ms, is there only at 1.4 ms: the
+    // plant sent it late (in time for the deadline at 1.5 ms).
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    link.inbox.push_back((0, notifying(0, 0)));
+    link.inbox.push_back((1_400_000, notifying(1, flags::END_OF_RUN)));
+    let (end, st) = run(&mut link, clock.as_ref(), &s, &options());
+    assert_eq!(end.unwrap(), ControlEnd::EndOfRun);
+    assert_eq!(st.wakes.late.published_late, WakeCount { wakes: 1, missed: 0 });
+    assert_eq!(st.wakes.late.wakes(), 1);
+    // Lockstep has no deadline: nothing is judged.
+    let (clock, mut link) = fake(PeerState::Alive(1));
+    link.inbox.push_back((0, meas_msg(&s, 0, 0)));
+    link.inbox.push_back((9_000_000, meas_msg(&s, 1, flags::END_OF_RUN)));
+    let (_, st) = run(&mut link, clock.as_ref(), &s, &ServeOptions { deadline_ns: 0, ..options() });
+    assert_eq!((st.wakes.wake.count(), st.wakes.late.wakes()), (0, 0));
 }
