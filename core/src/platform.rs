@@ -252,7 +252,8 @@ impl<T: Real> Unicycle<T> {
     /// `|ω|` of `(v, ω, α̇) = H̄(α)⁻¹ ū` (14) over `α` and over the direction of `ū`,
     ///
     /// ```text
-    /// ū = speed (cos φ, sin φ, 0):   v_max = speed · max_α ‖(H̄(α)⁻¹)₁,₁:₂‖,   ω_max = speed · max_α ‖(H̄(α)⁻¹)₂,₁:₂‖
+    /// ū = speed (cos φ, sin φ, 0),   φ ∈ S¹
+    /// v_max = speed · max_α ‖(H̄(α)⁻¹)₁,₁:₂‖,   ω_max = speed · max_α ‖(H̄(α)⁻¹)₂,₁:₂‖
     /// ```
     ///
     /// with `α` at `samples` points evenly spread on the circle (at least one); for small `ε`,
