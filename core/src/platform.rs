@@ -245,6 +245,37 @@ impl<T: Real> Unicycle<T> {
         let half = T::of(0.5);
         -(half * self.epsilon_1 * self.epsilon_2) * (self.epsilon_2 * c).arctan().sincos().1
     }
+
+    /// The platform's manoeuvres `(v_max, ω_max)` while its companion frame moves at `speed`
+    /// (m/s) in the plane, as in run (a)'s steady state, where it rides with the target
+    /// ([`crate::spatial`]'s module docs, "What run (a) asks of the arm"): the largest `|v|` and
+    /// `|ω|` of `(v, ω, α̇) = H̄(α)⁻¹ ū` (14) over `α` and over the direction of `ū`,
+    ///
+    /// ```text
+    /// ū = speed (cos φ, sin φ, 0),   φ ∈ S¹
+    /// v_max = speed · max_α ‖(H̄(α)⁻¹)₁,₁:₂‖,   ω_max = speed · max_α ‖(H̄(α)⁻¹)₂,₁:₂‖
+    /// ```
+    ///
+    /// with `α` at `samples` points evenly spread on the circle (at least one); for small `ε`,
+    /// `2 speed/ε₂` and `2 speed/ε₁`. Wider functions manoeuvre slower (`∝ 1/ε`) over a wider
+    /// orbit (`∝ ε`). On trajectory 1, whose direction sweeps every angle while `α` cycles,
+    /// `v_max` is the closed loop's own (0.83, 0.54, 0.47 m/s measured for `(0.2, 0.4)`,
+    /// `(0.2, 0.8)`, `(0.15, 1.5)` against 0.86, 0.54, 0.47) and `ω_max` bounds its turn rate.
+    pub fn manoeuvres(&self, speed: T, samples: usize) -> (T, T) {
+        let n = samples.max(1);
+        let step = T::of(2.0 * core::f64::consts::PI / n as f64);
+        let (mut v, mut w) = (T::zero(), T::zero());
+        for k in 0..n {
+            let Some(frame) = self.companion(&Vector2::new(step * T::of(k as f64), T::zero())) else {
+                continue;
+            };
+            let m = &frame.hbar_inv;
+            let row = |r: usize| (m[(r, 0)] * m[(r, 0)] + m[(r, 1)] * m[(r, 1)]).square_root();
+            v = v.max(row(0));
+            w = w.max(row(1));
+        }
+        (speed * v, speed * w)
+    }
 }
 
 impl<T: Real> Platform<T> for Unicycle<T> {

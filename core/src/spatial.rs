@@ -83,6 +83,34 @@
 //! **The platform** runs the planar law on §5's projection of the target ([`crate::space`]);
 //! its preferred pose `r_*` is where the arm at home holds the target at `r*_ed`
 //! ([`Params::for_arm`]).
+//!
+//! **What run (a) asks of the arm on a unicycle.** With `Ψ ≡ 1` and the drift pre-compensated,
+//! `h_s → 0`: the companion frame rides with the target, and the platform is where the
+//! transverse function puts it (in the plane; the target's height is the lift's),
+//!
+//! ```text
+//! r̄ → 0:   r̄_b = r_d r_*,   r_b = r̄_b f(α) = r_d r_* f(α),   r_bd = f(α)⁻¹ r_*⁻¹          (11), (49)
+//! ū = H̄(α) (v, ω, α̇) = the target's velocity seen from the companion frame                  (14)
+//! small ε, ū = (0, u, 0):   α̇ = 2u/(ε₁ε₂),   v = (2u/ε₂) cos α,   ω = −(2u/ε₁) sin α          (16)
+//! ```
+//!
+//! (rows 1 and 3 of `H̄ ≈ [1 0 −ε₁cos α; ε₂cos α 0 −ε₁ε₂cos 2α/2; 0 1 ε₂ sin α]` give `v` and `ω`,
+//! row 2 `α̇`; for any `ε`, [`Unicycle::manoeuvres`](crate::Unicycle::manoeuvres) takes the largest
+//! over `α` and the target's direction from `H̄(α)⁻¹` itself). So the arm holds the target over the
+//! orbit `f(α)⁻¹ r_*⁻¹`, `α ∈ S¹` — the target seen from the platform moved by up to `ε₁` along its
+//! `x` and turned by up to `arctan ε₂` about its vertical axis — and follows the platform's
+//! manoeuvres: it must turn the tool back at `ω` and carry it at `v`. A wider function slows them
+//! (`∝ 1/ε`) and asks more reach (`∝ ε`): the paper's condition on `ε̄` (D(ε₁, ε₂) inside the joint
+//! limits, Proposition 1) with the joint speeds added. Nothing in the law can lift either bound:
+//! beyond the reach the law damps (the target is out of reach), beyond the speeds the joint guard
+//! slows the arm, and `e_p` stays. On lifted trajectory 1 (`u = π/20 m/s`) the paper's `(0.2, 0.4)`
+//! makes the platform manoeuvre at up to 0.83 m/s and 1.44 rad/s whatever the arm (`H̄⁻¹` says 0.86
+//! m/s and at most 1.57 rad/s); the UR5 follows that, the Panda's shoulder needs `ε₂ = 0.8`, and
+//! PAL's TIAGo (a torso and seven joints, its wrist at 1.76–1.95 rad/s, 0.27–0.62 m from shoulder
+//! to wrist) needs a home with reach both ways — the elbow at mid-reach — and `(ε₁, ε₂) = (0.15,
+//! 1.5)`: `ε₁` inside the 0.175 m of reach it keeps, `ε₂` slowing the forward manoeuvres to 0.47
+//! m/s, which its wrist follows (core's test suite, `tiago`, has the figures and why a stretched
+//! home or the paper's function cannot do).
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 

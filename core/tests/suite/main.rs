@@ -9,6 +9,7 @@
 //! | [`lie`] | one conformance suite for SE(2) and SE(3): group law, `exp`/`log`, `Ad`, every Jacobian by differences, every small-angle branch |
 //! | [`se2`] | group axioms, `d_γ` (2), `Ad` (5), velocities (3), (4), (6)–(9) by differences |
 //! | [`spatial`] | §5: frames, `e_p` and every derivative by differences, the planar special case, the redundant solution, UR5 and Panda closed loops on every platform |
+//! | [`tiago`] | a real robot's arm on the unicycle (PAL's TIAGo, 8 joints): run (a) settles from a home with reach both ways and a transverse function the wrist can follow; why not from a stretched home or with the paper's function |
 //! | [`transverse`] | Lemma 1's determinant, Lemma 2's transversality, `H̄(α)` (13)–(15), (57)–(60), `∂ξ_f/∂α`, (59) |
 //! | [`derivatives`] | every analytic derivative of the arm, `e_p`, `e_m`, `h_s1`, `h_s2`, `h_s` by differences |
 //! | [`arms`] | arms as data: `rpr` is the paper's arm bit for bit; planar chains by differences; `ur5`, `panda` against their DH tables and published poses; validation |
@@ -40,4 +41,5 @@ mod robustness;
 mod saturation;
 mod se2;
 mod spatial;
+mod tiago;
 mod transverse;
