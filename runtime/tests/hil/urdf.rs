@@ -123,3 +123,28 @@ fn bad_urdf_requests_are_refused_before_anything_runs() {
         &["cannot read nonexistent.urdf"],
     );
 }
+
+/// The TIAGo on its own base (the unicycle), from the robot file that carries its home and
+/// transverse function (`examples/arms/tiago-unicycle.toml`): lifted T1 (a) settles within
+/// 40 s, nothing refused, the joints inside their limits; and the HIL in lockstep writes the
+/// same run.
+#[test]
+fn the_tiago_settles_on_the_unicycle_with_its_robot_file() {
+    let _g = serial();
+    let urdf = robot("tiago_description/robots/tiago_no_hand.urdf");
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/arms/tiago-unicycle.toml");
+    let flags = ["--arm", urdf.as_str(), "--config", file.to_str().unwrap(), "--platform", "unicycle"];
+    let d = dir("tiago-unicycle");
+    let out = d.join("sim");
+    let mut args = vec!["sim", "--duration", "40", "--no-plots", "--out", out.to_str().unwrap()];
+    args.extend(flags);
+    let (st, _, err) = run(&args);
+    assert!(st.success(), "{err}");
+    let s = json(&out.join("summary.json"));
+    let f = |k: &str| s[k].as_f64().unwrap();
+    assert!(f("final_ep_norm") <= 1e-5, "{s}");
+    assert!(f("max_ep_norm_after_20s") <= 1e-5, "{s}");
+    assert_eq!(s["rejected_steps"], 0, "{s}");
+    assert!(f("smallest_joint_margin") > 0.0, "{s}");
+    lockstep_equals_sim("2", &flags);
+}
