@@ -50,10 +50,14 @@
 //! their limits; a held command can still step over one when `u_q` is very large. The guard
 //! divides all joint velocities by the smallest factor `s ≥ 1` such that no joint covers more
 //! than `κ` of its distance to the limit it moves towards within one period (a
-//! fraction-to-the-boundary rule) and none exceeds its velocity limit.
+//! fraction-to-the-boundary rule) and none exceeds its velocity limit. With joint
+//! acceleration limits `aᵢ` it also keeps each joint able to stop within that fraction,
+//! `|u| ≤ √(2 a κ d) − a h/2`, and then the change from the previous joint command sent is
+//! divided by a second common factor ([`crate::acceleration`], where the equations are).
 
 use nalgebra::{SMatrix, SVector};
 
+use crate::acceleration::{braking_factor, change_factor, each_towards, reported_factor, towards};
 use crate::error::StepError;
 use crate::linalg;
 use crate::params::Params;
@@ -216,6 +220,8 @@ pub(crate) struct ArmLaw<'a, T: Real, A: Manipulator<T, N>, const N: usize> {
     pub params: &'a Params<T, N, A::Space>,
     pub arm: &'a A,
     pub star: &'a <A::Space as Space<T>>::Star,
+    /// Whether a joint has an acceleration limit (the guard's braking bound applies).
+    pub braking: bool,
 }
 
 impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
@@ -257,8 +263,44 @@ impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
             if v > scale {
                 scale = v;
             }
+            if self.braking {
+                let a = self.params.acceleration_limits.joints[i];
+                let b = braking_factor(u, room, a, kappa, period);
+                if b > scale {
+                    scale = b;
+                }
+            }
         }
         scale
+    }
+
+    /// The joints' acceleration limits on a guarded step (module docs of
+    /// [`crate::acceleration`]): the change from `previous`, the joint command sent before,
+    /// divided by the common factor `1/β_q` — unless `previous` is itself outside the joint
+    /// guard at `q`, where that would leave the guard: then each joint moves towards the
+    /// guarded command by at most its limit. Returns `1/β_q` (1: the limits did not act).
+    #[inline(always)]
+    pub(crate) fn limit_change(
+        &self,
+        step: &mut ArmStep<T, N, A::Space>,
+        previous: &SVector<T, N>,
+        q: &SVector<T, N>,
+        period: T,
+    ) -> T {
+        let limits = &self.params.acceleration_limits.joints;
+        let u = &step.task.u_q;
+        let beta = change_factor(&(u - previous), limits, period);
+        if beta >= T::one() {
+            return T::one();
+        }
+        let mut limited = towards(previous, u, beta);
+        // Rounding puts a command on the guard's bound a few ulp beyond it: a tolerance.
+        if self.joint_guard(q, &limited, period) > T::of(1.0 + 1e-4) {
+            limited = each_towards(previous, u, limits, period);
+        }
+        step.task.u_q = limited;
+        step.task.sensitivity *= beta;
+        reported_factor(beta)
     }
 }
 
