@@ -15,7 +15,15 @@
 //! ```
 //!
 //! `h` is the period of the hold the new command starts: a drive that ramps at its limit
-//! reaches the new set-point within that hold. The platform and the arm have a factor each
+//! reaches the new set-point within that hold.
+//!
+//! **Over the hold** (the hold-aware law, module `hold`): the new command takes over from
+//! the last one sent — with a delay `τ`, the last of the commands in flight, through which
+//! the law predicts the robot — so that is the reference, whatever the delay. The limited
+//! commands are what the law then works with: the arm law (30) is evaluated with the
+//! platform's limited velocity over the hold, the state advances with the limited `α̇` and
+//! `ū_b`, and the next step's guess of the hold is the limited command. The first step's
+//! passes all count from rest (a pass's guess is not a command that was sent). The platform and the arm have a factor each
 //! (`β_b`, `β_q`), as their velocities have (`ρ` and the joint guard): the platform's factor
 //! is applied in the platform law, before the arm law, so that the arm law (30) compensates
 //! the platform velocity actually commanded; the arm's after the joint guard.
@@ -172,15 +180,16 @@ pub(crate) fn change_factor<T: Real, const K: usize>(
     beta
 }
 
-/// `u_p + β (u − u_p)`, as `(1 − β) u_p + β u`: finite for any finite `u_p`, `u` (their
-/// difference may overflow, and then `β = 0`).
+/// `u_p + β (u − u_p)` (the difference is the one the factor was computed from: computed
+/// once). Where it overflows (commands of ~10³⁸), `β = 0` and the result is NaN: the step
+/// fails numerically and is recovered from rest.
 #[inline]
 pub(crate) fn towards<T: Real, const K: usize>(
     from: &SVector<T, K>,
     to: &SVector<T, K>,
     beta: T,
 ) -> SVector<T, K> {
-    from * (T::one() - beta) + to * beta
+    from + (to - from) * beta
 }
 
 /// Each component moved from `u_p` towards `u` by at most `aᵢ h` (the step where the common

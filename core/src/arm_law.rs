@@ -248,30 +248,38 @@ impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
     /// The joint guard's factor `s ≥ 1` for `u_q` held `period` seconds from `q`.
     #[inline(always)]
     fn joint_guard(&self, q: &SVector<T, N>, u_q: &SVector<T, N>, period: T) -> T {
-        let lim = &self.params.joint_limits;
-        let kappa = self.params.joint_step_fraction;
         let mut scale = T::one();
         for i in 0..N {
-            let u = u_q[i];
-            let room = if u > T::zero() { lim.upper[i] - q[i] } else { lim.lower[i] - q[i] };
-            // u and room have the same sign; room ≠ 0 (q is strictly inside its limits).
-            let r = (u * period) / (kappa * room);
-            if r > scale {
-                scale = r;
-            }
-            let v = u.abs() / self.params.joint_velocity_limits[i];
-            if v > scale {
-                scale = v;
-            }
-            if self.braking {
-                let a = self.params.acceleration_limits.joints[i];
-                let b = braking_factor(u, room, a, kappa, period);
-                if b > scale {
-                    scale = b;
-                }
+            let f = self.joint_factor(i, q[i], u_q[i], period);
+            if f > scale {
+                scale = f;
             }
         }
         scale
+    }
+
+    /// The guard's factor for joint `i` alone, at `q` moving at `u`: the largest of its
+    /// criteria (the fraction of the distance to the limit it moves towards, its velocity
+    /// limit, and with an acceleration limit its braking bound); at most 1 when `u` meets
+    /// them all. Each is `|u|` over a bound that depends only on the direction of `u`.
+    #[inline(always)]
+    fn joint_factor(&self, i: usize, q: T, u: T, period: T) -> T {
+        let lim = &self.params.joint_limits;
+        let kappa = self.params.joint_step_fraction;
+        let room = if u > T::zero() { lim.upper[i] - q } else { lim.lower[i] - q };
+        // u and room have the same sign; room ≠ 0 (q is strictly inside its limits).
+        let mut f = (u * period) / (kappa * room);
+        let v = u.abs() / self.params.joint_velocity_limits[i];
+        if v > f {
+            f = v;
+        }
+        if self.braking {
+            let b = braking_factor(u, room, self.params.acceleration_limits.joints[i], kappa, period);
+            if b > f {
+                f = b;
+            }
+        }
+        f
     }
 
     /// The joints' acceleration limits on a guarded step (module docs of
@@ -279,6 +287,10 @@ impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
     /// divided by the common factor `1/β_q` — unless `previous` is itself outside the joint
     /// guard at `q`, where that would leave the guard: then each joint moves towards the
     /// guarded command by at most its limit. Returns `1/β_q` (1: the limits did not act).
+    ///
+    /// Which joints can leave the guard: each criterion of the guard bounds `|u|` in one
+    /// direction, so a command between `previous` and the guarded one that moves the same way
+    /// as the guarded one, no faster, is within it; only the others are checked.
     #[inline(always)]
     pub(crate) fn limit_change(
         &self,
@@ -294,9 +306,14 @@ impl<T: Real, A: Manipulator<T, N>, const N: usize> ArmLaw<'_, T, A, N> {
             return T::one();
         }
         let mut limited = towards(previous, u, beta);
-        // Rounding puts a command on the guard's bound a few ulp beyond it: a tolerance.
-        if self.joint_guard(q, &limited, period) > T::of(1.0 + 1e-4) {
-            limited = each_towards(previous, u, limits, period);
+        for i in 0..N {
+            let (x, g) = (limited[i], u[i]);
+            let within = (x > T::zero()) == (g > T::zero()) && x.abs() <= g.abs();
+            // Rounding puts a command on the guard's bound a few ulp beyond it: a tolerance.
+            if !within && self.joint_factor(i, q[i], x, period) > T::of(1.0 + 1e-4) {
+                limited = each_towards(previous, u, limits, period);
+                break;
+            }
         }
         step.task.u_q = limited;
         step.task.sensitivity *= beta;

@@ -29,7 +29,6 @@
 
 use nalgebra::{SMatrix, SVector, Vector2, Vector3};
 
-use crate::acceleration::{change_factor, towards};
 use crate::arm_law::{ArmLaw, ArmStep};
 use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
@@ -595,7 +594,8 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     ///
     /// The output is written into `out` (the diagnostics as they are found, the command once
     /// everything is known to be finite): no copy of it is made. `reference` is the command
-    /// the acceleration limits count from ([`Reference`]); `None`: the state's last command.
+    /// the acceleration limits count from ([`Reference`]); `None`: the state's last command
+    /// (read only when there are acceleration limits).
     #[allow(clippy::too_many_arguments)]
     #[inline(never)]
     fn compute(
@@ -609,10 +609,16 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         out: &mut Out<T, A, N>,
     ) -> Result<(), Rejected<T, N>> {
         let st: &St<T, A, N> = state;
+        // The command the acceleration limits count from, when there are any.
+        let reference = if self.platform_accel || self.joint_accel {
+            Some(reference.copied().unwrap_or_else(|| Reference::sent_by(st)))
+        } else {
+            None
+        };
         let pred = self.predict(st, meas, h, delay, first_guess)?;
         let filters = self.filters_at_te(st, &pred);
-        let platform = self.platform_at_te(st, &pred, &filters, reference)?;
-        let arm = self.arm_at_te(st, &pred, &filters, &platform.step, reference)?;
+        let platform = self.platform_at_te(st, &pred, &filters, reference.as_ref())?;
+        let arm = self.arm_at_te(st, &pred, &filters, &platform.step, reference.as_ref())?;
         let found = Phases { pred: &pred, filters: &filters, platform: &platform, arm: &arm };
         let update = self.state_after(st, meas, &found);
         self.diagnostics_into(st, meas, &found, &mut out.diagnostics);
@@ -775,11 +781,11 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             xi: start.xi,
         };
         // The acceleration limits count from the previous command sent (crate::acceleration).
-        let previous = if self.platform_accel {
-            let r = reference.copied().unwrap_or_else(|| Reference::sent_by(st));
-            Some(Previous { w: r.w, u_bar: r.u_bar, limits: self.input_acceleration })
-        } else {
-            None
+        let previous = match reference {
+            Some(r) if self.platform_accel => {
+                Some(Previous { w: r.w, u_bar: r.u_bar, limits: self.input_acceleration })
+            }
+            _ => None,
         };
         let law = PlatformLaw {
             params: &self.params,
@@ -856,12 +862,11 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         } else {
             pred.target.r_bd
         };
-        let previous = if self.joint_accel {
-            Some(reference.copied().unwrap_or_else(|| Reference::sent_by(st)).joints)
-        } else {
-            None
+        let previous = match reference {
+            Some(r) if self.joint_accel => Some(r.joints),
+            _ => None,
         };
-        let joints = self.joints_at_te(st, pred, &u_b, previous.as_ref());
+        let joints = self.joints_at_te(st, pred, &u_b);
         let gamma = self.regularisation(pred.t_e);
         let (q_hat, u_d) = (filters.q_hat, pred.target.u_d);
         let q_hat_rate = filter_rate(&q_hat, &joints.q, p.filter_sigma, p.filter_xi);
@@ -902,29 +907,21 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// u_q,guess = u_q,prev + ∂u_q/∂u_b (u_b − u_b,prev),    q(t_e) = q(t_k + τ) + h/2 u_q,guess
     /// ```
     ///
-    /// With joint acceleration limits the guess is kept within them of the previous command
-    /// sent (`previous`), by the common factor the command will get.
+    /// (Not limited by the joints' acceleration limits: where they act, the arm law's linear
+    /// correction over the hold takes the difference to the command, as it does any guess's.)
     #[inline(always)]
     fn joints_at_te(
         &self,
         st: &St<T, A, N>,
         pred: &Prediction<T, N, A::Space>,
         u_b: &Vector3<T>,
-        previous: Option<&SVector<T, N>>,
     ) -> JointsAtTe<T, N> {
         let (start, half, guess) = (&pred.start, pred.hold.half, &pred.guess);
-        let mut guess = if half > T::zero() {
+        let guess = if half > T::zero() {
             guess.joints + st.last_sensitivity * (u_b - P::body_velocity_of(&guess.platform, start.xi))
         } else {
             guess.joints
         };
-        if let Some(p) = previous {
-            let limits = &self.params.acceleration_limits.joints;
-            let beta = change_factor(&(guess - p), limits, pred.hold.period);
-            if beta < T::one() {
-                guess = towards(p, &guess, beta);
-            }
-        }
         let q = if half > T::zero() {
             advance_inside(&{ start.q }, &(guess * half), &self.params.joint_limits, T::of(0.5))
         } else {
