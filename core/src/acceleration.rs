@@ -227,6 +227,16 @@ pub(crate) fn braking_factor<T: Real>(u: T, room: T, a: T, kappa: T, h: T) -> T 
     if !a.finite() || speed * speed + T::of(2.0) * a * speed * h <= T::of(2.0) * a * reach {
         return T::one();
     }
+    braking_beyond(speed, reach, a, h)
+}
+
+/// [`braking_factor`] of a joint beyond its bound: `|u| / U`. Out of line: inlined into the
+/// joint guard, its root and divisions kept the compiler from holding a spatial arm's step in
+/// registers (two bytewise copies of it, ~1 200 instructions a UR5 step in `f32`, with or
+/// without acceleration limits).
+#[cold]
+#[inline(never)]
+fn braking_beyond<T: Real>(speed: T, reach: T, a: T, h: T) -> T {
     let two_reach = T::of(2.0) * reach;
     let bound = (two_reach / h) / (T::one() + (T::one() + two_reach / (a * h * h)).square_root());
     reported_factor(bound / speed)

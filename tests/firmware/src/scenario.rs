@@ -497,17 +497,18 @@ fn finish<W: Write>(c: &Case, rejected: u32, digest: u64, e_p: f64, out: &mut W)
 pub type Ur5Controller<T, P> = Controller<T, P, SpatialArm<T, 6>, 6>;
 
 /// One step of the spatial law, never inlined (as [`controller_step`]; `gdbcount.py` finds
-/// `spatial_step::<T, Platform>` for the `ur5-…` cases).
+/// `spatial_step::<T, Platform>` for the `ur5-…` cases), its output written in place.
 #[inline(never)]
 pub fn spatial_step<T: Real, P: Platform<T>>(
     ctrl: &mut Ur5Controller<T, P>,
     meas: &Measurement<T, 6, Spatial>,
     dt: T,
-) -> Result<Output<T, 6, Spatial>, Rejected<T, 6>>
+    out: &mut Output<T, 6, Spatial>,
+) -> Result<(), Rejected<T, 6>>
 where
     SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
 {
-    ctrl.step(meas, dt)
+    ctrl.step_into(meas, dt, out)
 }
 
 /// The UR5's law (`r*_ed`: the target level, `0.2 m` along the flange's axis at home) and
@@ -546,27 +547,25 @@ where
     let mut digest = FNV_OFFSET;
     let mut rejected = 0;
     let mut e_p = f64::NAN;
+    let mut output = Output::zero();
     for n in 0..c.steps() {
         let t = T::of(f64::from(n)) * dt;
         let (target, target_velocity) = lifted(t, &start);
         let meas =
             Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
         // As in `run`: the inputs complete before the first reading, the result after.
-        let (ct, me, h) = (black_box(&mut ctrl), black_box(&meas), black_box(dt));
+        let (ct, me, h, o) = (black_box(&mut ctrl), black_box(&meas), black_box(dt), black_box(&mut output));
         probe.enter();
-        let result = spatial_step(black_box(ct), black_box(me), black_box(h));
+        let result = spatial_step(black_box(ct), black_box(me), black_box(h), black_box(o));
         black_box(&result);
+        black_box(&output);
         probe.leave();
-        let cmd = match result {
-            Ok(o) => {
-                e_p = o.diagnostics.e_p.norm().as_f64();
-                o.command
-            }
-            Err(r) => {
-                rejected += 1;
-                r.command
-            }
-        };
+        match result {
+            Ok(()) => e_p = output.diagnostics.e_p.norm().as_f64(),
+            Err(_) => rejected += 1,
+        }
+        // On a rejection `output.command` is the safe command.
+        let cmd = output.command;
         digest = record(c, n, digest, &cmd, out);
         advance(P::KIND, &mut plant, &cmd, dt);
     }
