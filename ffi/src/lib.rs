@@ -66,12 +66,12 @@ use companion_core::{
 
 pub use status::{companion_status_name, CompanionStatus, ALL as ALL_STATUSES};
 pub use types::{
-    paper_run, platform_kind, CompanionAccelerationLimits, CompanionCommand, CompanionCommandF32, CompanionCommandF64,
-    CompanionDiscretisation, CompanionMeasurement, CompanionMeasurementF32, CompanionMeasurementF64,
-    CompanionParams, CompanionParamsF32, CompanionParamsF64, CompanionPlatform, CompanionPose,
-    CompanionPoseF32, CompanionPoseF64, CompanionPrecompensation, CompanionRestFilter, CompanionRun,
-    CompanionTargetMotion, CompanionVelocityLimits, CompanionWeight, CompanionWeightMargins, Core,
-    COMPANION_JOINTS,
+    paper_run, platform_kind, CompanionAccelerationLimits, CompanionCommand, CompanionCommandF32,
+    CompanionCommandF64, CompanionDiscretisation, CompanionMeasurement, CompanionMeasurementF32,
+    CompanionMeasurementF64, CompanionParams, CompanionParamsF32, CompanionParamsF64, CompanionPlatform,
+    CompanionPose, CompanionPoseF32, CompanionPoseF64, CompanionPrecompensation, CompanionRestFilter,
+    CompanionRun, CompanionTargetMotion, CompanionVelocityLimits, CompanionWeight, CompanionWeightMargins,
+    Core, COMPANION_JOINTS,
 };
 
 /// Bytes of controller storage (`sizeof(CompanionController)`): enough for every platform

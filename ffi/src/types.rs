@@ -7,9 +7,9 @@
 
 use companion_core::nalgebra::{SVector, Vector2, Vector3};
 use companion_core::{
-    AccelerationLimits, CarLike, Command, Discretisation, JointLimits, Measurement, PaperRun, Params, PlatformKind, Pose,
-    Precompensation, PrimaryTask, Real, RestFilter, Rpr, SecondaryTask, TargetMotion, Unicycle,
-    VelocityLimits, Weight, WeightMargins,
+    AccelerationLimits, CarLike, Command, Discretisation, JointLimits, Measurement, PaperRun, Params,
+    PlatformKind, Pose, Precompensation, PrimaryTask, Real, RestFilter, Rpr, SecondaryTask, TargetMotion,
+    Unicycle, VelocityLimits, Weight, WeightMargins,
 };
 
 /// The number of arm joints (the paper's RPR arm).

@@ -100,10 +100,12 @@ impl From<DiscretisationArg> for DiscretisationConfig {
 /// Velocity limits on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LimitsArg {
-    /// None (the paper's runs), unless the config file sets some.
+    /// None (the paper's runs): no velocity and no acceleration limits.
     None,
-    /// A realistic robot's limits (see `companion_plant::realistic_limits`).
+    /// A realistic robot's velocity limits (see `companion_plant::realistic_limits`).
     Realistic,
+    /// The TIAGo's base as PAL configures it: 1 m/s and 1 m/s², 2.09 rad/s and 2.09 rad/s².
+    Tiago,
 }
 
 /// The scenario flags shared by `sim` and `hil`.
@@ -135,7 +137,7 @@ pub struct ScenarioArgs {
     #[arg(long, value_enum, default_value = "f64")]
     pub scalar: ScalarArg,
     /// A TOML file overriding parameters, in tables `controller`, `unicycle`, `car`,
-    /// `velocity_limits` and `plant`; each key is the name of the field it sets in
+    /// `velocity_limits`, `acceleration_limits` and `plant`; each key is the name of the field it sets in
     /// companion-core (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
@@ -154,7 +156,9 @@ pub struct ScenarioArgs {
     /// (first order: the literal sampling of the paper's continuous law).
     #[arg(long, value_enum)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Platform velocity limits, met by one common scale factor.
+    /// Platform velocity limits, met by one common scale factor; `tiago` adds the TIAGo base's
+    /// acceleration limits (met by a second common factor on the change of the command), `none`
+    /// drops any acceleration limits of --config's [acceleration_limits].
     #[arg(long, value_enum)]
     pub limits: Option<LimitsArg>,
     /// Plant imperfection: first-order actuator lag with this time constant, in seconds.
@@ -231,6 +235,7 @@ impl ScenarioArgs {
             discretisation: self.discretisation.map(Into::into),
             limits: self.limits.map(|l| match l {
                 LimitsArg::Realistic => LimitsChoice::Realistic,
+                LimitsArg::Tiago => LimitsChoice::Tiago,
                 LimitsArg::None => LimitsChoice::Unlimited,
             }),
             actuator_lag: self.actuator_lag,
