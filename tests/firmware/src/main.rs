@@ -532,7 +532,10 @@ fn main() -> ! {
     let (checked, differ) = sqrt_sweep();
     let _ = writeln!(out, "Q {checked} {differ}");
     if differ > 0 {
-        let _ = writeln!(out, "E the FPU's square root differs from libm's sqrtf for {differ} of {checked} inputs");
+        let _ = writeln!(
+            out,
+            "E the FPU's square root differs from libm's sqrtf for {differ} of {checked} inputs"
+        );
         semihosting::process::exit(4)
     }
     function_costs::<f32>(&mut out, "f32", clock);
