@@ -221,9 +221,9 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
 
     /// [`step_delayed`](Self::step_delayed) with the output written into `out`, in place:
     /// the command and the diagnostics are written there as the law finds them, and no copy
-    /// of the output is made on the way (~250 B; on a Cortex-M4F the copies cost ~10 % of a
-    /// step). On a rejected step `out.command` is the safe command and `out.diagnostics` is
-    /// unspecified.
+    /// of the output is made on the way (~250 B; on a Cortex-M4F ~200 instructions of a
+    /// ~4 000-instruction step, `tests/firmware`). On a rejected step `out.command` is the
+    /// safe command and `out.diagnostics` is unspecified.
     ///
     /// # Errors
     /// As [`step_delayed`](Self::step_delayed).
