@@ -6,7 +6,7 @@ use crate::error::StepError;
 use crate::platform::PlatformCommand;
 use crate::scalar::Real;
 use crate::se2::Pose;
-use crate::space::{Planar, Space};
+use crate::space::{Planar, Space, Vector};
 
 /// The command for one cycle.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -63,8 +63,16 @@ pub struct Diagnostics<T: Real, const N: usize, S: Space<T> = Planar> {
     /// The common factor (≥ 1) the joint velocities were divided by so that no joint covers
     /// more than [`Params::joint_step_fraction`](crate::Params::joint_step_fraction) of its
     /// distance to a limit in one step, and none exceeds its velocity limit; 1 means the arm
-    /// law (30) was applied as is.
+    /// law (30) was applied as is. With joint acceleration limits, also so that each joint
+    /// can still stop within that fraction ([`crate::acceleration`]).
     pub joint_scale: T,
+    /// `1/β_b ≥ 1`: the common factor the change of the platform command (from the previous
+    /// command sent) was divided by to meet the platform's acceleration limits; 1 means they
+    /// did not act ([`crate::acceleration`]).
+    pub platform_acceleration: T,
+    /// `1/β_q ≥ 1`: the same for the joint commands; 1 means the joints' acceleration limits
+    /// did not act.
+    pub joint_acceleration: T,
     /// `det H̄(α)` (1 for the omnidirectional platform).
     pub det_h: T,
     /// The 1-norm condition number of `∂e_m/∂q`, eq. (24).
@@ -85,6 +93,35 @@ pub struct Diagnostics<T: Real, const N: usize, S: Space<T> = Planar> {
     pub recovered: bool,
 }
 
+impl<T: Real, const N: usize, S: Space<T>> Diagnostics<T, N, S> {
+    /// Every value zero (the factors 1, the companion frame at the origin): a value to write
+    /// a step's diagnostics over.
+    pub fn zero() -> Self {
+        let (z, one) = (T::zero(), T::one());
+        Self {
+            e_p: S::Vector::zeros(),
+            e_m: SVector::zeros(),
+            h_s: z,
+            h_s1: z,
+            h_s2: z,
+            psi: z,
+            joint_penalty: z,
+            saturation: one,
+            joint_scale: one,
+            platform_acceleration: one,
+            joint_acceleration: one,
+            det_h: z,
+            condition: z,
+            alpha: Vector2::zeros(),
+            alpha_rate: Vector2::zeros(),
+            u_bar: Vector3::zeros(),
+            companion: Pose::identity(),
+            implicitness: z,
+            recovered: false,
+        }
+    }
+}
+
 /// The result of a successful step.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Output<T: Real, const N: usize, S: Space<T> = Planar> {
@@ -92,6 +129,14 @@ pub struct Output<T: Real, const N: usize, S: Space<T> = Planar> {
     pub command: Command<T, N>,
     /// Values for logging and monitoring.
     pub diagnostics: Diagnostics<T, N, S>,
+}
+
+impl<T: Real, const N: usize, S: Space<T>> Output<T, N, S> {
+    /// The safe command and [`Diagnostics::zero`]: where a caller keeps the output that
+    /// [`ControlLaw::step_delayed_into`](crate::ControlLaw::step_delayed_into) writes.
+    pub fn zero() -> Self {
+        Self { command: Command::zero(), diagnostics: Diagnostics::zero() }
+    }
 }
 
 /// A rejected step: why, and the safe command to send instead (every velocity zero).

@@ -14,11 +14,11 @@
 //! NaN and flush-to-zero off) give the same bits. Nothing here uses `mul_add`.
 //!
 //! Not here: the square root. No `unsafe` (the core forbids it), so no inline
-//! `vsqrt.f32`, and `core` has no stable `f32::sqrt` (Rust 1.95). A Heron iteration from a
-//! bit-trick guess with an exact integer rounding check gave the correctly rounded result
-//! (checked on all 2³¹ non-negative inputs) in ~80 instructions on the M4F, but libm's
-//! `sqrtf` (integer, table-driven, also correctly rounded) takes ~60, so `Real for f32`
-//! keeps libm's. libm 0.2.16's `atanf` and `expf` are `f32` code too (~55 and ~50
+//! `vsqrt.f32` here, and `core` has no stable `f32::sqrt` (Rust 1.95). A Heron iteration
+//! from a bit-trick guess with an exact integer rounding check gave the correctly rounded
+//! result (checked on all 2³¹ non-negative inputs) in ~80 instructions on the M4F, libm's
+//! `sqrtf` (integer, table-driven, also correctly rounded) ~60; `Real for f32` takes the
+//! FPU's instruction from the crate `companion-fpu` (one instruction, the same bits). libm 0.2.16's `atanf` and `expf` are `f32` code too (~55 and ~50
 //! instructions per call through `dyn`; these take ~45 and ~55): only its `sincosf` works
 //! in `f64` (~2 200).
 //!

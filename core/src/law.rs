@@ -36,7 +36,7 @@ use crate::hold::{self, advance_inside, Start};
 use crate::measurement::Measurement;
 use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
 use crate::platform::{Platform, PlatformKind};
-use crate::platform_law::{Hold, PlatformLaw, PlatformPoint, PlatformStep};
+use crate::platform_law::{Hold, PlatformLaw, PlatformPoint, PlatformStep, Previous};
 use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
@@ -63,6 +63,12 @@ pub struct ControlLaw<T: Real, P, A: Manipulator<T, N>, const N: usize> {
     rest_needed: bool,
     /// `h/2` is used (the midpoint discretisation).
     midpoint: bool,
+    /// The acceleration limits of the platform's generalised inputs `w` (`+∞`: none), and
+    /// whether one is finite ([`crate::acceleration`]).
+    input_acceleration: Vector3<T>,
+    platform_accel: bool,
+    /// Whether a joint has a finite acceleration limit.
+    joint_accel: bool,
 }
 
 #[inline]
@@ -135,7 +141,21 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let r_star_inv = PoseSc::new(params.secondary.preferred_pose).inverse();
         let rest_needed = params.secondary.weight != Weight::Constant(T::one());
         let midpoint = params.discretisation == Discretisation::Midpoint;
-        Ok(Self { params, platform, arm, star, r_star_inv, rest_needed, midpoint })
+        let input_acceleration = params.acceleration_limits.of_inputs(P::KIND);
+        let platform_accel = params.acceleration_limits.limits_platform(P::KIND);
+        let joint_accel = params.acceleration_limits.limits_joints();
+        Ok(Self {
+            params,
+            platform,
+            arm,
+            star,
+            r_star_inv,
+            rest_needed,
+            midpoint,
+            input_acceleration,
+            platform_accel,
+            joint_accel,
+        })
     }
 
     /// The parameters.
@@ -182,10 +202,13 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// `period`. With [`Discretisation::Sampled`] the delay is checked and used by the joint
     /// guard only (the joints when the command starts to act).
     ///
+    /// The result is returned by value; [`step_delayed_into`](Self::step_delayed_into)
+    /// writes it where the caller keeps it (a firmware's loop: no copy of the output).
+    ///
     /// # Errors
     /// A bad measurement, period or delay: a [`Rejected`] with the reason and the safe
     /// command; the state is left as it was.
-    #[inline(always)]
+    #[inline]
     pub fn step_delayed(
         &self,
         state: &mut St<T, A, N>,
@@ -193,18 +216,91 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         period: T,
         delay: T,
     ) -> Result<Out<T, A, N>, Rejected<T, N>> {
+        by_value(|out| self.step_delayed_into(state, meas, period, delay, out))
+    }
+
+    /// [`step_delayed`](Self::step_delayed) with the output written into `out`, in place:
+    /// the command and the diagnostics are written there as the law finds them, and no copy
+    /// of the output is made on the way (~250 B; on a Cortex-M4F ~200 instructions of a
+    /// ~4 000-instruction step, `tests/firmware`). On a rejected step `out.command` is the
+    /// safe command and `out.diagnostics` is unspecified.
+    ///
+    /// # Errors
+    /// As [`step_delayed`](Self::step_delayed).
+    #[inline(always)]
+    pub fn step_delayed_into(
+        &self,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        safe_on_rejection(self.step_inner(state, meas, period, delay, out), out)
+    }
+
+    #[inline(always)]
+    fn step_inner(
+        &self,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
         if let Err(error) = self.check(meas, period, delay) {
             return Err(Rejected::from(error));
         }
         if !state.initialized {
-            return self.first_step(state, meas, period, delay);
+            return self.first_step(state, meas, period, delay, out);
         }
-        match self.compute(state, meas, period, delay, None) {
+        match self.compute(state, meas, period, delay, None, None, out) {
             Err(Rejected { error: StepError::NumericalFailure, .. }) => {
-                self.recover(state, meas, period, delay)
+                self.recover(state, meas, period, delay, out)
             }
             result => result,
         }
+    }
+
+    /// The first step of a run, taken now: the state made afresh from `meas` (SPEC §3: the
+    /// filters from the measurement, `α` kept, no command in flight, the robot at rest) and
+    /// the step computed from it — the step that costs about three steady-state steps (its
+    /// hold is predicted in three passes). A firmware calls it before it enables the timer
+    /// interrupt that steps the law, and applies its command as the interrupt starts: then
+    /// every step inside the interrupt is a steady-state step (all but a
+    /// [recovery](Diagnostics::recovered), the cold path of a numerical failure). Also the
+    /// way to resume after the robot was stopped: the acceleration limits count from rest.
+    ///
+    /// # Errors
+    /// As [`step_delayed`](Self::step_delayed); on a rejection the state is left as it was.
+    #[inline(never)]
+    pub fn start_into(
+        &self,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        let result = match self.check(meas, period, delay) {
+            Err(error) => Err(Rejected::from(error)),
+            Ok(()) => self.first_step(state, meas, period, delay, out),
+        };
+        safe_on_rejection(result, out)
+    }
+
+    /// [`start_into`](Self::start_into) returning the output by value.
+    ///
+    /// # Errors
+    /// As [`step_delayed`](Self::step_delayed); on a rejection the state is left as it was.
+    pub fn start(
+        &self,
+        state: &mut St<T, A, N>,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
+        by_value(|out| self.start_into(state, meas, period, delay, out))
     }
 
     /// The first step: from the state SPEC §3 prescribes, written only on success.
@@ -216,11 +312,14 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
-        let mut work = self.fresh(state, false, meas);
-        let out = self.start(state, false, &mut work, meas, period, delay)?;
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        let keep = Keep::first(state, meas);
+        let mut work = *state;
+        self.initial_into(&keep, meas, &mut work);
+        self.passes(&keep, &mut work, meas, period, delay, out)?;
         *state = work;
-        Ok(out)
+        Ok(())
     }
 
     /// A step from a fresh state (no command before it). With the hold-aware law there is no
@@ -232,70 +331,60 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// millisecond, the run's largest distance from the continuous law); after one
     /// iteration it is still the largest of T1 (c) and T2 (a) (3.3·10⁻³, 5.8·10⁻³), after
     /// two it is no longer. The commands in flight stay none: a guess is not a command that
-    /// was sent.
+    /// was sent (and the acceleration limits count from the command `keep` names: rest, or
+    /// the last one sent before a recovery).
     ///
-    /// `work` is [`Self::fresh`]`(before, recovering, meas)` on entry and holds the result on
-    /// success; `before` is the state the step was given (untouched). The passes share
-    /// `work`, each from the fresh state made again from `before` (out of line, cheap,
-    /// deterministic) and the two guesses (a few vectors each): this function's frame is
-    /// 296 B in `f32` on a Cortex-M4F, where a copy of the fresh state per pass made it
-    /// 936 B and the step's stack 3 kB. A pass that fails leaves `work` as it was given (a
-    /// step commits only on success), so the pass before it is computed again from its
-    /// guess — the same result, deterministically. The first step is the one step that
-    /// costs about three steady-state steps (`tests/firmware/measure` names it).
+    /// `work` is the fresh state ([`Self::initial_into`]`(keep, meas, work)`) on entry and
+    /// holds the result on success. The passes share `work`, each from the fresh state
+    /// written again in place (out of line, cheap, deterministic: no copy of a state) and the
+    /// two guesses (a few vectors each): this function's frame is ~300 B in `f32` on a
+    /// Cortex-M4F, where a copy of the fresh state per pass made it 936 B and the step's
+    /// stack 3 kB. A pass that fails leaves `work` as it was given (a step commits only on
+    /// success), so the pass before it is computed again from its guess — the same result,
+    /// deterministically. The first step is the one step that costs about three
+    /// steady-state steps (`tests/firmware/measure` names it; [`Self::start_into`] takes it
+    /// outside a firmware's control interrupt).
     #[inline(never)]
-    fn start(
+    fn passes(
         &self,
-        before: &St<T, A, N>,
-        recovering: bool,
+        keep: &Keep<T, N>,
         work: &mut St<T, A, N>,
         meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
-        let first = self.compute(work, meas, period, delay, None);
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        let from = Some(&keep.reference);
+        let first = self.compute(work, meas, period, delay, None, from, out);
         if !self.midpoint || first.is_err() {
             return first;
         }
         // The second pass, from the first's guess; if it fails, the first again.
         let one = Guess::of(work);
-        self.reset(before, recovering, meas, work);
+        self.reset(keep, meas, work);
         one.set(work);
-        if self.compute(work, meas, period, delay, Some(&one.sent)).is_err() {
-            self.reset(before, recovering, meas, work);
-            return self.compute(work, meas, period, delay, None);
+        if self.compute(work, meas, period, delay, Some(&one.sent), from, out).is_err() {
+            self.reset(keep, meas, work);
+            return self.compute(work, meas, period, delay, None, from, out);
         }
         // The third, from the second's; if it fails, the second again.
         let two = Guess::of(work);
-        self.reset(before, recovering, meas, work);
+        self.reset(keep, meas, work);
         two.set(work);
-        let third = self.compute(work, meas, period, delay, Some(&two.sent));
+        let third = self.compute(work, meas, period, delay, Some(&two.sent), from, out);
         if third.is_ok() {
             return third;
         }
-        self.reset(before, recovering, meas, work);
+        self.reset(keep, meas, work);
         one.set(work);
-        self.compute(work, meas, period, delay, Some(&one.sent))
+        self.compute(work, meas, period, delay, Some(&one.sent), from, out)
     }
 
-    /// `work` made [`Self::fresh`] again. Out of line: the fresh state is built in this
-    /// function's frame, which is gone before the pass's `compute` runs, so the first step's
-    /// passes add nothing to the stack but `start`'s few vectors.
+    /// `work` made fresh again, in place ([`Self::initial_into`]). Out of line, so that the
+    /// first step's passes add nothing to the stack but `passes`' few vectors.
     #[inline(never)]
-    fn reset(&self, before: &St<T, A, N>, recovering: bool, meas: &Meas<T, A, N>, work: &mut St<T, A, N>) {
-        *work = self.fresh(before, recovering, meas);
-    }
-
-    /// The state a first step starts from (SPEC §3, [`Self::initial`]); when `recovering`,
-    /// keeping the run's start time and counting the recovery.
-    #[inline(always)]
-    fn fresh(&self, before: &St<T, A, N>, recovering: bool, meas: &Meas<T, A, N>) -> St<T, A, N> {
-        let mut s = self.initial(before, meas);
-        if recovering {
-            s.t0 = before.t0;
-            s.recoveries = before.recoveries.saturating_add(1);
-        }
-        s
+    fn reset(&self, keep: &Keep<T, N>, meas: &Meas<T, A, N>, work: &mut St<T, A, N>) {
+        self.initial_into(keep, meas, work);
     }
 
     /// The step once more from filters re-initialised from the measurement.
@@ -307,12 +396,23 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         meas: &Meas<T, A, N>,
         period: T,
         delay: T,
-    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
-        let mut work = self.fresh(state, true, meas);
-        let mut out = self.start(state, true, &mut work, meas, period, delay)?;
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        let mut keep = Keep::recovering(state);
+        let mut work = *state;
+        self.initial_into(&keep, meas, &mut work);
+        if let Err(rejected) = self.passes(&keep, &mut work, meas, period, delay, out) {
+            // From rest, if the command sent before was itself extreme (crate::acceleration).
+            if !(self.platform_accel || self.joint_accel) {
+                return Err(rejected);
+            }
+            keep.reference = Reference::rest();
+            self.initial_into(&keep, meas, &mut work);
+            self.passes(&keep, &mut work, meas, period, delay, out)?;
+        }
         out.diagnostics.recovered = true;
         *state = work;
-        Ok(out)
+        Ok(())
     }
 
     fn check(&self, meas: &Meas<T, A, N>, period: T, delay: T) -> Result<(), StepError> {
@@ -374,19 +474,24 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         StepError::NonFinite(field)
     }
 
-    /// The state of a first step (SPEC §3), keeping `α` (wrapped) and the recovery count.
-    fn initial(&self, state: &St<T, A, N>, meas: &Meas<T, A, N>) -> St<T, A, N> {
+    /// The state of a first step (SPEC §3), written into `s` in place: `q̂ = q`, `Ψ = Ψ̃(q)`
+    /// (or the `σᵢ`), `r̃_b = 0`, no command in flight, and `α`, the run's start time and the
+    /// recovery count from `keep`. Every field the law reads is written (the slots of the
+    /// command history past its length are not: they are never read).
+    #[inline(always)]
+    fn initial_into(&self, keep: &Keep<T, N>, meas: &Meas<T, A, N>, s: &mut St<T, A, N>) {
         let q = &meas.joints;
         let lim = &self.params.joint_limits;
-        let mut s = State::new();
-        // α is kept (wrapped) unless it is not finite.
-        s.alpha = wrap_alpha(state.alpha).map(|a| if a.finite() { a } else { T::zero() });
+        s.alpha = keep.alpha;
         s.q_hat = *q;
-        s.t0 = meas.t;
+        s.sigma = SVector::zeros();
+        s.r_tilde = Pose::identity();
+        s.t0 = keep.t0;
+        s.initialized = true;
         s.last_t = meas.t;
         s.last_target_velocity = meas.target_velocity;
-        s.recoveries = state.recoveries;
-        s.initialized = true;
+        s.last_target_rate = Vector::zeros();
+        s.recoveries = keep.recoveries;
         match &self.params.secondary.weight {
             Weight::Constant(psi) => s.psi = *psi,
             Weight::Filtered { margins, .. } | Weight::FromFilteredJoints { margins } => {
@@ -400,7 +505,6 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             }
         }
         s.forget_commands();
-        s
     }
 
     /// How the target's body velocity is extrapolated from the measurement (`u̇_d`, `ü_d`
@@ -487,6 +591,12 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// escapes, and otherwise keeps all of it in memory for the whole step. Such a field is
     /// handed on as a copy (`&{ pred.start.q }`): without the copy of `r_bd` alone, an
     /// `f64` step on the Cortex-M4F took ~720 instructions and 270 B of stack more.
+    ///
+    /// The output is written into `out` (the diagnostics as they are found, the command once
+    /// everything is known to be finite): no copy of it is made. `reference` is the command
+    /// the acceleration limits count from ([`Reference`]); `None`: the state's last command
+    /// (read only when there are acceleration limits).
+    #[allow(clippy::too_many_arguments)]
     #[inline(never)]
     fn compute(
         &self,
@@ -495,21 +605,29 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         h: T,
         delay: T,
         first_guess: Option<&Sent<T, N>>,
-    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
+        reference: Option<&Reference<T, N>>,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
         let st: &St<T, A, N> = state;
+        // The command the acceleration limits count from, when there are any.
+        let reference = if self.platform_accel || self.joint_accel {
+            Some(reference.copied().unwrap_or_else(|| Reference::sent_by(st)))
+        } else {
+            None
+        };
         let pred = self.predict(st, meas, h, delay, first_guess)?;
         let filters = self.filters_at_te(st, &pred);
-        let platform = self.platform_at_te(st, &pred, &filters)?;
-        let arm = self.arm_at_te(st, &pred, &filters, &platform.step)?;
+        let platform = self.platform_at_te(st, &pred, &filters, reference.as_ref())?;
+        let arm = self.arm_at_te(st, &pred, &filters, &platform.step, reference.as_ref())?;
         let found = Phases { pred: &pred, filters: &filters, platform: &platform, arm: &arm };
-        let diagnostics = self.diagnostics(st, meas, &found);
         let update = self.state_after(st, meas, &found);
-        let command = arm.command;
-        if !all_finite(&command, &update, &diagnostics) {
+        self.diagnostics_into(st, meas, &found, &mut out.diagnostics);
+        if !all_finite(&arm.command, &update, &out.diagnostics) {
             return Err(StepError::NumericalFailure.into());
         }
+        out.command = arm.command;
         update.commit(state);
-        Ok(Output { command, diagnostics })
+        Ok(())
     }
 
     /// Phase 2, prediction: the robot when the command starts (`t_k + τ`), the target at `t_e`,
@@ -625,6 +743,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         st: &St<T, A, N>,
         pred: &Prediction<T, N, A::Space>,
         filters: &FiltersAtTe<T, N>,
+        reference: Option<&Reference<T, N>>,
     ) -> Result<PlatformAtTe<T>, StepError> {
         let (start, half) = (&pred.start, pred.hold.half);
         let alpha_rate_prev = P::alpha_rate(&st.last_w);
@@ -661,8 +780,19 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             xi_error,
             xi: start.xi,
         };
-        let law =
-            PlatformLaw { params: &self.params, platform: &self.platform, r_star_inv: &self.r_star_inv };
+        // The acceleration limits count from the previous command sent (crate::acceleration).
+        let previous = match reference {
+            Some(r) if self.platform_accel => {
+                Some(Previous { w: r.w, u_bar: r.u_bar, limits: self.input_acceleration })
+            }
+            _ => None,
+        };
+        let law = PlatformLaw {
+            params: &self.params,
+            platform: &self.platform,
+            r_star_inv: &self.r_star_inv,
+            previous,
+        };
         let step = law.platform_step(&point, &pred.hold);
         Ok(PlatformAtTe { step, alpha_rate: P::alpha_rate(&step.w), rest, det_h: frame.det_h })
     }
@@ -716,6 +846,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         pred: &Prediction<T, N, A::Space>,
         filters: &FiltersAtTe<T, N>,
         plat: &PlatformStep<T>,
+        reference: Option<&Reference<T, N>>,
     ) -> Result<ArmAtTe<T, N, A::Space>, StepError> {
         let p = &self.params.primary;
         let (start, half) = (&pred.start, pred.hold.half);
@@ -731,12 +862,17 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         } else {
             pred.target.r_bd
         };
+        let previous = match reference {
+            Some(r) if self.joint_accel => Some(r.joints),
+            _ => None,
+        };
         let joints = self.joints_at_te(st, pred, &u_b);
         let gamma = self.regularisation(pred.t_e);
         let (q_hat, u_d) = (filters.q_hat, pred.target.u_d);
         let q_hat_rate = filter_rate(&q_hat, &joints.q, p.filter_sigma, p.filter_xi);
-        let law = ArmLaw { params: &self.params, arm: &self.arm, star: &self.star };
-        let step = law.arm_step(
+        let law =
+            ArmLaw { params: &self.params, arm: &self.arm, star: &self.star, braking: self.joint_accel };
+        let mut step = law.arm_step(
             &TaskPoint {
                 q: &joints.q,
                 r_bd: &r_bd,
@@ -752,8 +888,12 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             pred.hold.period,
             half,
         )?;
+        let joint_acceleration = match &previous {
+            Some(p) => law.limit_change(&mut step, p, &pred.q_guard, pred.hold.period),
+            None => T::one(),
+        };
         let command = Command { platform: P::command(&plat.w, plat.v_xi, xi_mid), joints: step.task.u_q };
-        Ok(ArmAtTe { step, command, base, q_hat_rate })
+        Ok(ArmAtTe { step, command, base, q_hat_rate, joint_acceleration })
     }
 
     /// The joint command's guess and the joints at `t_e` (phase 5), for a platform moving at
@@ -766,6 +906,9 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// ```text
     /// u_q,guess = u_q,prev + ∂u_q/∂u_b (u_b − u_b,prev),    q(t_e) = q(t_k + τ) + h/2 u_q,guess
     /// ```
+    ///
+    /// (Not limited by the joints' acceleration limits: where they act, the arm law's linear
+    /// correction over the hold takes the difference to the command, as it does any guess's.)
     #[inline(always)]
     fn joints_at_te(
         &self,
@@ -886,41 +1029,43 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         )
     }
 
-    /// What the step reports: the terms of both laws at `t_e`, the filter's weight there,
-    /// `α` and its rate, and the companion frame `r_b E_e f(α)⁻¹` in the world.
+    /// What the step reports, written into `d`: the terms of both laws at `t_e`, the
+    /// filter's weight there, `α` and its rate, the companion frame `r_b E_e f(α)⁻¹` in the
+    /// world, and the factors of the limits.
     #[inline(always)]
-    fn diagnostics(
+    fn diagnostics_into(
         &self,
         st: &St<T, A, N>,
         meas: &Meas<T, A, N>,
         found: &Phases<'_, T, N, A::Space>,
-    ) -> Diagnostics<T, N, A::Space> {
+        d: &mut Diagnostics<T, N, A::Space>,
+    ) {
         let Phases { pred, filters, platform, arm } = *found;
         let (plat, prim) = (&platform.step, &arm.step.task);
         let sc_b = pred.target.sc_b;
-        Diagnostics {
-            e_p: prim.e_p,
-            e_m: prim.e_m,
-            h_s: plat.h_s,
-            h_s1: plat.h_s1,
-            h_s2: plat.h_s2,
-            psi: filters.psi,
-            joint_penalty: prim.h_l,
-            saturation: plat.saturation,
-            joint_scale: arm.step.joint_scale,
-            det_h: platform.det_h,
-            condition: prim.condition,
-            alpha: st.alpha,
-            alpha_rate: platform.alpha_rate,
-            u_bar: plat.u_bar,
-            companion: if self.midpoint {
-                PoseSc { pose: meas.base, sc: sc_b }.compose(&arm.base).compose(&plat.f_inv).pose
-            } else {
-                meas.base.compose_sc(&plat.f_inv.pose, sc_b.0, sc_b.1)
-            },
-            implicitness: plat.theta,
-            recovered: false,
-        }
+        d.e_p = prim.e_p;
+        d.e_m = prim.e_m;
+        d.h_s = plat.h_s;
+        d.h_s1 = plat.h_s1;
+        d.h_s2 = plat.h_s2;
+        d.psi = filters.psi;
+        d.joint_penalty = prim.h_l;
+        d.saturation = plat.saturation;
+        d.joint_scale = arm.step.joint_scale;
+        d.platform_acceleration = plat.acceleration;
+        d.joint_acceleration = arm.joint_acceleration;
+        d.det_h = platform.det_h;
+        d.condition = prim.condition;
+        d.alpha = st.alpha;
+        d.alpha_rate = platform.alpha_rate;
+        d.u_bar = plat.u_bar;
+        d.companion = if self.midpoint {
+            PoseSc { pose: meas.base, sc: sc_b }.compose(&arm.base).compose(&plat.f_inv).pose
+        } else {
+            meas.base.compose_sc(&plat.f_inv.pose, sc_b.0, sc_b.1)
+        };
+        d.implicitness = plat.theta;
+        d.recovered = false;
     }
 }
 
@@ -1013,6 +1158,8 @@ struct ArmAtTe<T: Real, const N: usize, S: Space<T>> {
     base: PoseSc<T>,
     /// `q̂̇(t_e)`: the filter's rate at `q̂(t_e)`, `q(t_e)`.
     q_hat_rate: SVector<T, N>,
+    /// The joint acceleration factor `1/β_q ≥ 1` ([`crate::acceleration`]).
+    joint_acceleration: T,
 }
 
 /// The joints the arm law is evaluated at (phase 5).
@@ -1102,6 +1249,70 @@ impl<T: Real, const N: usize> Guess<T, N> {
     }
 }
 
+/// The command the acceleration limits count from ([`crate::acceleration`]): the previous
+/// command sent, as the platform law's generalised inputs `w`, the companion frame's
+/// velocity `ū_b` and the joint velocities.
+#[derive(Clone, Copy, Debug)]
+struct Reference<T: Real, const N: usize> {
+    w: Vector3<T>,
+    u_bar: Vector3<T>,
+    joints: SVector<T, N>,
+}
+
+impl<T: Real, const N: usize> Reference<T, N> {
+    /// The robot at rest (before the first command).
+    fn rest() -> Self {
+        Self { w: Vector3::zeros(), u_bar: Vector3::zeros(), joints: SVector::zeros() }
+    }
+
+    /// The last command `state` sent, or rest if it sent none.
+    #[inline(always)]
+    fn sent_by<S: Space<T>>(state: &State<T, N, S>) -> Self {
+        match state.sent(0) {
+            Some(sent) => Self { w: state.last_w, u_bar: state.last_u_bar, joints: sent.joints },
+            None => Self::rest(),
+        }
+    }
+}
+
+/// What a first step (or a recovery) keeps of the state it was given (SPEC §3): `α`
+/// (wrapped; 0 if not finite), the run's start time, the recovery count, and the command the
+/// acceleration limits count from.
+#[derive(Clone, Copy, Debug)]
+struct Keep<T: Real, const N: usize> {
+    alpha: Vector2<T>,
+    t0: T,
+    recoveries: u32,
+    reference: Reference<T, N>,
+}
+
+impl<T: Real, const N: usize> Keep<T, N> {
+    fn alpha_of<S: Space<T>>(state: &State<T, N, S>) -> Vector2<T> {
+        wrap_alpha(state.alpha).map(|a| if a.finite() { a } else { T::zero() })
+    }
+
+    /// A run's first step: its time is the run's start, the robot at rest.
+    fn first<S: Space<T>>(state: &State<T, N, S>, meas: &Measurement<T, N, S>) -> Self {
+        Self {
+            alpha: Self::alpha_of(state),
+            t0: meas.t,
+            recoveries: state.recoveries,
+            reference: Reference::rest(),
+        }
+    }
+
+    /// A recovery: the run's start time kept, one more recovery, the acceleration limits
+    /// counting from the last command sent (the robot is moving).
+    fn recovering<S: Space<T>>(state: &State<T, N, S>) -> Self {
+        Self {
+            alpha: Self::alpha_of(state),
+            t0: state.t0,
+            recoveries: state.recoveries.saturating_add(1),
+            reference: Reference::sent_by(state),
+        }
+    }
+}
+
 /// Whether the command, the state's update and the diagnostics are all finite. `0·x` is ±0
 /// for finite `x` and NaN otherwise: one comparison for everything.
 fn all_finite<T: Real, const N: usize, S: Space<T>>(
@@ -1144,6 +1355,28 @@ fn all_finite<T: Real, const N: usize, S: Space<T>>(
     nan == z
 }
 
+/// The output of an in-place call, returned by value.
+#[inline(always)]
+fn by_value<T: Real, const N: usize, S: Space<T>>(
+    into: impl FnOnce(&mut Output<T, N, S>) -> Result<(), Rejected<T, N>>,
+) -> Result<Output<T, N, S>, Rejected<T, N>> {
+    let mut out = Output::zero();
+    into(&mut out)?;
+    Ok(out)
+}
+
+/// `result`, with the safe command written into `out` when it is a rejection.
+#[inline(always)]
+fn safe_on_rejection<T: Real, const N: usize, S: Space<T>>(
+    result: Result<(), Rejected<T, N>>,
+    out: &mut Output<T, N, S>,
+) -> Result<(), Rejected<T, N>> {
+    if let Err(rejected) = &result {
+        out.command = rejected.command;
+    }
+    result
+}
+
 /// A [`ControlLaw`] with its [`State`]: the convenient way to run one controller.
 #[derive(Clone, Copy, Debug)]
 pub struct Controller<T: Real, P, A: Manipulator<T, N>, const N: usize> {
@@ -1184,6 +1417,69 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> Controller<T
         delay: T,
     ) -> Result<Out<T, A, N>, Rejected<T, N>> {
         self.law.step_delayed(&mut self.state, meas, period, delay)
+    }
+
+    /// One step without delay with the output written into `out`, in place (see
+    /// [`ControlLaw::step_delayed_into`]): a firmware's control loop.
+    ///
+    /// # Errors
+    /// A rejected measurement or period, with the safe command (also in `out.command`).
+    #[inline]
+    pub fn step_into(
+        &mut self,
+        meas: &Meas<T, A, N>,
+        period: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        self.law.step_delayed_into(&mut self.state, meas, period, T::zero(), out)
+    }
+
+    /// [`step_delayed`](Self::step_delayed) with the output written into `out`, in place.
+    ///
+    /// # Errors
+    /// A rejected measurement, period or delay, with the safe command (also in
+    /// `out.command`).
+    #[inline]
+    pub fn step_delayed_into(
+        &mut self,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        self.law.step_delayed_into(&mut self.state, meas, period, delay, out)
+    }
+
+    /// The run's first step, taken now, outside the control loop (see
+    /// [`ControlLaw::start_into`]): a firmware calls it before it enables its control
+    /// interrupt, applies the command when the interrupt starts, and every step inside the
+    /// interrupt is then a steady-state one. Restarts a run from rest on a state that already
+    /// ran (`α` kept).
+    ///
+    /// # Errors
+    /// A rejected measurement, period or delay, with the safe command; the state is left as
+    /// it was.
+    pub fn start(
+        &mut self,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+    ) -> Result<Out<T, A, N>, Rejected<T, N>> {
+        self.law.start(&mut self.state, meas, period, delay)
+    }
+
+    /// [`start`](Self::start) with the output written into `out`.
+    ///
+    /// # Errors
+    /// As [`start`](Self::start) (the safe command also in `out.command`).
+    pub fn start_into(
+        &mut self,
+        meas: &Meas<T, A, N>,
+        period: T,
+        delay: T,
+        out: &mut Out<T, A, N>,
+    ) -> Result<(), Rejected<T, N>> {
+        self.law.start_into(&mut self.state, meas, period, delay, out)
     }
 
     /// Forgets the state; the next step starts afresh.

@@ -22,6 +22,7 @@
 //! | primary task `e_p`, `h_ℓ`, `h_r`, `e_m`, (20)–(26), (42), (48) | [`primary`] |
 //! | secondary cost, weight `Ψ`, (27)–(29), (49)–(54) | [`secondary`] |
 //! | platform law (37) with Choices 1–3, arm law (30), saturation | [`ControlLaw::step`] |
+//! | (beyond the paper) acceleration limits, a second common factor | [`acceleration`] |
 //! | §4.3 parameters | [`Params::paper`] |
 //!
 //! ## Example
@@ -56,6 +57,7 @@
 #[cfg(test)]
 extern crate std;
 
+pub mod acceleration;
 pub mod arm;
 mod arm_law;
 pub mod chain;
@@ -81,6 +83,7 @@ pub mod spatial;
 pub mod state;
 pub mod task;
 
+pub use acceleration::AccelerationLimits;
 pub use arm::{Arm, ArmKinematics, PlanarArm, Rpr};
 pub use chain::{Chain, DhConvention, DhJoint, FrameData, Joint, JointData, JointKind};
 pub use command::{Command, Diagnostics, Output, Rejected};

@@ -3,6 +3,7 @@
 
 use nalgebra::{SVector, Vector3};
 
+use crate::acceleration::AccelerationLimits;
 use crate::error::{at_most, check_nonneg, check_positive, positive};
 use crate::error::{Bound, ParamError, Rule};
 use crate::platform::VelocityLimits;
@@ -268,6 +269,10 @@ pub struct Params<T: Real, const N: usize, S: Space<T> = Planar> {
     pub joint_step_fraction: T,
     /// `|q̇ᵢ|` limits (rad/s or m/s), met by the same common factor. Default `+∞` (none).
     pub joint_velocity_limits: SVector<T, N>,
+    /// Acceleration limits of the platform's command and of the joints, met by a second
+    /// common factor on the change of the command ([`crate::acceleration`]). Default `+∞`
+    /// (none: the law is then bit for bit the paper's discretisation).
+    pub acceleration_limits: AccelerationLimits<T, N>,
     /// How the law is turned into a held command. Default [`Discretisation::Midpoint`].
     pub discretisation: Discretisation,
     /// How the target's motion is extrapolated. Default [`TargetMotion::Extrapolated`].
@@ -396,6 +401,7 @@ impl<T: Real> Params<T, 3> {
             max_time_step: T::of(0.01),
             joint_step_fraction: T::of(0.5),
             joint_velocity_limits: SVector::repeat(T::of(f64::INFINITY)),
+            acceleration_limits: AccelerationLimits::unlimited(),
             discretisation: Discretisation::Midpoint,
             target_motion: TargetMotion::Extrapolated,
             max_delay: T::of(0.05),
@@ -552,7 +558,7 @@ impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
                 return Err(ParamError::joint("joint_velocity_limits", i, Rule::NotPositive));
             }
         }
-        Ok(())
+        self.acceleration_limits.validate()
     }
 
     /// The largest admitted control period (s): `0.1 / r_max`, with `r_max` the largest rate

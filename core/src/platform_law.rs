@@ -65,9 +65,14 @@
 //! feedback `−k_h (ξ − ξ_f)` is not scaled (it is not a velocity of the companion frame); if
 //! it alone exceeds the steering limit the platform waits (`ρ = 0`) while the wheels turn
 //! at their limit.
+//!
+//! **Then a second common factor** `β_b ∈ [0, 1]` on the change from the previous command
+//! sent `w_p` (the acceleration limits, [`crate::acceleration`]): `w⁺ = w_p + β_b (w − w_p)`,
+//! `ū⁺ = ū_p + β_b (ū − ū_p)`, the car's `v_ξ` with the feed-forward of the new `α̇`.
 
 use nalgebra::{Matrix3, Vector2, Vector3};
 
+use crate::acceleration::{change_factor, reported_factor, towards};
 use crate::params::{Discretisation, Params, Precompensation, RestFilter};
 use crate::platform::{CompanionFrame, Platform, PlatformKind};
 use crate::scalar::Real;
@@ -123,6 +128,8 @@ pub(crate) struct PlatformStep<T> {
     pub v_xi: T,
     /// `1/ρ ≥ 1`, finite.
     pub saturation: T,
+    /// `1/β_b ≥ 1`, finite: the acceleration limits' factor (1: they did not act).
+    pub acceleration: T,
     /// The implicit weight `a` of the step (module docs; 1 for `Sampled`'s rest filter, 0 when
     /// explicit).
     pub theta: T,
@@ -144,10 +151,20 @@ pub(crate) struct PlatformLaw<'a, T: Real, P, const N: usize, S: Space<T>> {
     pub params: &'a Params<T, N, S>,
     pub platform: &'a P,
     pub r_star_inv: &'a PoseSc<T>,
+    /// The previous command sent, when the platform has acceleration limits.
+    pub previous: Option<Previous<T>>,
 }
 
-/// The largest saturation factor reported (the platform stopped).
-const STOPPED: f64 = 3.0e38;
+/// The command the platform's acceleration limits count from, and the limits.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Previous<T> {
+    /// Its generalised inputs `w_p`.
+    pub w: Vector3<T>,
+    /// Its companion-frame velocity `ū_p`.
+    pub u_bar: Vector3<T>,
+    /// The limits of the components of `w` (`+∞`: none).
+    pub limits: Vector3<T>,
+}
 
 impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P, N, S> {
     /// (37) at `pt`, corrected over the hold, mapped to the platform's inputs and saturated.
@@ -239,14 +256,28 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
             }
         }
         w *= rho;
-        let u_bar = u_bar * rho;
+        let mut u_bar = u_bar * rho;
         if P::KIND == PlatformKind::Car {
             v_xi = fb + ff * rho;
-            if v_xi.abs() > lim_xi {
-                v_xi = if v_xi > T::zero() { lim_xi } else { -lim_xi };
+        }
+        let saturation = reported_factor(rho);
+
+        // The second common factor, on the change from the previous command sent.
+        let mut acceleration = T::one();
+        if let Some(prev) = &self.previous {
+            let beta = change_factor(&(w - prev.w), &prev.limits, hold.period);
+            if beta < T::one() {
+                w = towards(&prev.w, &w, beta);
+                u_bar = towards(&prev.u_bar, &u_bar, beta);
+                if P::KIND == PlatformKind::Car {
+                    v_xi = fb + frame.dxi_f.dot(&P::alpha_rate(&w));
+                }
+                acceleration = reported_factor(beta);
             }
         }
-        let saturation = if rho > T::of(1.0 / STOPPED) { T::one() / rho } else { T::of(STOPPED) };
+        if P::KIND == PlatformKind::Car && v_xi.abs() > lim_xi {
+            v_xi = if v_xi > T::zero() { lim_xi } else { -lim_xi };
+        }
 
         // The car's companion frame also moves with v (ξ − ξ_f) (57); mean error over the hold.
         let u_bar_actual = if P::KIND == PlatformKind::Car {
@@ -257,7 +288,19 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
         } else {
             u_bar
         };
-        PlatformStep { w, u_bar, u_bar_actual, v_xi, saturation, theta, h_s, h_s1: track.h, h_s2, f_inv }
+        PlatformStep {
+            w,
+            u_bar,
+            u_bar_actual,
+            v_xi,
+            saturation,
+            acceleration,
+            theta,
+            h_s,
+            h_s1: track.h,
+            h_s2,
+            f_inv,
+        }
     }
 
     /// `ū` from `ū_e` by the linearly implicit step of the module docs; returns `(ū, θ)`.

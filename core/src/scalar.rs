@@ -4,8 +4,9 @@
 //! firmware call exactly the same implementation and give the same bits, and so that a
 //! faster implementation can be swapped in per type: `f64` uses libm (pinned in the
 //! workspace); `f32` uses the crate's own f32-native sin/cos, exp, atan, atan2 and round
-//! (within 1–2 ulp, see `fastmath.rs`) and libm's `sqrtf`, because libm's `sincosf` works in
-//! f64, which a Cortex-M4F does in software.
+//! (within 1–2 ulp, see `fastmath.rs`), because libm's `sincosf` works in f64, which a
+//! Cortex-M4F does in software, and the FPU's square root (`companion-fpu`: `vsqrt.f32` on a
+//! hard-float ARM core, libm's `sqrtf` elsewhere; both correctly rounded, the same bits).
 
 use nalgebra::RealField;
 
@@ -106,9 +107,9 @@ impl Real for f32 {
     }
     #[inline]
     fn square_root(self) -> Self {
-        // libm's sqrtf is f32 integer code, correctly rounded, and cheaper on the M4F than
-        // an f32 Newton iteration with exact rounding (see `fastmath`).
-        libm::sqrtf(self)
+        // The FPU's instruction on the M4F (one instruction against libm's ~50 of integer
+        // code), libm's sqrtf elsewhere: both correctly rounded, so the same bits.
+        companion_fpu::sqrt_f32(self)
     }
     #[inline]
     fn round_nearest(self) -> Self {

@@ -114,6 +114,7 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector, Vector3, Vector6};
 
+use crate::acceleration::AccelerationLimits;
 use crate::arm_law::{implicit_rhs, solve_redundant, solve_square_into, Linearised};
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule, StepError};
@@ -817,6 +818,7 @@ impl<T: Real, const N: usize> Params<T, N, Spatial> {
             max_time_step: paper.max_time_step,
             joint_step_fraction: paper.joint_step_fraction,
             joint_velocity_limits: chain.max_velocities(),
+            acceleration_limits: AccelerationLimits::unlimited(),
             discretisation: paper.discretisation,
             target_motion: paper.target_motion,
             max_delay: paper.max_delay,

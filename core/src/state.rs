@@ -49,7 +49,11 @@ impl<T: Real, const N: usize> Sent<T, N> {
 /// Bounded whatever the measurements: `α` and the angles are wrapped, `Ψ, σᵢ ∈ [0, 1]`,
 /// `q̂` within the joint limits, and the position of `r̃_b` within
 /// [`SecondaryTask::rest_reach`](crate::SecondaryTask::rest_reach).
-#[derive(Clone, Copy, Debug, PartialEq)]
+///
+/// Two states are equal when every quantity and the commands the history holds are (the
+/// history's slots past its length are not part of the state: a first step writes its fresh
+/// state in place over them).
+#[derive(Clone, Copy, Debug)]
 pub struct State<T: Real, const N: usize, S: Space<T> = Planar> {
     /// Transverse-function variables `α` (rad); unused components stay zero.
     pub alpha: Vector2<T>,
@@ -138,6 +142,7 @@ impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
     /// Forgets the commands in flight and the guess (after a re-initialisation).
     pub(crate) fn forget_commands(&mut self) {
         self.sent_len = 0;
+        self.sent_next = 0;
         self.last_w = Vector3::zeros();
         self.last_u_bar = Vector3::zeros();
         self.last_sensitivity = SMatrix::zeros();
@@ -195,6 +200,27 @@ impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
             && self.r_tilde.x.abs() <= reach
             && self.r_tilde.y.abs() <= reach
             && self.last_w.iter().chain(self.last_u_bar.iter()).all(|x| x.finite())
+    }
+}
+
+impl<T: Real, const N: usize, S: Space<T>> PartialEq for State<T, N, S> {
+    fn eq(&self, other: &Self) -> bool {
+        self.alpha == other.alpha
+            && self.q_hat == other.q_hat
+            && self.psi == other.psi
+            && self.sigma == other.sigma
+            && self.r_tilde == other.r_tilde
+            && self.t0 == other.t0
+            && self.initialized == other.initialized
+            && self.last_w == other.last_w
+            && self.last_u_bar == other.last_u_bar
+            && self.last_sensitivity == other.last_sensitivity
+            && self.last_t == other.last_t
+            && self.last_target_velocity == other.last_target_velocity
+            && self.last_target_rate == other.last_target_rate
+            && self.recoveries == other.recoveries
+            && self.sent_len == other.sent_len
+            && (0..self.sent_len).all(|i| self.sent(i) == other.sent(i))
     }
 }
 

@@ -306,6 +306,19 @@ typedef struct CompanionVelocityLimits_f64 {
   double steering_rate;
 } CompanionVelocityLimits_f64;
 
+// Acceleration limits of the platform's command and of the joints (+infinity: no limit),
+// met by a second common factor on the change of the command (`companion_core::acceleration`).
+typedef struct CompanionAccelerationLimits_f64 {
+  // |dv/dt| of the forward speed (m/s^2).
+  double forward;
+  // |dv_lat/dt| (m/s^2), omnidirectional platform.
+  double lateral;
+  // |d omega/dt| (rad/s^2), unicycle and omnidirectional platforms.
+  double angular;
+  // |d q_dot_i/dt| of each joint's command (rad/s^2 or m/s^2).
+  double joints[COMPANION_JOINTS];
+} CompanionAccelerationLimits_f64;
+
 // Every parameter of the planar law, the platform's transverse function and the RPR arm,
 // one field per field of `companion-core` (same names; SI units as documented there).
 // Start from `companion_*_params_paper` and change fields.
@@ -394,6 +407,8 @@ typedef struct CompanionParams_f64 {
   double joint_step_fraction;
   // |q_dot_i| limits (+infinity: none).
   double joint_velocity_limits[COMPANION_JOINTS];
+  // Acceleration limits (+infinity: none; the preset has none).
+  struct CompanionAccelerationLimits_f64 acceleration_limits;
   // A `CompanionDiscretisation`.
   uint32_t discretisation;
   // A `CompanionTargetMotion`.
@@ -442,6 +457,19 @@ typedef struct CompanionVelocityLimits_f32 {
   // |v_xi| (1/(m s)).
   float steering_rate;
 } CompanionVelocityLimits_f32;
+
+// Acceleration limits of the platform's command and of the joints (+infinity: no limit),
+// met by a second common factor on the change of the command (`companion_core::acceleration`).
+typedef struct CompanionAccelerationLimits_f32 {
+  // |dv/dt| of the forward speed (m/s^2).
+  float forward;
+  // |dv_lat/dt| (m/s^2), omnidirectional platform.
+  float lateral;
+  // |d omega/dt| (rad/s^2), unicycle and omnidirectional platforms.
+  float angular;
+  // |d q_dot_i/dt| of each joint's command (rad/s^2 or m/s^2).
+  float joints[COMPANION_JOINTS];
+} CompanionAccelerationLimits_f32;
 
 // Every parameter of the planar law, the platform's transverse function and the RPR arm,
 // one field per field of `companion-core` (same names; SI units as documented there).
@@ -531,6 +559,8 @@ typedef struct CompanionParams_f32 {
   float joint_step_fraction;
   // |q_dot_i| limits (+infinity: none).
   float joint_velocity_limits[COMPANION_JOINTS];
+  // Acceleration limits (+infinity: none; the preset has none).
+  struct CompanionAccelerationLimits_f32 acceleration_limits;
   // A `CompanionDiscretisation`.
   uint32_t discretisation;
   // A `CompanionTargetMotion`.
@@ -695,6 +725,26 @@ CompanionStatus companion_f32_step(struct CompanionController *ctrl,
                                    float delay,
                                    const CompanionMeasurementF32 *measurement,
                                    CompanionCommandF32 *command);
+
+// The start call of a `double` controller: its first step, taken now — the filters made
+// afresh from `*measurement` (`alpha` kept, no command in flight, the robot at rest) and the
+// command computed from them, at about three steps' cost. Call it before enabling the timer
+// interrupt that calls `companion_f64_step`, and apply `*command` when the interrupt
+// starts: every step inside the interrupt is then a steady-state one. Also the way to resume
+// after the robot was stopped (the acceleration limits count from rest). Statuses and the
+// command written as `companion_f64_step`; a rejected start leaves the controller as it was.
+CompanionStatus companion_f64_start(struct CompanionController *ctrl,
+                                    double period,
+                                    double delay,
+                                    const CompanionMeasurementF64 *measurement,
+                                    CompanionCommandF64 *command);
+
+// As `companion_f64_start`, for a `float` controller.
+CompanionStatus companion_f32_start(struct CompanionController *ctrl,
+                                    float period,
+                                    float delay,
+                                    const CompanionMeasurementF32 *measurement,
+                                    CompanionCommandF32 *command);
 
 // The name of a status number, e.g. `"COMPANION_STATUS_STEP_JOINT_AT_LIMIT_Q2"` for 221;
 // `"COMPANION_STATUS_UNKNOWN"` for a number that is not a status. The string is static

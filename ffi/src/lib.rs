@@ -61,17 +61,17 @@ use core::mem::{align_of, size_of};
 use core::ptr;
 
 use companion_core::{
-    CarLike, Controller, Omnidirectional, ParamError, PlatformKind, Real, Rpr, Rule, Unicycle,
+    CarLike, Controller, Omnidirectional, Output, ParamError, PlatformKind, Real, Rpr, Rule, Unicycle,
 };
 
 pub use status::{companion_status_name, CompanionStatus, ALL as ALL_STATUSES};
 pub use types::{
-    paper_run, platform_kind, CompanionCommand, CompanionCommandF32, CompanionCommandF64,
-    CompanionDiscretisation, CompanionMeasurement, CompanionMeasurementF32, CompanionMeasurementF64,
-    CompanionParams, CompanionParamsF32, CompanionParamsF64, CompanionPlatform, CompanionPose,
-    CompanionPoseF32, CompanionPoseF64, CompanionPrecompensation, CompanionRestFilter, CompanionRun,
-    CompanionTargetMotion, CompanionVelocityLimits, CompanionWeight, CompanionWeightMargins, Core,
-    COMPANION_JOINTS,
+    paper_run, platform_kind, CompanionAccelerationLimits, CompanionCommand, CompanionCommandF32,
+    CompanionCommandF64, CompanionDiscretisation, CompanionMeasurement, CompanionMeasurementF32,
+    CompanionMeasurementF64, CompanionParams, CompanionParamsF32, CompanionParamsF64, CompanionPlatform,
+    CompanionPose, CompanionPoseF32, CompanionPoseF64, CompanionPrecompensation, CompanionRestFilter,
+    CompanionRun, CompanionTargetMotion, CompanionVelocityLimits, CompanionWeight, CompanionWeightMargins,
+    Core, COMPANION_JOINTS,
 };
 
 /// Bytes of controller storage (`sizeof(CompanionController)`): enough for every platform
@@ -311,8 +311,32 @@ fn init_paper<T: Scalar>(
 
 type StepResult<T> = Result<CompanionCommand<T>, (CompanionStatus, CompanionCommand<T>)>;
 
+/// Which call: a step, or the start call (the first step taken now).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Call {
+    Step,
+    Start,
+}
+
+/// One step (or the start call) of a controller of any platform.
+fn step_any<T: Real, P: companion_core::Platform<T>>(
+    c: &mut Controller<T, P, Rpr<T>, 3>,
+    call: Call,
+    m: &companion_core::Measurement<T, 3>,
+    period: T,
+    delay: T,
+) -> Result<companion_core::Command<T, 3>, companion_core::Rejected<T, 3>> {
+    let mut out = Output::zero();
+    match call {
+        Call::Step => c.step_delayed_into(m, period, delay, &mut out)?,
+        Call::Start => c.start_into(m, period, delay, &mut out)?,
+    }
+    Ok(out.command)
+}
+
 fn step_inner<T: Scalar>(
     ctrl: *mut CompanionController,
+    call: Call,
     period: T,
     delay: T,
     meas: *const CompanionMeasurement<T>,
@@ -334,12 +358,12 @@ fn step_inner<T: Scalar>(
     let m = unsafe { ptr::read(meas) }.to_core();
     let law = T::get(&mut slot.law).ok_or(zero(CompanionStatus::WrongScalar))?;
     let result = match law {
-        Platforms::Uni(c) => c.step_delayed(&m, period, delay),
-        Platforms::Car(c) => c.step_delayed(&m, period, delay),
-        Platforms::Omni(c) => c.step_delayed(&m, period, delay),
+        Platforms::Uni(c) => step_any(c, call, &m, period, delay),
+        Platforms::Car(c) => step_any(c, call, &m, period, delay),
+        Platforms::Omni(c) => step_any(c, call, &m, period, delay),
     };
     match result {
-        Ok(out) => Ok(CompanionCommand::from_core(&out.command)),
+        Ok(command) => Ok(CompanionCommand::from_core(&command)),
         Err(rejected) => {
             Err((CompanionStatus::from_step(rejected.error), CompanionCommand::from_core(&rejected.command)))
         }
@@ -348,6 +372,7 @@ fn step_inner<T: Scalar>(
 
 fn step<T: Scalar>(
     ctrl: *mut CompanionController,
+    call: Call,
     period: T,
     delay: T,
     meas: *const CompanionMeasurement<T>,
@@ -356,7 +381,7 @@ fn step<T: Scalar>(
     if let Err(s) = usable(out) {
         return s;
     }
-    let (status, command) = match step_inner(ctrl, period, delay, meas) {
+    let (status, command) = match step_inner(ctrl, call, period, delay, meas) {
         Ok(c) => (CompanionStatus::Ok, c),
         Err(e) => e,
     };
@@ -446,7 +471,7 @@ pub extern "C" fn companion_f64_step(
     measurement: *const CompanionMeasurementF64,
     command: *mut CompanionCommandF64,
 ) -> CompanionStatus {
-    step(ctrl, period, delay, measurement, command)
+    step(ctrl, Call::Step, period, delay, measurement, command)
 }
 
 /// As `companion_f64_step`, for a `float` controller.
@@ -458,7 +483,37 @@ pub extern "C" fn companion_f32_step(
     measurement: *const CompanionMeasurementF32,
     command: *mut CompanionCommandF32,
 ) -> CompanionStatus {
-    step(ctrl, period, delay, measurement, command)
+    step(ctrl, Call::Step, period, delay, measurement, command)
+}
+
+/// The start call of a `double` controller: its first step, taken now — the filters made
+/// afresh from `*measurement` (`alpha` kept, no command in flight, the robot at rest) and the
+/// command computed from them, at about three steps' cost. Call it before enabling the timer
+/// interrupt that calls `companion_f64_step`, and apply `*command` when the interrupt
+/// starts: every step inside the interrupt is then a steady-state one. Also the way to resume
+/// after the robot was stopped (the acceleration limits count from rest). Statuses and the
+/// command written as `companion_f64_step`; a rejected start leaves the controller as it was.
+#[no_mangle]
+pub extern "C" fn companion_f64_start(
+    ctrl: *mut CompanionController,
+    period: f64,
+    delay: f64,
+    measurement: *const CompanionMeasurementF64,
+    command: *mut CompanionCommandF64,
+) -> CompanionStatus {
+    step(ctrl, Call::Start, period, delay, measurement, command)
+}
+
+/// As `companion_f64_start`, for a `float` controller.
+#[no_mangle]
+pub extern "C" fn companion_f32_start(
+    ctrl: *mut CompanionController,
+    period: f32,
+    delay: f32,
+    measurement: *const CompanionMeasurementF32,
+    command: *mut CompanionCommandF32,
+) -> CompanionStatus {
+    step(ctrl, Call::Start, period, delay, measurement, command)
 }
 
 /// The trap the staticlib links in place of a Rust runtime's panic handler. No panic is

@@ -7,9 +7,9 @@
 
 use companion_core::nalgebra::{SVector, Vector2, Vector3};
 use companion_core::{
-    CarLike, Command, Discretisation, JointLimits, Measurement, PaperRun, Params, PlatformKind, Pose,
-    Precompensation, PrimaryTask, Real, RestFilter, Rpr, SecondaryTask, TargetMotion, Unicycle,
-    VelocityLimits, Weight, WeightMargins,
+    AccelerationLimits, CarLike, Command, Discretisation, JointLimits, Measurement, PaperRun, Params,
+    PlatformKind, Pose, Precompensation, PrimaryTask, Real, RestFilter, Rpr, SecondaryTask, TargetMotion,
+    Unicycle, VelocityLimits, Weight, WeightMargins,
 };
 
 /// The number of arm joints (the paper's RPR arm).
@@ -161,6 +161,21 @@ pub struct CompanionVelocityLimits<T> {
     pub steering_rate: T,
 }
 
+/// Acceleration limits of the platform's command and of the joints (+infinity: no limit),
+/// met by a second common factor on the change of the command (`companion_core::acceleration`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct CompanionAccelerationLimits<T> {
+    /// |dv/dt| of the forward speed (m/s^2).
+    pub forward: T,
+    /// |dv_lat/dt| (m/s^2), omnidirectional platform.
+    pub lateral: T,
+    /// |d omega/dt| (rad/s^2), unicycle and omnidirectional platforms.
+    pub angular: T,
+    /// |d q_dot_i/dt| of each joint's command (rad/s^2 or m/s^2).
+    pub joints: [T; COMPANION_JOINTS],
+}
+
 /// The weight margins of eq. (52), per joint.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -265,6 +280,8 @@ pub struct CompanionParams<T> {
     pub joint_step_fraction: T,
     /// |q_dot_i| limits (+infinity: none).
     pub joint_velocity_limits: [T; COMPANION_JOINTS],
+    /// Acceleration limits (+infinity: none; the preset has none).
+    pub acceleration_limits: CompanionAccelerationLimits<T>,
     /// A `CompanionDiscretisation`.
     pub discretisation: u32,
     /// A `CompanionTargetMotion`.
@@ -442,6 +459,12 @@ impl<T: Real> CompanionParams<T> {
             max_time_step: p.max_time_step,
             joint_step_fraction: p.joint_step_fraction,
             joint_velocity_limits: arr(&p.joint_velocity_limits),
+            acceleration_limits: CompanionAccelerationLimits {
+                forward: p.acceleration_limits.forward,
+                lateral: p.acceleration_limits.lateral,
+                angular: p.acceleration_limits.angular,
+                joints: arr(&p.acceleration_limits.joints),
+            },
             discretisation: match p.discretisation {
                 Discretisation::Sampled => CompanionDiscretisation::Sampled,
                 Discretisation::Midpoint => CompanionDiscretisation::Midpoint,
@@ -541,6 +564,12 @@ impl<T: Real> CompanionParams<T> {
             max_time_step: self.max_time_step,
             joint_step_fraction: self.joint_step_fraction,
             joint_velocity_limits: SVector::from(self.joint_velocity_limits),
+            acceleration_limits: AccelerationLimits {
+                forward: self.acceleration_limits.forward,
+                lateral: self.acceleration_limits.lateral,
+                angular: self.acceleration_limits.angular,
+                joints: SVector::from(self.acceleration_limits.joints),
+            },
             discretisation,
             target_motion,
             max_delay: self.max_delay,

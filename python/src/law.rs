@@ -221,13 +221,16 @@ pub fn parse_discretisation(s: Option<&str>) -> PyResult<Option<DiscretisationCo
     }
 }
 
-/// `none`, `realistic`.
+/// `none`, `realistic`, `tiago`.
 pub fn parse_limits(s: Option<&str>) -> PyResult<Option<LimitsChoice>> {
     match s {
         None => Ok(None),
         Some("none") => Ok(Some(LimitsChoice::Unlimited)),
         Some("realistic") => Ok(Some(LimitsChoice::Realistic)),
-        Some(o) => Err(PyValueError::new_err(format!("limits must be 'none' or 'realistic', got {o:?}"))),
+        Some("tiago") => Ok(Some(LimitsChoice::Tiago)),
+        Some(o) => {
+            Err(PyValueError::new_err(format!("limits must be 'none', 'realistic' or 'tiago', got {o:?}")))
+        }
     }
 }
 

@@ -316,6 +316,9 @@ fn no_config_value_makes_the_program_panic() {
         ("controller", "singular_below", false),
         ("velocity_limits", "forward", false),
         ("velocity_limits", "angular", false),
+        ("acceleration_limits", "forward", false),
+        ("acceleration_limits", "angular", false),
+        ("acceleration_limits", "joints", true),
         ("plant", "actuator_lag", false),
         ("plant", "wheel_scale_error", false),
     ];
@@ -366,6 +369,30 @@ fn no_config_value_makes_the_program_panic() {
     eprintln!("exit codes over the sweep: {outcomes:?}");
     assert!(outcomes.get(&0).is_some_and(|&n| n > 0), "{outcomes:?}");
     assert!(outcomes.get(&2).is_some_and(|&n| n > 100), "{outcomes:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `[acceleration_limits] joints` with another number of values than the arm has joints:
+/// refused by name (exit 2, nothing written), for the planar arm and for a spatial one.
+#[test]
+fn acceleration_limits_of_another_joint_count_are_refused() {
+    let d = dir("acc-joints");
+    let cfg = file(&d, "c.toml", "[acceleration_limits]\njoints = [1.0, 2.0]\n");
+    for (arm, joints) in [(None, 3), (Some("ur5"), 6)] {
+        let out = d.join("out");
+        let o = out.to_str().unwrap();
+        let mut args = vec!["sim", "--duration", "0.05", "--no-plots", "--config", &cfg, "--out", o];
+        if let Some(a) = arm {
+            args.extend(["--arm", a]);
+        }
+        let (code, err) = run(&args);
+        assert_eq!(code, Some(2), "{arm:?}: {err}");
+        assert!(
+            err.contains(&format!("acceleration_limits.joints has 2 values; the arm has {joints} joints")),
+            "{arm:?}: {err}"
+        );
+        assert!(!out.exists(), "{arm:?}: refused, yet {o} was written");
+    }
     let _ = std::fs::remove_dir_all(&d);
 }
 

@@ -60,13 +60,13 @@ class Failure(Exception):
 
 
 def parse_case(case):
-    """(step function, platform type, scalar) of a case name: `uni-2c-f32[-sampled]` is the
+    """(step function, platform type, scalar) of a case name: `uni-2c-f32[-sampled|-limits]` is the
     planar law's `controller_step`, `ur5-uni-1a-f32` the spatial law's `spatial_step`."""
     parts = case.split("-")
     function = "controller_step"
     if parts and parts[0] == "ur5":
         function, parts = "spatial_step", parts[1:]
-    if parts[3:] == ["sampled"]:
+    if parts[3:] in (["sampled"], ["limits"]):
         parts = parts[:3]
     if (
         len(parts) != 3
@@ -74,7 +74,7 @@ def parse_case(case):
         or not re.fullmatch(r"[12][a-d]", parts[1])
         or parts[2] not in ("f32", "f64")
     ):
-        raise Failure(f"unknown case {case!r}: expected [ur5-](uni|car|omni)-(1|2)(a|b|c|d)-(f32|f64)[-sampled]")
+        raise Failure(f"unknown case {case!r}: expected [ur5-](uni|car|omni)-(1|2)(a|b|c|d)-(f32|f64)[-sampled|-limits]")
     return function, PLATFORMS[parts[0]], parts[2]
 
 

@@ -178,7 +178,12 @@ fn case_names_say_what_they_run() {
             PaperRun::D => 'd',
         };
         let scalar = if c.double { "f64" } else { "f32" };
-        let law = if c.sampled { "-sampled" } else { "" };
+        let law = match (c.sampled, c.limits) {
+            (true, false) => "-sampled",
+            (false, true) => "-limits",
+            (false, false) => "",
+            (true, true) => panic!("{}: no case is both", c.name),
+        };
         assert_eq!(c.name, format!("{plat}-{traj}{run}-{scalar}{law}"));
     }
 }

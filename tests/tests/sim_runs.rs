@@ -259,3 +259,32 @@ fn implicit_rest_filter_removes_the_nyquist_oscillation() {
         assert_eq!(a.maneuvers, b.maneuvers, "({name}) maneuvers");
     }
 }
+
+/// `--limits tiago` (the TIAGo's base as PAL configures it): the velocity limits hold, the
+/// platform's acceleration factor acts and `summary.json` counts the steps where it did; the
+/// joints have no limit (PAL publishes none), so their count is 0, as both are without limits.
+/// With `[acceleration_limits] joints` the joints' factor acts and is counted too.
+#[test]
+fn acceleration_limits_act_and_are_counted() {
+    use companion_runtime::domain::controller::AccelerationConfig;
+    use companion_runtime::domain::scenario::{ConfigFile, LimitsChoice};
+    let tiago = scenario(
+        Scenario::builder(One, PaperRun::A, PlatformKind::Unicycle).duration(5.0).limits(LimitsChoice::Tiago),
+    );
+    let (out, _) = run_in(&tiago, "tiago-limits");
+    let s = &out.summary;
+    assert!(s.platform_acceleration_steps > 100, "{s:?}");
+    assert_eq!(s.joint_acceleration_steps, 0);
+    assert!(s.max_abs_v <= 1.0 + 1e-12 && s.max_abs_omega <= 2.09 + 1e-12, "{s:?}");
+    let (free, _) =
+        run_in(&scenario(Scenario::builder(One, PaperRun::A, PlatformKind::Unicycle).duration(5.0)), "free");
+    assert_eq!((free.summary.platform_acceleration_steps, free.summary.joint_acceleration_steps), (0, 0));
+    let mut file = ConfigFile::default();
+    file.acceleration_limits =
+        Some(AccelerationConfig { joints: Some(vec![5.0; 3]), ..AccelerationConfig::default() });
+    let joints =
+        scenario(Scenario::builder(One, PaperRun::A, PlatformKind::Unicycle).duration(5.0).config(file));
+    let (out, _) = run_in(&joints, "joint-limits");
+    assert!(out.summary.joint_acceleration_steps > 10, "{:?}", out.summary);
+    assert_eq!(out.summary.platform_acceleration_steps, 0);
+}

@@ -17,6 +17,7 @@
 //! | [`hold`] | the hold-aware discretisation: third-order residual over a hold, delays predicted exactly, no lock-out, bounded state, turn bound |
 //! | [`platform_law`] | (36)–(37) with every weight and pre-compensation; the state update; initialisation |
 //! | [`saturation`] | one common factor, direction kept, limits met |
+//! | [`acceleration`] | no command changes faster than its limit (closed loop, every platform, f32 and f64), direction kept, joints never at a limit, the conflict with the guard, refusals, the start call, the in-place step |
 //! | [`closed_loop`] | exact plant (RK4): `log ‖e_m‖` slope −3; `h_s` non-increasing in run (a) |
 //! | [`robustness`] | arbitrary bits never panic nor give a non-finite command; typed errors; state kept |
 //! | [`precision`] | f32 against f64, single steps and closed loop |
@@ -27,6 +28,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod acceleration;
 mod arm_law;
 mod arms;
 mod closed_loop;

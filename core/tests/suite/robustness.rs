@@ -1,7 +1,8 @@
 //! Bad input (SPEC §6): no measurement, state or time step can make a step panic or emit a
 //! non-finite command; a rejected step answers the safe command (all velocities zero) and
 //! leaves the state exactly as it was; and each kind of bad input gets its own
-//! [`StepError`]. For the three platforms, in f64 and f32.
+//! [`StepError`]. For the three platforms, in f64 and f32, without and with velocity and
+//! acceleration limits.
 //!
 //! The property tests draw every scalar either from a valid point or from any bit pattern
 //! (NaN with payloads, ±∞, subnormals, ±0, the largest values), so that both the early
@@ -10,8 +11,8 @@
 use crate::common::*;
 use companion_core::nalgebra::{SVector, Vector2, Vector3};
 use companion_core::{
-    CarLike, Command, ControlLaw, Field, Measurement, Omnidirectional, PaperRun, Params, Platform, Pose,
-    Real, Rpr, State, StepError, Unicycle, VelocityLimits,
+    AccelerationLimits, CarLike, Command, ControlLaw, Field, Measurement, Omnidirectional, PaperRun, Params,
+    Platform, Pose, Real, Rpr, State, StepError, Unicycle, VelocityLimits,
 };
 use proptest::prelude::*;
 
@@ -179,6 +180,13 @@ fn params<T: Real>(k: usize, lim: bool) -> Params<T, 3> {
             angular: T::one(),
             alpha_rate: T::of(5.0),
             steering_rate: T::of(5.0),
+        };
+        // And acceleration limits that bind from rest (the fresh states), on every component.
+        p.acceleration_limits = AccelerationLimits {
+            forward: T::one(),
+            lateral: T::one(),
+            angular: T::of(2.0),
+            joints: SVector::repeat(T::of(5.0)),
         };
     }
     p

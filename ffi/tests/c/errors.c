@@ -1,7 +1,8 @@
 /* Bad input from C, one check per class of status (ffi/tests/c_host.rs runs it): invalid
- * parameters name the parameter, a joint at its limit and non-finite input are rejected
- * steps with the zero command, NULL and misaligned pointers, storage that no init wrote and
- * the other scalar type are statuses. Prints "ok NAME" or "FAIL NAME: ..." per check and
+ * parameters name the parameter (the acceleration limits too), a joint at its limit and
+ * non-finite input are rejected steps with the zero command, NULL and misaligned pointers,
+ * storage that no init wrote and the other scalar type are statuses; the start call is the
+ * first step, taken now, and a rejected start leaves the controller as it was. Prints "ok NAME" or "FAIL NAME: ..." per check and
  * "N passed, M failed" at the end; exits 1 if a check failed. */
 #include <math.h>
 #include <stdio.h>
@@ -91,6 +92,11 @@ int main(void) {
     expect_param("param_transversality", &p, COMPANION_STATUS_PARAM_TRANSVERSALITY, "eta", -1);
     p = paper, p.arm_l_e = -0.15;
     expect_param("param_geometry", &p, COMPANION_STATUS_PARAM_GEOMETRY, "l_e", -1);
+    p = paper, p.acceleration_limits.forward = 0.0;
+    expect_param("param_acceleration_forward", &p, COMPANION_STATUS_PARAM_NOT_POSITIVE, "acceleration_limits.forward",
+                 -1);
+    p = paper, p.acceleration_limits.joints[2] = NAN;
+    expect_param("param_acceleration_joint", &p, COMPANION_STATUS_PARAM_NON_FINITE, "acceleration_limits.joints", 2);
     {
         CompanionController ctrl;
         CompanionParamError e;
@@ -135,6 +141,31 @@ int main(void) {
         companion_f64_step(&ctrl, 1e-3, 0.0, &m, &a);
         companion_f64_step(&copy, 1e-3, 0.0, &m, &b);
         check("copy", memcmp(&a, &b, sizeof a) == 0, "a memcpy'd controller steps differently");
+    }
+
+    /* The start call: on a fresh controller the same command as its first step; a rejected
+     * start writes the zero command and leaves the controller as it was; with acceleration
+     * limits the first command is within a h of rest. */
+    {
+        static CompanionController a, b;
+        CompanionCommandF64 ca, cb = garbage;
+        CompanionMeasurementF64 m0 = start(), nan = start();
+        companion_f64_init(&a, &paper, NULL);
+        companion_f64_init(&b, &paper, NULL);
+        nan.target_velocity[0] = NAN;
+        expect_status("start_rejected", companion_f64_start(&b, 1e-3, 0.0, &nan, &cb),
+                      COMPANION_STATUS_STEP_NON_FINITE_TARGET_VELOCITY);
+        check("start_rejected", is_zero(&cb), "the command written is not the zero command");
+        companion_f64_step(&a, 1e-3, 0.0, &m0, &ca);
+        expect_status("start", companion_f64_start(&b, 1e-3, 0.0, &m0, &cb), COMPANION_STATUS_OK);
+        check("start", memcmp(&ca, &cb, sizeof ca) == 0 && !is_zero(&ca),
+              "the start call differs from a fresh controller's first step");
+        p = paper, p.acceleration_limits.forward = 1.0, p.acceleration_limits.angular = 2.0;
+        companion_f64_init(&a, &p, NULL);
+        expect_status("start_limited", companion_f64_start(&a, 1e-3, 0.0, &m0, &ca), COMPANION_STATUS_OK);
+        check("start_limited", fabs(ca.v) <= 1e-3 * (1 + 1e-12) && fabs(ca.omega) <= 2e-3 * (1 + 1e-12) &&
+                                   (fabs(ca.v) > 0.999e-3 || fabs(ca.omega) > 1.999e-3),
+              "the first command is not on the acceleration limits from rest");
     }
 
     /* The call itself. */

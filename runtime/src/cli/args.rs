@@ -101,10 +101,12 @@ impl From<DiscretisationArg> for DiscretisationConfig {
 /// Velocity limits on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LimitsArg {
-    /// None (the paper's runs), unless the config file sets some.
+    /// None (the paper's runs): no velocity and no acceleration limits.
     None,
-    /// A realistic robot's limits (see `companion_plant::realistic_limits`).
+    /// A realistic robot's velocity limits (see `companion_plant::realistic_limits`).
     Realistic,
+    /// The TIAGo's base as PAL configures it: 1 m/s and 1 m/s², 2.09 rad/s and 2.09 rad/s².
+    Tiago,
 }
 
 /// The scenario flags shared by `sim` and `hil`.
@@ -158,7 +160,7 @@ pub struct ScenarioArgs {
     /// A TOML file overriding parameters.
     ///
     /// A TOML file overriding parameters, in tables `controller`, `unicycle`, `car`,
-    /// `velocity_limits` and `plant`; each key is the name of the field it sets in
+    /// `velocity_limits`, `acceleration_limits` and `plant`; each key is the name of the field it sets in
     /// companion-core (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
@@ -184,12 +186,15 @@ pub struct ScenarioArgs {
     /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
     #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Platform velocity limits, met by one common scale factor.
+    /// Platform velocity limits (`none`, `realistic`, `tiago`), met by one common factor.
     ///
-    /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs),
-    /// unless the config file sets some, or `realistic` (a realistic robot's limits, see
-    /// `companion_plant::realistic_limits`).
-    #[arg(long, value_enum, value_name = "none|realistic", hide_possible_values = true)]
+    /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs; it
+    /// also drops any acceleration limits of --config's [acceleration_limits]), unless the
+    /// config file sets some; `realistic` (a realistic robot's limits, see
+    /// `companion_plant::realistic_limits`); `tiago` (the TIAGo base as PAL configures it,
+    /// with its acceleration limits, met by a second common factor on the change of the
+    /// command). The book's chapter "The law" (docs/book/src/law.md) has the details.
+    #[arg(long, value_enum, value_name = "none|realistic|tiago", hide_possible_values = true)]
     pub limits: Option<LimitsArg>,
     /// Plant: a first-order actuator lag of this time constant, in s.
     ///
@@ -370,6 +375,7 @@ impl ScenarioArgs {
             discretisation: self.discretisation.map(Into::into),
             limits: self.limits.map(|l| match l {
                 LimitsArg::Realistic => LimitsChoice::Realistic,
+                LimitsArg::Tiago => LimitsChoice::Tiago,
                 LimitsArg::None => LimitsChoice::Unlimited,
             }),
             actuator_lag: self.actuator_lag,

@@ -21,6 +21,7 @@
 //! ```text
 //! M <flash bytes> <static RAM bytes> <SysTick ticks per 20 000 instructions>
 //! K <function> <f32|libm-f32|f64> <mean instructions per call>
+//! Q <f32 bit patterns checked> <square roots that differ from libm's sqrtf>
 //! S <case> <step index> <instructions of that step>   (the SAMPLE_STEPS, the largest, the largest after the first)
 //! C <case> <steps> <sum of instructions> <min> <max> <step of max> <max of the steps after the first> <its step>
 //!   <first step> <stack bytes of two steps> <stack bytes of the case> <stack bytes of building the controller and two steps>
@@ -41,7 +42,9 @@
 //! stack pointer (the call's own frame and everything under it, not the caller's result).
 //!
 //! Exit code 0 when every case ran without a rejected step, 1 when a step was rejected,
-//! 3 when the SysTick calibration failed its checks, 101 on a panic.
+//! 3 when the SysTick calibration failed its checks, 4 when the FPU's square root
+//! (`Real for f32`, `companion-fpu`) differs from libm's `sqrtf` (which the host uses), 101
+//! on a panic.
 #![no_std]
 #![no_main]
 
@@ -454,6 +457,29 @@ fn function_costs<T: Real>(out: &mut Out, ty: &str, clock: Clock) {
     function_cost::<T>(out, "round", ty, clock, &|x| (x * T::of(3.3)).round_nearest());
 }
 
+/// The law's `f32` square root (the FPU's `vsqrt.f32` here) against libm's `sqrtf` (the
+/// host's) on every 4 093rd bit pattern of `f32`, both signs, and the special values: the
+/// patterns checked and how many roots differ (NaN results count as equal).
+fn sqrt_sweep() -> (u32, u32) {
+    let (mut checked, mut differ) = (0u32, 0u32);
+    let mut check = |x: f32| {
+        let (a, b) = (black_box(x).square_root(), libm::sqrtf(black_box(x)));
+        checked += 1;
+        if a.to_bits() != b.to_bits() && !(a.is_nan() && b.is_nan()) {
+            differ += 1;
+        }
+    };
+    let mut bits = 0u64;
+    while bits <= u64::from(u32::MAX) {
+        check(f32::from_bits(bits as u32));
+        bits += 4093;
+    }
+    for x in [0.0, -0.0, f32::MIN_POSITIVE, f32::MAX, f32::INFINITY, f32::NEG_INFINITY, f32::NAN, 1.0, 4.0] {
+        check(x);
+    }
+    (checked, differ)
+}
+
 /// libm's `f32` functions, which `Real for f32` used before `fastmath` (for comparison).
 fn libm_f32_costs(out: &mut Out, clock: Clock) {
     let ty = "libm-f32";
@@ -503,6 +529,15 @@ fn main() -> ! {
         );
     }
     let clock = Clock { per, overhead };
+    let (checked, differ) = sqrt_sweep();
+    let _ = writeln!(out, "Q {checked} {differ}");
+    if differ > 0 {
+        let _ = writeln!(
+            out,
+            "E the FPU's square root differs from libm's sqrtf for {differ} of {checked} inputs"
+        );
+        semihosting::process::exit(4)
+    }
     function_costs::<f32>(&mut out, "f32", clock);
     libm_f32_costs(&mut out, clock);
     function_costs::<f64>(&mut out, "f64", clock);

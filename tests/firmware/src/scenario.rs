@@ -11,8 +11,9 @@
 //!   of `ω_d` from 0 to 0.49 rad/s at `t = 5 s`).
 //!
 //! In `f32`, all four of the paper's runs (a)–(d) on both trajectories, unicycle, car-like
-//! and omnidirectional (the 8 runs × 3 platforms of the cost table), and the `Sampled`
-//! discretisation on the unicycle's 8 runs; in `f64` (≈ 50 times slower on the M4F), runs
+//! and omnidirectional (the 8 runs × 3 platforms of the cost table), the `Sampled`
+//! discretisation on the unicycle's 8 runs, and the unicycle's 8 with a robot's limits on
+//! ([`robot_limits`]: velocity and acceleration limits of the platform and the joints); in `f64` (≈ 50 times slower on the M4F), runs
 //! (a) and (c) of trajectory 1; and the spatial law of §5 ([`SpatialArm`]): the UR5 on the
 //! unicycle, run (a), on trajectory 1 lifted (the same circle, the target level and `0.2 m`
 //! below the flange at home, plus `z = 0.05 sin(2πt/10)` m), from its home configuration.
@@ -32,9 +33,9 @@ use core::hint::black_box;
 
 use companion_core::nalgebra::{SVector, Vector3, Vector6};
 use companion_core::{
-    CarLike, Chain, Command, Controller, Discretisation, Manipulator, Measurement, Omnidirectional, Output,
-    PaperRun, Params, Platform, PlatformKind, Pose, Pose3, Real, Rejected, Rpr, Spatial, SpatialArm,
-    Unicycle, VelocityLimits,
+    AccelerationLimits, CarLike, Chain, Command, Controller, Discretisation, Manipulator, Measurement,
+    Omnidirectional, Output, PaperRun, Params, Platform, PlatformKind, Pose, Pose3, Real, Rejected, Rpr,
+    Spatial, SpatialArm, Unicycle, VelocityLimits,
 };
 
 /// Control period (s).
@@ -84,6 +85,8 @@ pub struct Case {
     pub double: bool,
     /// The earlier discretisation, `Discretisation::Sampled` (else the default, `Midpoint`).
     pub sampled: bool,
+    /// A robot's limits on ([`robot_limits`]), `-limits` in the name.
+    pub limits: bool,
 }
 
 impl Case {
@@ -97,15 +100,19 @@ impl Case {
 }
 
 const fn f32c(name: &'static str, plat: Plat, traj: Traj, run: PaperRun) -> Case {
-    Case { name, plat, traj, run, double: false, sampled: false }
+    Case { name, plat, traj, run, double: false, sampled: false, limits: false }
 }
 
 const fn f64c(name: &'static str, plat: Plat, run: PaperRun) -> Case {
-    Case { name, plat, traj: Traj::One, run, double: true, sampled: false }
+    Case { name, plat, traj: Traj::One, run, double: true, sampled: false, limits: false }
 }
 
 const fn sampled(name: &'static str, plat: Plat, traj: Traj, run: PaperRun, double: bool) -> Case {
-    Case { name, plat, traj, run, double, sampled: true }
+    Case { name, plat, traj, run, double, sampled: true, limits: false }
+}
+
+const fn limited(name: &'static str, traj: Traj, run: PaperRun) -> Case {
+    Case { name, plat: Plat::Uni, traj, run, double: false, sampled: false, limits: true }
 }
 
 use PaperRun::{A, B, C, D};
@@ -113,12 +120,12 @@ use Plat::{Car, Omni, Uni, Ur5Uni};
 use Traj::{One, Two};
 
 /// Every case, in output order: the `f32` cases of the cost table first (the default law,
-/// 8 runs × 3 platforms, then the sampled one), so that the single-step count reaches them
+/// 8 runs × 3 platforms, then the sampled one, then the unicycle with the limits on), so that the single-step count reaches them
 /// soon; then the spatial law in `f32`, the `f64` cases, the UR5 in `f64`. The firmware
 /// marks the start of each case (`companion_case_start`), where `gdbcount.py` starts
 /// numbering the calls of the case's step function. The spatial cases (`ur5-…`) step
 /// through their own function, `spatial_step`.
-pub const CASES: [Case; 43] = [
+pub const CASES: [Case; 51] = [
     f32c("uni-1a-f32", Uni, One, A),
     f32c("uni-1b-f32", Uni, One, B),
     f32c("uni-1c-f32", Uni, One, C),
@@ -153,6 +160,14 @@ pub const CASES: [Case; 43] = [
     sampled("uni-2d-f32-sampled", Uni, Two, D, false),
     sampled("car-1a-f32-sampled", Car, One, A, false),
     sampled("omni-1a-f32-sampled", Omni, One, A, false),
+    limited("uni-1a-f32-limits", One, A),
+    limited("uni-1b-f32-limits", One, B),
+    limited("uni-1c-f32-limits", One, C),
+    limited("uni-1d-f32-limits", One, D),
+    limited("uni-2a-f32-limits", Two, A),
+    limited("uni-2b-f32-limits", Two, B),
+    limited("uni-2c-f32-limits", Two, C),
+    limited("uni-2d-f32-limits", Two, D),
     f32c("ur5-uni-1a-f32", Ur5Uni, One, A),
     f64c("uni-1a-f64", Uni, A),
     f64c("uni-1c-f64", Uni, C),
@@ -209,6 +224,36 @@ pub fn car_limits<T: Real>() -> VelocityLimits<T> {
     l.alpha_rate = T::of(20.0);
     l.steering_rate = T::of(20.0);
     l
+}
+
+/// A robot's limits, for the cost of the law with them on: the TIAGo's base as PAL's
+/// controller configures it (`tiago_controller_configuration/config/mobile_base_controller.yaml`:
+/// 1 m/s and 1 m/s², 2.09 rad/s and 2.09 rad/s²) and, so that every part of the limits runs,
+/// 10 rad/s² (m/s² for the prismatic joint) on each joint, where PAL publishes none.
+pub fn robot_limits<T: Real>() -> (VelocityLimits<T>, AccelerationLimits<T, 3>) {
+    let mut v = VelocityLimits::unlimited();
+    v.forward = T::one();
+    v.angular = T::of(2.09);
+    let mut a = AccelerationLimits::unlimited();
+    a.forward = T::one();
+    a.angular = T::of(2.09);
+    a.joints = SVector::repeat(T::of(10.0));
+    (v, a)
+}
+
+/// The parameters of case `c` on platform kind `kind`.
+fn params_of<T: Real>(c: &Case, kind: PlatformKind) -> Params<T, 3> {
+    let mut params = Params::<T, 3>::paper(c.run);
+    if kind == PlatformKind::Car {
+        params.velocity_limits = car_limits();
+    }
+    if c.sampled {
+        params.discretisation = Discretisation::Sampled;
+    }
+    if c.limits {
+        (params.velocity_limits, params.acceleration_limits) = robot_limits();
+    }
+    params
 }
 
 /// Runs one case, writing its `D` and `F` lines to `out`.
@@ -361,13 +406,15 @@ fn command_words<T: Real, const N: usize>(c: &Command<T, N>) -> impl Iterator<It
 /// One controller step, never inlined: the firmware's second instruction count
 /// (`tests/firmware/gdbcount.py`) single-steps from this function's entry to its return.
 /// One instance per scalar type and platform; in each, the steps of run (a) come first.
+/// The output is written into the caller's `out`, in place, as a firmware's loop keeps it.
 #[inline(never)]
 pub fn controller_step<T: Real, P: Platform<T>>(
     ctrl: &mut Controller<T, P, Rpr<T>, 3>,
     meas: &Measurement<T, 3>,
     dt: T,
-) -> Result<Output<T, 3>, Rejected<T, 3>> {
-    ctrl.step(meas, dt)
+    out: &mut Output<T, 3>,
+) -> Result<(), Rejected<T, 3>> {
+    ctrl.step_into(meas, dt, out)
 }
 
 fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
@@ -376,13 +423,7 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
     out: &mut W,
     probe: &mut Q,
 ) -> Outcome {
-    let mut params = Params::<T, 3>::paper(c.run);
-    if P::KIND == PlatformKind::Car {
-        params.velocity_limits = car_limits();
-    }
-    if c.sampled {
-        params.discretisation = Discretisation::Sampled;
-    }
+    let params = params_of::<T>(c, P::KIND);
     let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) else {
         let _ = writeln!(out, "E {} invalid parameters", c.name);
         return Outcome { steps: 0, rejected: 0, digest: 0, e_p: f64::NAN };
@@ -396,6 +437,7 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
     let mut digest = FNV_OFFSET;
     let mut rejected = 0;
     let mut e_p = f64::NAN;
+    let mut output = Output::zero();
     for n in 0..c.steps() {
         let t = T::of(f64::from(n)) * dt;
         let (target, target_velocity) = target_of(c, t);
@@ -405,21 +447,18 @@ fn run<T: Real, P: Platform<T>, W: Write, Q: Probe>(
         // there), and pass through black_box again after it, so that no part of building
         // them falls inside the bracket and no part of the step before it; the result
         // goes through black_box before the second reading.
-        let (ct, me, h) = (black_box(&mut ctrl), black_box(&meas), black_box(dt));
+        let (ct, me, h, o) = (black_box(&mut ctrl), black_box(&meas), black_box(dt), black_box(&mut output));
         probe.enter();
-        let result = controller_step(black_box(ct), black_box(me), black_box(h));
+        let result = controller_step(black_box(ct), black_box(me), black_box(h), black_box(o));
         black_box(&result);
+        black_box(&output);
         probe.leave();
-        let cmd = match result {
-            Ok(o) => {
-                e_p = o.diagnostics.e_p.norm().as_f64();
-                o.command
-            }
-            Err(r) => {
-                rejected += 1;
-                r.command
-            }
-        };
+        match result {
+            Ok(()) => e_p = output.diagnostics.e_p.norm().as_f64(),
+            Err(_) => rejected += 1,
+        }
+        // On a rejection `output.command` is the safe command.
+        let cmd = output.command;
         digest = record(c, n, digest, &cmd, out);
         advance(P::KIND, &mut plant, &cmd, dt);
     }
@@ -458,17 +497,18 @@ fn finish<W: Write>(c: &Case, rejected: u32, digest: u64, e_p: f64, out: &mut W)
 pub type Ur5Controller<T, P> = Controller<T, P, SpatialArm<T, 6>, 6>;
 
 /// One step of the spatial law, never inlined (as [`controller_step`]; `gdbcount.py` finds
-/// `spatial_step::<T, Platform>` for the `ur5-…` cases).
+/// `spatial_step::<T, Platform>` for the `ur5-…` cases), its output written in place.
 #[inline(never)]
 pub fn spatial_step<T: Real, P: Platform<T>>(
     ctrl: &mut Ur5Controller<T, P>,
     meas: &Measurement<T, 6, Spatial>,
     dt: T,
-) -> Result<Output<T, 6, Spatial>, Rejected<T, 6>>
+    out: &mut Output<T, 6, Spatial>,
+) -> Result<(), Rejected<T, 6>>
 where
     SpatialArm<T, 6>: Manipulator<T, 6, Space = Spatial>,
 {
-    ctrl.step(meas, dt)
+    ctrl.step_into(meas, dt, out)
 }
 
 /// The UR5's law (`r*_ed`: the target level, `0.2 m` along the flange's axis at home) and
@@ -507,27 +547,25 @@ where
     let mut digest = FNV_OFFSET;
     let mut rejected = 0;
     let mut e_p = f64::NAN;
+    let mut output = Output::zero();
     for n in 0..c.steps() {
         let t = T::of(f64::from(n)) * dt;
         let (target, target_velocity) = lifted(t, &start);
         let meas =
             Measurement { t, base: plant.base, steering: plant.xi, joints: plant.q, target, target_velocity };
         // As in `run`: the inputs complete before the first reading, the result after.
-        let (ct, me, h) = (black_box(&mut ctrl), black_box(&meas), black_box(dt));
+        let (ct, me, h, o) = (black_box(&mut ctrl), black_box(&meas), black_box(dt), black_box(&mut output));
         probe.enter();
-        let result = spatial_step(black_box(ct), black_box(me), black_box(h));
+        let result = spatial_step(black_box(ct), black_box(me), black_box(h), black_box(o));
         black_box(&result);
+        black_box(&output);
         probe.leave();
-        let cmd = match result {
-            Ok(o) => {
-                e_p = o.diagnostics.e_p.norm().as_f64();
-                o.command
-            }
-            Err(r) => {
-                rejected += 1;
-                r.command
-            }
-        };
+        match result {
+            Ok(()) => e_p = output.diagnostics.e_p.norm().as_f64(),
+            Err(_) => rejected += 1,
+        }
+        // On a rejection `output.command` is the safe command.
+        let cmd = output.command;
         digest = record(c, n, digest, &cmd, out);
         advance(P::KIND, &mut plant, &cmd, dt);
     }
@@ -602,13 +640,7 @@ fn two_steps<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize>(
 /// Builds the controller and takes two steps (the first initialises the state); the stack
 /// of the steps alone.
 fn one<T: Real, P: Platform<T>, S: StackProbe>(c: &Case, platform: P, stack: &mut S) -> usize {
-    let mut params = Params::<T, 3>::paper(c.run);
-    if P::KIND == PlatformKind::Car {
-        params.velocity_limits = car_limits();
-    }
-    if c.sampled {
-        params.discretisation = Discretisation::Sampled;
-    }
+    let params = params_of::<T>(c, P::KIND);
     if let Ok(mut ctrl) = Controller::new(params, platform, Rpr::paper()) {
         let (target, target_velocity) = target_of(c, T::zero());
         let meas = Measurement {

@@ -14,9 +14,9 @@ pub use spatial::{
     spatial_only_keys, spatial_params, SpatialControllerError, SpatialStep, TARGET_DISTANCE,
 };
 pub use spec::{
-    platform_name, run_name, ArmConfig, CarConfig, ControllerConfig, ControllerSpec, DiscretisationConfig,
-    LimitsConfig, RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig, CAR_K_BAR, OMNI_K_BAR,
-    PAPER_PREFERRED_EXTENSION, PAPER_STROKE,
+    platform_name, run_name, AccelerationConfig, ArmConfig, CarConfig, ControllerConfig, ControllerSpec,
+    DiscretisationConfig, LimitsConfig, RestFilterConfig, Scalar, TargetMotionConfig, UnicycleConfig,
+    CAR_K_BAR, OMNI_K_BAR, PAPER_PREFERRED_EXTENSION, PAPER_STROKE,
 };
 
 use companion_core::nalgebra::Vector2;
@@ -186,6 +186,8 @@ pub(crate) fn report<T: Real, const N: usize, S: Space<T>>(
                 saturation: d.saturation.as_f64(),
                 alpha_rate: [d.alpha_rate[0].as_f64(), d.alpha_rate[1].as_f64()],
                 joint_scale: d.joint_scale.as_f64(),
+                platform_acceleration: d.platform_acceleration > T::one(),
+                joint_acceleration: d.joint_acceleration > T::one(),
                 error: None,
             }
         }

@@ -28,6 +28,11 @@ pub struct StepReport<const N: usize = JOINTS> {
     /// The joint guard's factor (≥ 1; 1: the arm law (30) applied as is; NaN when rejected
     /// or unknown).
     pub joint_scale: f64,
+    /// Whether the platform's acceleration limits acted (`companion_core::acceleration`:
+    /// the change of its command was divided by a factor > 1); false when rejected.
+    pub platform_acceleration: bool,
+    /// Whether the joints' acceleration limits acted; false when rejected.
+    pub joint_acceleration: bool,
     /// Why the step was rejected, if it was.
     pub error: Option<StepError>,
 }
@@ -43,6 +48,8 @@ impl<const N: usize> StepReport<N> {
             saturation: f64::NAN,
             alpha_rate: [f64::NAN; 2],
             joint_scale: f64::NAN,
+            platform_acceleration: false,
+            joint_acceleration: false,
             error,
         }
     }

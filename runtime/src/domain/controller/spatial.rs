@@ -1,9 +1,9 @@
 //! The spatial law (§5) as the runtime builds and steps it: the arm's task from the chain
 //! (`Params::for_arm`, `r*_ed` level 0.2 m beyond the flange), the platform law's settings
 //! from the scenario's [`ControllerSpec`] (so `--config`'s `[unicycle]`, `[car]`,
-//! `[velocity_limits]` and the platform keys of `[controller]`, `--limits`,
-//! `--discretisation` act as on planar runs), and one step on an `f64` measurement for a
-//! controller in `f64` or `f32`.
+//! `[velocity_limits]`, `[acceleration_limits]` (its `joints` as many as the arm has) and the
+//! platform keys of `[controller]`, `--limits`, `--discretisation` act as on planar runs), and
+//! one step on an `f64` measurement for a controller in `f64` or `f32`.
 
 use companion_core::{
     Chain, Command, Controller, Manipulator, Measurement, Omnidirectional, ParamError, Params, Platform,
@@ -118,6 +118,9 @@ pub fn spatial_params<T: Real, const N: usize>(
     p.primary.filter_sigma = planar.primary.filter_sigma;
     p.primary.filter_xi = planar.primary.filter_xi;
     p.velocity_limits = planar.velocity_limits;
+    if let Some(a) = &spec.acceleration {
+        p.acceleration_limits = a.to_limits();
+    }
     p.max_time_step = planar.max_time_step;
     p.joint_step_fraction = planar.joint_step_fraction;
     p.discretisation = planar.discretisation;
@@ -214,6 +217,14 @@ pub enum SpatialControllerError {
     /// A parameter of the spatial law breaks a rule.
     #[error("the spatial law's parameters")]
     Law(#[source] ParamError),
+    /// `[acceleration_limits] joints` has another number of values than the arm has joints.
+    #[error("acceleration_limits.joints has {given} values; the arm has {joints} joints")]
+    JointCount {
+        /// The values given.
+        given: usize,
+        /// The arm's joints.
+        joints: usize,
+    },
 }
 
 /// The spatial controller of `spec` for `arm` with `N` joints, in the spec's scalar type on
@@ -230,6 +241,11 @@ where
     SpatialArm<f32, N>: Manipulator<f32, N, Space = Spatial>,
 {
     let law = SpatialControllerError::Law;
+    if let Some(given) = spec.acceleration.as_ref().and_then(|a| a.joints.as_ref()).map(Vec::len) {
+        if given != N {
+            return Err(SpatialControllerError::JointCount { given, joints: N });
+        }
+    }
     let (c64, c32) = (|| arm.chain::<f64, N>(), || arm.chain::<f32, N>());
     Ok(match (spec.platform, spec.scalar) {
         (PlatformKind::Unicycle, Scalar::F64) => {

@@ -1,6 +1,6 @@
 //! What the runtime needs to build a controller: the platform, the scalar type, the paper's
-//! variant and the overrides of the `[controller]`, `[unicycle]`, `[car]` and
-//! `[velocity_limits]` tables of a `--config` file.
+//! variant and the overrides of the `[controller]`, `[unicycle]`, `[car]`,
+//! `[velocity_limits]` and `[acceleration_limits]` tables of a `--config` file.
 //!
 //! One parameter has one name: every key of these tables is the name of the field of
 //! `companion-core` it sets (`gain` is `PrimaryTask::gain`, `filter_sigma` is
@@ -10,8 +10,9 @@
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    CarLike, Discretisation, PaperRun, ParamError, Params, PlatformKind, Pose, Precompensation, Real,
-    RestFilter, Rpr, Rule, TargetMotion, Unicycle, VelocityLimits, Weight, WeightMargins,
+    AccelerationLimits, CarLike, Discretisation, PaperRun, ParamError, Params, PlatformKind, Pose,
+    Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, Unicycle, VelocityLimits, Weight,
+    WeightMargins,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -290,6 +291,17 @@ impl LimitsConfig {
         }
     }
 
+    /// The TIAGo's base as PAL configures its controller: 1.0 m/s forward (PAL's
+    /// `linear.x.max_velocity`; backwards PAL allows 0.2 m/s, which these symmetric limits do
+    /// not model) and 2.09 rad/s (`angular.z.max_velocity`, 120°/s). Source:
+    /// `tiago_controller_configuration/config/mobile_base_controller.yaml` in
+    /// pal-robotics/tiago_robot (the same figures in pmb2_robot's
+    /// `pmb2_controller_configuration`, the TIAGo's base). A differential drive: no lateral
+    /// speed, no `α̇` or steering limit.
+    pub fn tiago() -> Self {
+        Self { forward: Some(1.0), lateral: None, angular: Some(2.09), alpha_rate: None, steering_rate: None }
+    }
+
     /// The realistic robot's limits (`companion_plant::realistic_limits`).
     pub fn realistic() -> Self {
         let l = companion_plant::realistic_limits();
@@ -300,6 +312,56 @@ impl LimitsConfig {
             angular: opt(l.angular),
             alpha_rate: opt(l.alpha_rate),
             steering_rate: opt(l.steering_rate),
+        }
+    }
+}
+
+/// Acceleration limits (`companion-core`'s `AccelerationLimits`; omitted fields: no limit),
+/// met by a second common factor on the change of the command (`companion_core::acceleration`).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AccelerationConfig {
+    /// `|v̇|` of the forward speed (m/s²).
+    pub forward: Option<f64>,
+    /// `|v̇_lat|` (m/s²), omnidirectional platform.
+    pub lateral: Option<f64>,
+    /// `|ω̇|` (rad/s²), unicycle and omnidirectional platforms.
+    pub angular: Option<f64>,
+    /// Per joint (rad/s² or m/s²): exactly as many values as the arm has joints.
+    pub joints: Option<Vec<f64>>,
+}
+
+impl AccelerationConfig {
+    /// The TIAGo's base as PAL configures its controller (the same file as
+    /// [`LimitsConfig::tiago`]): `linear.x.max_acceleration` 1.0 m/s² and
+    /// `angular.z.max_acceleration` 2.09 rad/s² (120°/s²). PAL publishes no acceleration limit
+    /// for the arm and the torso (`tiago_moveit_config/config/joint_limits.yaml`:
+    /// `has_acceleration_limits: false` for every joint), so none here. (A bound from the
+    /// URDF instead: two 6 N·m wheel motors on 0.0985 m wheels push 122 N, ≈ 1.9 m/s² for the
+    /// 65 kg of links — PAL's 1.0 is below it.)
+    pub fn tiago() -> Self {
+        Self { forward: Some(1.0), lateral: None, angular: Some(2.09), joints: None }
+    }
+
+    /// The joints' limits for an arm of `N` joints (`+∞` for each when `joints` is not set);
+    /// `None` when `joints` has another number of values.
+    pub fn joints<T: Real, const N: usize>(&self) -> Option<SVector<T, N>> {
+        match &self.joints {
+            None => Some(SVector::repeat(T::of(f64::INFINITY))),
+            Some(v) if v.len() == N => Some(SVector::from_fn(|i, _| T::of(v[i]))),
+            Some(_) => None,
+        }
+    }
+
+    /// The limits in `T` for an arm of `N` joints (an omitted one is `+∞`; the joints `+∞`
+    /// when their count is not `N`: the scenario refuses that before).
+    pub fn to_limits<T: Real, const N: usize>(&self) -> AccelerationLimits<T, N> {
+        let l = |x: Option<f64>| T::of(x.unwrap_or(f64::INFINITY));
+        AccelerationLimits {
+            forward: l(self.forward),
+            lateral: l(self.lateral),
+            angular: l(self.angular),
+            joints: self.joints::<T, N>().unwrap_or_else(|| SVector::repeat(T::of(f64::INFINITY))),
         }
     }
 }
@@ -350,6 +412,8 @@ pub struct ControllerSpec {
     pub car: CarConfig,
     /// Velocity limits (None: unlimited).
     pub limits: Option<LimitsConfig>,
+    /// Acceleration limits (None: unlimited).
+    pub acceleration: Option<AccelerationConfig>,
     /// The arm's prismatic stroke (the paper's by default).
     pub arm: ArmConfig,
     /// `α(0)`: the transverse-function variables the controller starts from (rad; the
@@ -381,6 +445,7 @@ impl ControllerSpec {
             unicycle: UnicycleConfig::default(),
             car: CarConfig::default(),
             limits: None,
+            acceleration: None,
             arm: ArmConfig::default(),
             initial_alpha: [0.0; 2],
         }
@@ -498,6 +563,9 @@ impl ControllerSpec {
         }
         if let Some(l) = self.limits {
             p.velocity_limits = l.to_limits();
+        }
+        if let Some(a) = &self.acceleration {
+            p.acceleration_limits = a.to_limits();
         }
         p
     }

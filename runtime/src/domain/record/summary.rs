@@ -132,6 +132,11 @@ pub struct Summary {
     pub max_joint_scale: f64,
     /// Steps where the joint guard acted (factor > 1).
     pub joint_guard_steps: u64,
+    /// Steps where the platform's acceleration limits acted: the change of its command was
+    /// divided by the acceleration factor (`companion_core::acceleration`; 0 without limits).
+    pub platform_acceleration_steps: u64,
+    /// Steps where the joints' acceleration limits acted.
+    pub joint_acceleration_steps: u64,
     /// `h_s` at the first step.
     pub initial_h_s: f64,
     /// `h_s` at the last step.
@@ -382,6 +387,8 @@ impl SummaryAccumulator {
                 s.joint_guard_steps += 1;
             }
         }
+        s.platform_acceleration_steps += u64::from(r.platform_acceleration);
+        s.joint_acceleration_steps += u64::from(r.joint_acceleration);
     }
 
     /// The summary so far, with the wall time (a run that ended: see [`Summary::judge`]).

@@ -165,6 +165,8 @@ mod tests {
             saturation: 1.0,
             alpha_rate: [x * 0.1, -x / 7.0],
             joint_scale: 1.0 + x * 1e-3,
+            platform_acceleration: k % 3 == 0,
+            joint_acceleration: k % 5 == 0,
             error: None,
         };
         report.command.platform.v = (x * 0.37).sin();

@@ -1,5 +1,6 @@
 //! The TOML file given with `--config`: overrides of the controller's parameters, the
-//! platform's transverse-function parameters, velocity limits and plant imperfections.
+//! platform's transverse-function parameters, velocity and acceleration limits and plant
+//! imperfections.
 //!
 //! Every key is the name of the field it sets (in `companion-core` for the controller's
 //! tables, in `companion-plant`'s `Imperfections` and `Noise` for `[plant]`); unknown keys are
@@ -21,6 +22,11 @@
 //! [velocity_limits]
 //! forward = 1.0                 # m/s
 //!
+//! [acceleration_limits]
+//! forward = 1.0                 # m/s²
+//! angular = 2.09                # rad/s²
+//! joints = [5.0, 1.0, 5.0]      # per joint, as many as the arm has (rad/s² or m/s²)
+//!
 //! [arm]
 //! stroke = 0.9                  # q₂⁺ (m); q₂*, the margins and r_* follow (see ArmConfig)
 //!
@@ -37,7 +43,9 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::domain::arm::PlatformDefaults;
-use crate::domain::controller::{ArmConfig, CarConfig, ControllerConfig, LimitsConfig, UnicycleConfig};
+use crate::domain::controller::{
+    AccelerationConfig, ArmConfig, CarConfig, ControllerConfig, LimitsConfig, UnicycleConfig,
+};
 
 /// Plant imperfections in a config file (`companion-plant`'s `Imperfections`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -143,6 +151,8 @@ pub struct ConfigFile {
     pub car: Option<CarConfig>,
     /// Velocity limits.
     pub velocity_limits: Option<LimitsConfig>,
+    /// Acceleration limits (`companion_core::acceleration`).
+    pub acceleration_limits: Option<AccelerationConfig>,
     /// The arm's prismatic stroke.
     pub arm: Option<ArmConfig>,
     /// Plant imperfections.

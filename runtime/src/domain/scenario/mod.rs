@@ -33,8 +33,8 @@ pub use self::config::{
     ConfigError, ConfigFile, HomeConfig, MountConfig, NoiseConfig, PlantFileConfig, RobotConfig,
 };
 use crate::domain::controller::{
-    platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
-    LimitsConfig, RestFilterConfig, Scalar,
+    platform_name, run_name, AccelerationConfig, AnyController, ControllerConfig, ControllerSpec,
+    DiscretisationConfig, LimitsConfig, RestFilterConfig, Scalar, JOINTS,
 };
 
 /// The target's motion.
@@ -70,14 +70,18 @@ impl Serialize for Target {
     }
 }
 
-/// Velocity limits of a scenario.
+/// Velocity (and acceleration) limits of a scenario.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LimitsChoice {
-    /// None (the paper's runs).
+    /// None (the paper's runs): no velocity and no acceleration limits.
     Unlimited,
-    /// A realistic robot's limits (`companion_plant::realistic_limits`).
+    /// A realistic robot's velocity limits (`companion_plant::realistic_limits`); acceleration
+    /// limits as the config file sets them.
     Realistic,
-    /// These.
+    /// The TIAGo's base, velocity and acceleration, as PAL configures it
+    /// ([`LimitsConfig::tiago`], [`AccelerationConfig::tiago`]); no joint acceleration limits.
+    Tiago,
+    /// These velocity limits; acceleration limits as the config file sets them.
     Custom(LimitsConfig),
 }
 
@@ -146,6 +150,16 @@ pub enum ScenarioError {
     /// A value of the start is not finite.
     #[error("start: {0} must be finite")]
     Start(&'static str),
+    /// A per-joint array with another number of values than the arm has joints.
+    #[error("{key} has {given} values; the arm has {joints} joints")]
+    JointCount {
+        /// The key (`acceleration_limits.joints`).
+        key: &'static str,
+        /// The values given.
+        given: usize,
+        /// The arm's joints.
+        joints: usize,
+    },
     /// `[controller]` keys of a spatial arm's law in a planar run.
     #[error(
         "{} set(s) a spatial arm's law (its singularity settings; --arm ur5|panda|FILE); the paper's planar \
@@ -322,7 +336,9 @@ impl ScenarioBuilder {
 
     /// Velocity limits; default: the config file's `[velocity_limits]`, else realistic limits
     /// for the car (unsaturated, Lemma 2's high gains can diverge within seconds, SPEC §3) and
-    /// none for the other platforms.
+    /// none for the other platforms. Acceleration limits: the config file's
+    /// `[acceleration_limits]`, none with [`LimitsChoice::Unlimited`], the TIAGo's with
+    /// [`LimitsChoice::Tiago`].
     pub fn limits(mut self, limits: LimitsChoice) -> Self {
         self.limits = Some(limits);
         self
@@ -421,9 +437,25 @@ impl ScenarioBuilder {
         let limits = match self.limits {
             Some(LimitsChoice::Unlimited) => None,
             Some(LimitsChoice::Realistic) => Some(LimitsConfig::realistic()),
+            Some(LimitsChoice::Tiago) => Some(LimitsConfig::tiago()),
             Some(LimitsChoice::Custom(l)) => Some(l),
             None => file.velocity_limits.or_else(|| default_limits(self.platform)),
         };
+        let acceleration = match self.limits {
+            Some(LimitsChoice::Unlimited) => None,
+            Some(LimitsChoice::Tiago) => Some(AccelerationConfig::tiago()),
+            _ => file.acceleration_limits.clone(),
+        };
+        // The planar arm's joints (a spatial arm's are counted when its law is built).
+        if let Some(given) = acceleration.as_ref().and_then(|a| a.joints.as_ref()).map(Vec::len) {
+            if !spatial_arm && given != JOINTS {
+                return Err(ScenarioError::JointCount {
+                    key: "acceleration_limits.joints",
+                    given,
+                    joints: JOINTS,
+                });
+            }
+        }
         let mut plant = file.plant;
         plant.seed.get_or_insert(1);
         let controller = ControllerSpec {
@@ -434,6 +466,7 @@ impl ScenarioBuilder {
             unicycle: file.unicycle.unwrap_or_default(),
             car: file.car.unwrap_or_default(),
             limits,
+            acceleration,
             arm: file.arm.unwrap_or_default(),
             initial_alpha: self.initial_alpha,
         };
@@ -680,6 +713,61 @@ impl Options {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `[acceleration_limits]` reaches the law; `--limits tiago` sets the TIAGo's velocity and
+    /// acceleration limits (over the file's), `--limits none` drops both; per-joint arrays of
+    /// another count are refused by name.
+    #[test]
+    fn acceleration_limits_from_the_file_and_the_tiago_preset() {
+        let b = || Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
+        let file: ConfigFile = toml::from_str(
+            "[acceleration_limits]
+forward = 0.5
+joints = [1.0, 2.0, 3.0]
+",
+        )
+        .expect("TOML");
+        let s = b().config(file.clone()).build().expect("valid");
+        let p = s.controller.params::<f64>();
+        assert_eq!(p.acceleration_limits.forward, 0.5);
+        assert_eq!(p.acceleration_limits.angular, f64::INFINITY);
+        assert_eq!(p.acceleration_limits.joints.as_slice(), &[1.0, 2.0, 3.0]);
+        let t = b().config(file.clone()).limits(LimitsChoice::Tiago).build().expect("valid").controller;
+        let p = t.params::<f64>();
+        assert_eq!((p.velocity_limits.forward, p.velocity_limits.angular), (1.0, 2.09));
+        assert_eq!((p.acceleration_limits.forward, p.acceleration_limits.angular), (1.0, 2.09));
+        assert!(p.acceleration_limits.joints.iter().all(|a| a.is_infinite()));
+        let none =
+            b().config(file.clone()).limits(LimitsChoice::Unlimited).build().expect("valid").controller;
+        assert_eq!(none.acceleration, None);
+        assert_eq!(none.params::<f64>().acceleration_limits, companion_core::AccelerationLimits::unlimited());
+        // Realistic velocity limits keep the file's acceleration limits.
+        let r = b().config(file).limits(LimitsChoice::Realistic).build().expect("valid").controller;
+        assert_eq!(r.params::<f64>().acceleration_limits.forward, 0.5);
+        let two: ConfigFile = toml::from_str(
+            "[acceleration_limits]
+joints = [1.0, 2.0]
+",
+        )
+        .expect("TOML");
+        let e = b().config(two).build().expect_err("two values for three joints");
+        assert_eq!(e.to_string(), "acceleration_limits.joints has 2 values; the arm has 3 joints");
+        let bad: ConfigFile = toml::from_str(
+            "[acceleration_limits]
+angular = 0
+",
+        )
+        .expect("TOML");
+        let e = b().config(bad).build().expect_err("not positive");
+        assert!(e.to_string().contains("acceleration_limits.angular"), "{e}");
+        let unknown = toml::from_str::<ConfigFile>(
+            "[acceleration_limits]
+linear = 1
+",
+        )
+        .expect_err("unknown key");
+        assert!(unknown.to_string().contains("unknown field `linear`"), "{unknown}");
+    }
 
     #[test]
     fn every_paper_scenario_is_valid_and_named() {

@@ -9,7 +9,7 @@ use crate::domain::controller::StepReport;
 use crate::domain::controller::JOINTS;
 use crate::transport::wire::target::WireSpace;
 use crate::transport::wire::{
-    decode_status, CommandHeader, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg,
+    decode_status, limits, CommandHeader, CommandMsg, LoggedDiagnostics, MeasurementHeader, MeasurementMsg,
 };
 
 /// What the plant stamps on every measurement of a run: its session and its announcement.
@@ -75,6 +75,8 @@ pub fn report_of<const N: usize>(c: &CommandMsg) -> StepReport<N> {
         saturation: c.saturation,
         alpha_rate: c.alpha_rate,
         joint_scale: c.joint_scale,
+        platform_acceleration: error.is_none() && c.limits & limits::PLATFORM_ACCELERATION != 0,
+        joint_acceleration: error.is_none() && c.limits & limits::JOINT_ACCELERATION != 0,
         error,
     }
 }
@@ -92,6 +94,8 @@ pub fn answer<const N: usize>(
         saturation: report.saturation,
         alpha_rate: report.alpha_rate,
         joint_scale: report.joint_scale,
+        limits: if report.platform_acceleration { limits::PLATFORM_ACCELERATION } else { 0 }
+            | if report.joint_acceleration { limits::JOINT_ACCELERATION } else { 0 },
     };
     CommandMsg::answer(m, header, &report.command, report.error, &diag)
 }

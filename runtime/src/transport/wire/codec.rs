@@ -148,6 +148,8 @@ pub struct LoggedDiagnostics {
     pub alpha_rate: [f64; 2],
     /// The joint guard's factor.
     pub joint_scale: f64,
+    /// Which acceleration limits acted ([`limits`](super::limits) bits).
+    pub limits: u32,
 }
 
 impl LoggedDiagnostics {
@@ -159,12 +161,20 @@ impl LoggedDiagnostics {
         saturation: f64::NAN,
         alpha_rate: [f64::NAN; 2],
         joint_scale: f64::NAN,
+        limits: 0,
     };
 
     /// The diagnostics of a step that found nothing to do (benchmarks and tests of the
     /// transport): no error, no saturation, the joint guard idle.
-    pub const IDLE: Self =
-        Self { ep_norm: 0.0, h_s: 0.0, psi: 1.0, saturation: 1.0, alpha_rate: [0.0; 2], joint_scale: 1.0 };
+    pub const IDLE: Self = Self {
+        ep_norm: 0.0,
+        h_s: 0.0,
+        psi: 1.0,
+        saturation: 1.0,
+        alpha_rate: [0.0; 2],
+        joint_scale: 1.0,
+        limits: 0,
+    };
 }
 
 /// The header fields of a command besides the ids copied from the measurement.
@@ -215,7 +225,7 @@ impl CommandMsg {
             scenario_hash: header.identity.scenario_hash,
             arm_hash: header.identity.arm_hash,
             space: header.identity.space,
-            reserved: 0,
+            limits: diag.limits,
             delay: header.delay,
             v: p.v,
             v_lat: p.v_lat,
@@ -254,6 +264,7 @@ impl CommandMsg {
             saturation: self.saturation,
             alpha_rate: self.alpha_rate,
             joint_scale: self.joint_scale,
+            limits: self.limits,
         }
     }
 

@@ -31,6 +31,16 @@ pub mod flags {
     pub const ANNOUNCED: u32 = LOCKSTEP | NOTIFIES;
 }
 
+/// The bits of a command's `limits`: which of the law's acceleration limits acted on it
+/// (`companion_core::acceleration`). The field was `reserved` (0) before: an earlier
+/// controller writes 0, and a plant that does not read it loses nothing.
+pub mod limits {
+    /// The change of the platform's command was divided by the acceleration factor.
+    pub const PLATFORM_ACCELERATION: u32 = 1;
+    /// The change of the joints' command was.
+    pub const JOINT_ACCELERATION: u32 = 2;
+}
+
 /// The `platform` codes of both messages.
 pub mod platform {
     use companion_core::PlatformKind;
@@ -163,8 +173,8 @@ pub struct CommandMsg {
     pub arm_hash: u64,
     /// The controller's [`target::space`](super::target::space) code.
     pub space: u32,
-    /// Zero.
-    pub reserved: u32,
+    /// [`limits`] bits: which acceleration limits acted (0: none, and a rejection).
+    pub limits: u32,
     /// The delay the law predicted over (s).
     pub delay: f64,
     /// Forward speed `v` (m/s).

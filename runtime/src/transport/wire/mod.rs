@@ -95,7 +95,7 @@
 //!     64 u64       scenario_hash    the controller's scenario hash
 //!     72 u64       arm_hash         the controller's arm hash
 //!     80 u32       space            the controller's target space (codes as above)
-//!     84 u32       reserved         0
+//!     84 u32       limits           acceleration limits that acted: platform 1, joints 2
 //!     88 f64       delay            the delay the law predicted over (s)
 //!     96 f64       v                forward speed (m/s)
 //!    104 f64       v_lat            lateral speed (m/s), omnidirectional platform
@@ -141,8 +141,8 @@ pub use checks::{check_command, check_measurement};
 pub use codec::{CommandHeader, LoggedDiagnostics, MeasurementHeader};
 pub use handshake::{refusal, Announcement, ControllerIdentity, Refusal};
 pub use layout::{
-    flags, platform, CommandMsg, MeasurementMsg, WireMessage, COMMAND_SIZE, COMMAND_TYPE_NAME, MAX_JOINTS,
-    MEASUREMENT_SIZE, MEASUREMENT_TYPE_NAME, PROTOCOL_VERSION,
+    flags, limits, platform, CommandMsg, MeasurementMsg, WireMessage, COMMAND_SIZE, COMMAND_TYPE_NAME,
+    MAX_JOINTS, MEASUREMENT_SIZE, MEASUREMENT_TYPE_NAME, PROTOCOL_VERSION,
 };
 pub use status::{decode_status, encode_status, WireError};
 pub use target::{TargetError, WireSpace, WireTarget};

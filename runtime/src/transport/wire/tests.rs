@@ -57,6 +57,7 @@ fn good_command() -> CommandMsg {
         saturation: 1.0,
         alpha_rate: [0.2, 0.0],
         joint_scale: 1.25,
+        limits: limits::JOINT_ACCELERATION,
     };
     let mut cmd = Command::<f64, 3>::zero();
     cmd.platform.v = 0.3;
@@ -109,7 +110,7 @@ fn command_fields() -> Vec<(&'static str, usize)> {
         ("scenario_hash", offset_of!(CommandMsg, scenario_hash)),
         ("arm_hash", offset_of!(CommandMsg, arm_hash)),
         ("space", offset_of!(CommandMsg, space)),
-        ("reserved", offset_of!(CommandMsg, reserved)),
+        ("limits", offset_of!(CommandMsg, limits)),
         ("delay", offset_of!(CommandMsg, delay)),
         ("v", offset_of!(CommandMsg, v)),
         ("v_lat", offset_of!(CommandMsg, v_lat)),
