@@ -186,7 +186,7 @@ pub struct ScenarioArgs {
     /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
     #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Platform velocity limits (`none`, `realistic`, `tiago`), met by one common factor.
+    /// Robot limits: none, realistic, or tiago (its accelerations too).
     ///
     /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs; it
     /// also drops any acceleration limits of --config's [acceleration_limits]), unless the
@@ -194,7 +194,7 @@ pub struct ScenarioArgs {
     /// `companion_plant::realistic_limits`); `tiago` (the TIAGo base as PAL configures it,
     /// with its acceleration limits, met by a second common factor on the change of the
     /// command). The book's chapter "The law" (docs/book/src/law.md) has the details.
-    #[arg(long, value_enum, value_name = "none|realistic|tiago", hide_possible_values = true)]
+    #[arg(long, value_enum, value_name = "NAME", hide_possible_values = true)]
     pub limits: Option<LimitsArg>,
     /// Plant: a first-order actuator lag of this time constant, in s.
     ///
