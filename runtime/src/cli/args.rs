@@ -186,7 +186,7 @@ pub struct ScenarioArgs {
     /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
     #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Robot limits: none, realistic, or tiago (its accelerations too).
+    /// Limits: none, realistic or tiago (accelerations too).
     ///
     /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs; it
     /// also drops any acceleration limits of --config's [acceleration_limits]), unless the
