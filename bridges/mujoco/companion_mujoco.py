@@ -35,8 +35,13 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 sys.path.insert(0, os.path.join(REPO, "bridges", "python"))
 # Off-screen pictures through EGL unless the user chose another backend (osmesa, glfw). Set
-# before mujoco is imported: it reads the variable then.
-os.environ.setdefault("MUJOCO_GL", "egl")
+# before mujoco is imported: it reads the variable then, and refuses to load with a value it
+# does not know — then the run goes on without pictures, and says why.
+GL_WANTED = os.environ.setdefault("MUJOCO_GL", "egl")
+NO_GL = None
+if GL_WANTED.lower().strip() not in ("egl", "osmesa", "glfw", "glx"):
+    NO_GL = "not one of MuJoCo's backends (egl, osmesa, glfw)"
+    os.environ["MUJOCO_GL"] = "disabled"
 
 import numpy as np  # noqa: E402
 
@@ -48,6 +53,8 @@ from companion_bridge import compose3, inverse3, so3_log, transpose  # noqa: E40
 # ----- the target: the paper's trajectories lifted (docs/protocol.md §8) -------------------
 
 TABLE1_OMEGA = math.pi * math.pi / 20.0
+# The exit code of a completed run that did not keep real time (companion's, docs/protocol.md §6).
+EXIT_DEADLINES = 7
 
 
 def table1(t):
@@ -414,12 +421,37 @@ class MujocoPlant(wire.Bridge):
         super().__init__(a, physical)
         self.summary = PhysicsSummary(self)
 
+    def run(self):
+        """The session; then the verdict `companion plant` gives a real-time run: exit 7 if
+        the robot was stopped or more than --max-miss-fraction of the deadlines were missed."""
+        code = super().run()
+        c, cycles = self.counts, self.robot.step + 1
+        failures = []
+        if c["stop_events"] > 0:
+            failures.append(
+                f"the plant stopped the robot {c['stop_events']} time(s) ({c['stopped']} periods stopped): commands "
+                "missed their deadlines for longer than --hold-periods"
+            )
+        if c["deadline_misses"] > self.a.max_miss_fraction * cycles:
+            failures.append(
+                f"{c['deadline_misses']} of {cycles} periods missed their deadline "
+                f"({100.0 * c['deadline_misses'] / cycles:.1f} %, more than --max-miss-fraction {self.a.max_miss_fraction})"
+            )
+        for f in failures:
+            print(f"warning: plant: RUN FAILED: {f}", file=sys.stderr)
+        self.failures = failures
+        return EXIT_DEADLINES if code == wire.EXIT_OK and failures else code
+
     def publish(self, seq, flags, delay):
         # The drives' own lag, announced as part of the delay (docs/protocol.md, "The
         # delay": a bridge adds what it knows of its actuators).
         return super().publish(seq, flags, delay + self.a.actuator_delay)
 
     def report(self, code, why=None):
+        # The session's own JSON (counts, delays) beside the run's files, when there is a run.
+        self.a.out = os.path.join(self.a.out_dir, "session.json") if self.robot.rows else None
+        if self.a.out:
+            os.makedirs(self.a.out_dir, exist_ok=True)
         super().report(code, why)
         write_run(self.a, self.robot, self, code, why)
 
@@ -505,6 +537,9 @@ def write_run(a, phys, bridge, code, why):
     """timeseries.csv, summary.json, latency.json, scenario.json, the filmstrip and
     index.html in a.out_dir."""
     out = a.out_dir
+    if not phys.rows:
+        print(f"mujoco: no period ran: nothing written to {out}", file=sys.stderr)
+        return
     os.makedirs(out, exist_ok=True)
     rb = phys.robot
     n = phys.joints
@@ -548,6 +583,7 @@ def write_run(a, phys, bridge, code, why):
             "max_abs_v_commanded": s.max_v,
             "max_abs_omega_commanded": s.max_w,
             "v_sign_changes": s.v_sign_changes,
+            "failures": getattr(bridge, "failures", []),
         }
     summary = {
         "plant": "mujoco",
@@ -711,10 +747,12 @@ def film(a, phys, out):
         return [], "the run ended before its first frame"
     rb = phys.robot
     try:
+        if NO_GL:
+            raise RuntimeError(NO_GL)
         renderer = mujoco.Renderer(rb.model, 360, 480)
     except Exception as e:  # noqa: BLE001 - any failure of the GL stack means: no picture
-        why = (f"no off-screen renderer (MUJOCO_GL={os.environ.get('MUJOCO_GL')}): {type(e).__name__}: {e}; "
-               "scripts/setup installs EGL and Mesa (Debian libegl1 libegl-mesa0 libopengl0 libgl1-mesa-dri)")
+        why = (f"no off-screen renderer (MUJOCO_GL={GL_WANTED}): {type(e).__name__}: {e}; scripts/setup installs "
+               "EGL and Mesa (Debian libegl1 libegl-mesa0 libopengl0 libgl1-mesa-dri)")
         print(f"mujoco: {why}", file=sys.stderr)
         return [], why
     files, images = [], []
@@ -872,11 +910,13 @@ def parse(argv):
     p.add_argument("--seed", type=int, default=1, help="the noise's seed")
     p.add_argument("--filmstrip", type=int, default=8, help="frames rendered after the run (0: none)")
     p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--max-miss-fraction", type=float, default=0.05,
+                   help="real time: a run missing more of its deadlines fails (exit 7), as does one that stopped the robot")
     p.add_argument("--actuator-delay", type=float, default=0.0,
                    help="s added to the delay announced in every measurement (the drives' lag)")
     p.add_argument("--open-loop", help="no controller: base commands SECONDS:V,OMEGA[,V_LAT];… (joints still)")
     a = wire.finish_arguments(p.parse_args(argv))
-    a.out = os.path.join(a.out_dir, "session.json")
+    a.out = None  # set at the end (MujocoPlant.report)
     a.rows = None
     return a
 
@@ -893,7 +933,6 @@ def main(argv=None):
         print(f"error: --out {a.out_dir} is a file, not a folder", file=sys.stderr)
         return wire.EXIT_ERROR
     steps = int(round(a.duration / a.dt))
-    os.makedirs(a.out_dir, exist_ok=True)
 
     def make():
         try:

@@ -352,11 +352,18 @@ class Robot:
         if table["simulation"]["integrator"] not in integrators:
             raise ModelError(f"actuator table: simulation.integrator must be one of {sorted(integrators)}")
         spec.option.integrator = integrators[table["simulation"]["integrator"]]
-        floor = spec.worldbody.add_geom(
-            name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], rgba=[0.82, 0.84, 0.86, 1]
-        )
+        # The floor (a checker, 0.5 m squares, for the pictures) and the lights.
+        spec.add_texture(name="grid", type=mujoco.mjtTexture.mjTEXTURE_2D, builtin=mujoco.mjtBuiltin.mjBUILTIN_CHECKER,
+                         rgb1=[0.92, 0.92, 0.92], rgb2=[0.8, 0.82, 0.86], width=256, height=256)
+        grid = spec.add_material(name="grid", texrepeat=[1, 1], texuniform=True)
+        grid.textures[int(mujoco.mjtTextureRole.mjTEXROLE_RGB)] = "grid"
+        spec.add_texture(name="sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX, builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT,
+                         rgb1=[0.75, 0.85, 0.95], rgb2=[1.0, 1.0, 1.0], width=64, height=64)
+        floor = spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05], material="grid")
         floor.friction = [float(x) for x in table["simulation"]["floor_friction"]]
-        spec.worldbody.add_light(pos=[0, 0, 6], dir=[0, 0, -1], diffuse=[0.7, 0.7, 0.7])
+        spec.worldbody.add_light(pos=[0, 0, 6], dir=[0, 0, -1], diffuse=[0.6, 0.6, 0.6])
+        spec.visual.headlight.ambient = [0.35, 0.35, 0.35]
+        spec.visual.headlight.diffuse = [0.5, 0.5, 0.5]
         self._servos(spec, names)
         self._target_marker(spec)
         try:

@@ -35,6 +35,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
+use super::mujoco::{plant_process, PlantArg};
 use super::sim::print_table;
 use super::terminal::Terminal;
 
@@ -253,6 +254,14 @@ pub struct HilArgs {
     /// Set by `companion hil` on the plant it starts.
     #[arg(long, hide = true)]
     pub child: bool,
+    /// The plant `companion hil` starts: `kinematic` (`companion plant`) or `mujoco` (the
+    /// robot's URDF in MuJoCo, with wheels, drives, servos and gravity: docs/mujoco.md).
+    #[arg(long, value_enum, default_value = "kinematic")]
+    pub plant: PlantArg,
+    /// With --plant mujoco: one more argument for the MuJoCo plant (repeatable), e.g.
+    /// `--plant-arg=--set=arm.time_constant=0.002`.
+    #[arg(long = "plant-arg", value_name = "ARG", allow_hyphen_values = true)]
+    pub plant_args: Vec<String>,
 }
 
 fn secs_to_ns(s: f64) -> u64 {
@@ -613,13 +622,20 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     }
     let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
     let mut plant = Process::new(&exe);
-    plant
-        .arg("plant")
-        .args(forwarded_args())
-        .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
-        .args(&plant_tls)
-        .arg("--child")
-        .stdin(Stdio::null());
+    if a.plant == PlantArg::Mujoco {
+        plant = plant_process(a, &cfg, &s)?;
+    } else {
+        plant
+            .arg("plant")
+            .args(forwarded_args())
+            .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
+            .args(&plant_tls)
+            .arg("--child");
+    }
+    if a.plant == PlantArg::Kinematic && !a.plant_args.is_empty() {
+        bail!("--plant-arg is for --plant mujoco");
+    }
+    plant.stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {
         // The faults count from a second from now in both processes.
         c.epoch_ns = companion_runtime::sys::rt::monotonic_ns() + 1_000_000_000;
@@ -723,6 +739,12 @@ fn print_failures(who: &str, failures: &[Failure]) {
 /// A bad flag, a transport failure, or files that cannot be written.
 pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
+    if a.plant == PlantArg::Mujoco || !a.plant_args.is_empty() {
+        bail!(
+            "--plant and --plant-arg are for `companion hil`; the MuJoCo plant alone is \
+             target/py/bin/python bridges/mujoco/companion_mujoco.py (docs/mujoco.md)"
+        );
+    }
     let (mut cfg, s) = a.resolve()?;
     match (cfg.chaos, a.chaos_epoch_ns) {
         (Some(_), None) => bail!("--chaos is for `companion hil` (it starts the plant with it)"),

@@ -9,6 +9,7 @@ mod exit;
 mod explore;
 mod hil;
 mod latency;
+mod mujoco;
 mod sim;
 mod terminal;
 mod tune;
