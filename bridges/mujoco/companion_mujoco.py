@@ -222,12 +222,16 @@ class Physical:
         self.step, self.steps = 0, steps
         self.arm_hash = arm_hash
         self.home = list(robot.data.qpos[robot.chain_qadr])
-        self.limits = robot.limits
+        # The joint limits the controller knows (an arm file's may be inside the URDF's, which
+        # MuJoCo enforces): the margins are measured to them.
+        self.limits = [(j[3], j[4]) for j in chain.joints] if chain is not None else robot.limits
         n = len(self.home)
         # r*_ed: 0.2 m along the flange's z, level at home (docs/protocol.md §8), from the model.
         r, p = robot.tool_in_base(self.home)
         home_pose = (tuple(r.flatten().tolist()), tuple(p.tolist()))
         self.star = (transpose(home_pose[0]), (0.0, 0.0, wire.TARGET_DISTANCE))
+        self._star_t = np.array(self.star[0]).reshape(3, 3).T
+        self._star_p = np.array(self.star[1])
         self.z0 = compose3(home_pose, self.star)[1][2]
         self.target = LiftedTarget(a.trajectory, a.dt, self.z0)
         self.rng = np.random.default_rng(a.seed)
@@ -296,6 +300,9 @@ class Physical:
 
     def measure(self):
         start = time.perf_counter_ns()
+        if self.step == 0 and not self.plant_ns:
+            # A second measure of the plant's cost: the process's CPU time over the run.
+            self.cpu_start, self.wall_start = time.process_time_ns(), start
         truth = self.true_base()
         base = truth
         if self.odometry:
@@ -359,9 +366,14 @@ class Physical:
         """e_p of the simulated effector against the target now: (position 3, rotation 3)."""
         if self._cache_step != self.step:
             rot, pos, _, _ = self.target.at(self.t)
-            tool = self.robot.tool_pose()
-            r = compose3(inverse3(self.star), compose3(inverse3(tool), (rot, pos)))
-            self._ep = (r[1], so3_log(r[0]), tool, (rot, pos))
+            d, tool = self.robot.data, self.robot.tool
+            re, pe = d.xmat[tool].reshape(3, 3), d.xpos[tool]
+            # r̃ = (r*_ed)⁻¹ r_e⁻¹ r_d, with r*_ed = (S, s): R̃ = Sᵀ R_eᵀ R_d, p̃ = Sᵀ (R_eᵀ (p_d − p_e) − s).
+            a = self._star_t @ re.T
+            r = a @ np.asarray(rot).reshape(3, 3)
+            p = a @ (np.asarray(pos) - pe) - self._star_t @ self._star_p
+            self._ep = (tuple(p.tolist()), so3_log(tuple(r.flatten().tolist())),
+                        (tuple(re.flatten().tolist()), tuple(pe.tolist())), (rot, pos))
             self._cache_step = self.step
         return self._ep
 
@@ -389,6 +401,7 @@ class Physical:
         )
         if self.step in self.film_at:
             self.film.append((self.step, self.robot.data.qpos.copy(), target))
+        self.cpu_end, self.wall_end = time.process_time_ns(), time.perf_counter_ns()
 
 
 class PhysicsSummary(wire.Summary):
@@ -603,6 +616,8 @@ def write_run(a, phys, bridge, code, why):
                 "radius": rb.wheels["radius"], "track": rb.wheels["track"],
             },
             "casters": rb.casters,
+            # Each drive: its gain kv (from its time constant) and its force or torque limit.
+            "drives": {n: {"kv": rb.gains[n], "limit": float(lim)} for n, lim in zip(rb.act_names, rb.act_limit)},
         },
         "trajectory": a.trajectory,
         "dt": a.dt,
@@ -620,8 +635,20 @@ def write_run(a, phys, bridge, code, why):
     with open(os.path.join(out, "scenario.json"), "w") as f:
         json.dump({"target_in_effector": {"xyz": list(phys.star[1]), "rotation": list(phys.star[0])},
                    "trajectory": a.trajectory, "z0": phys.z0, "dt": a.dt}, f, indent=2)
-    latency = {"mode": summary["mode"], "plant_step_ns": percentiles(phys.plant_ns),
-               "host": host.node(), "cpus": os.cpu_count()}
+    latency = {
+        "mode": summary["mode"],
+        # Measuring, recording and advancing one period, by the clock (perf_counter) around them.
+        "plant_step_ns": percentiles(phys.plant_ns),
+        "plant_step_mean_ns": statistics.fmean(phys.plant_ns),
+        # The same cost a second way: the process's CPU time (user + system) and the wall time
+        # from the first measurement to the last row, per period. The CPU time also holds the
+        # wire's work (publishing, receiving, the wait's polling).
+        "process_cpu_per_period_ns": (phys.cpu_end - phys.cpu_start) / len(rows),
+        "wall_per_period_ns": (phys.wall_end - phys.wall_start) / len(rows),
+        "host": host.node(),
+        "cpus": os.cpu_count(),
+        "load_average": os.getloadavg(),
+    }
     if bridge is not None:
         latency.update({
             "cycles": len(rows),

@@ -590,8 +590,10 @@ class Robot:
     def _gains(self):
         """Each velocity servo's gain kv from its time constant τ at the start: kv = I / τ,
         I the inertia the drive moves (the joint's diagonal of the mass matrix; for a wheel,
-        also its half of the robot's mass at the wheel's radius), unless the table gives kv.
-        A velocity error then decays as exp(−t/τ) until the effort limit."""
+        also its half of the robot's mass at the wheel's radius) — a rate error then decays as
+        exp(−t/τ) until the effort limit — but at least effort / full_effort_error, so that
+        the servo gives its full effort at that rate error (a light wrist link's own inertia
+        would give a gain too weak to overcome the URDF's friction). A table's kv wins."""
         m, d = self.model, self.data
         full = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, full)
@@ -603,16 +605,19 @@ class Robot:
             self.gains[m.actuator(act).name] = kv
 
         tau = positive(self.table, "arm", "time_constant")
+        error = positive(self.table, "arm", "full_effort_error")
         for s, act, dof in zip(self.servo_joints, self.servo_act, self.servo_dof):
-            s["kv"] = s["kv"] if s["kv"] is not None else full[dof, dof] / tau
+            s["kv"] = s["kv"] if s["kv"] is not None else max(full[dof, dof] / tau, s["effort"] / error)
             put(act, s["kv"])
         self.servo_inv_kv = np.array([1.0 / s["kv"] for s in self.servo_joints])
         if self.wheels:
             tau = positive(self.table, "wheels", "time_constant")
+            error = positive(self.table, "wheels", "full_effort_error")
             carried = 0.5 * m.body_subtreemass[self.base] * self.wheels["radius"] ** 2
             for side, act, dof in zip(("left", "right"), self.wheel_act, self.wheel_dof):
                 wh = self.wheels[side]
-                wh["kv"] = wh["kv"] if wh["kv"] is not None else (full[dof, dof] + carried) / tau
+                kv = max((full[dof, dof] + carried) / tau, wh["effort_limit"] / error)
+                wh["kv"] = wh["kv"] if wh["kv"] is not None else kv
                 put(act, wh["kv"])
         else:
             tau = positive(self.table, "omni", "time_constant")
