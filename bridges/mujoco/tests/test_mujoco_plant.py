@@ -137,11 +137,13 @@ def test_trajectory_2_follows_table_1():
 
 
 def test_the_actuator_table_is_overridden_by_name_and_a_typo_is_refused():
-    base = tiago()
-    slower = tiago("arm.time_constant=0.01", "joint.arm_1_joint.kv=123.0")
-    g0, g1 = base.gains, slower.gains
-    assert g1["servo/arm_2_joint"] == pytest.approx(g0["servo/arm_2_joint"] / 2)
-    assert g1["servo/arm_1_joint"] == 123.0
+    g0 = tiago().gains
+    g1 = tiago("arm.time_constant=0.0025", "arm.full_effort_error=0.1", "joint.arm_2_joint.kv=123.0").gains
+    # kv = I / τ for the shoulder (its inertia is large), effort / full_effort_error for the
+    # light wrist (URDF effort 6.6 N m), the table's own where it gives one.
+    assert g1["servo/arm_1_joint"] == pytest.approx(2 * g0["servo/arm_1_joint"])
+    assert (g0["servo/arm_7_joint"], g1["servo/arm_7_joint"]) == pytest.approx((6.6 / 0.2, 6.6 / 0.1))
+    assert g1["servo/arm_2_joint"] == 123.0
     with pytest.raises(mujoco_robot.ModelError, match="unknown key arm.time_constnat"):
         tiago("arm.time_constnat=0.01")
 
