@@ -875,6 +875,12 @@ class Bridge:
         self.joint_scale_invalid = 0
         self.last_sent = None
         self.poll = not a.events  # sleep on the controller's event only while it notifies
+        # Real time: how long before each release the loop stops sleeping and spins; how often
+        # it fell more than a period behind its schedule (and restarted it), and by how much
+        # in all (the run then took that much longer than its simulated time).
+        self.spin_ns = 300_000
+        self.fell_behind = 0
+        self.behind_ns = 0
 
     # -- messages --
 
@@ -1036,8 +1042,8 @@ class Bridge:
             self.maybe_fault(n)
             self.progress(n)
             release = start + n * period
-            while time.monotonic_ns() < release - 300_000:
-                time.sleep(0.0001)
+            while (ahead := release - self.spin_ns - time.monotonic_ns()) > 0:
+                time.sleep(ahead / 1e9)
             while time.monotonic_ns() < release:
                 pass
             late = time.monotonic_ns() - release
@@ -1048,6 +1054,8 @@ class Bridge:
                     print(f"bridge: period {n} released {late / 1e6:.0f} ms late", file=sys.stderr)
                 # This process was not running: not the controller's silence.
                 heard += late - period
+                self.fell_behind += 1
+                self.behind_ns += late
                 start = time.monotonic_ns() - n * period
                 release = start + n * period
             m = self.publish(n, (END_OF_RUN if n == steps else 0) | (STOPPED if stopped else 0), delay)
@@ -1141,6 +1149,8 @@ class Bridge:
             "joint_scale_invalid": self.joint_scale_invalid,
             "counts": self.counts,
             "invalid": self.invalid,
+            "fell_behind": self.fell_behind,
+            "behind_s": self.behind_ns / 1e9,
             "delay_mean_s": sum(self.delays) / len(self.delays) if self.delays else 0.0,
             "delay_max_s": max(self.delays) if self.delays else 0.0,
         }
