@@ -102,22 +102,31 @@ class LiftedTarget:
         return table1(t_mid)
 
     def advance(self, t0):
+        """One RK4 step of the planar pose, as the reference bridge's (the same sums, in the
+        same order)."""
         h = self.dt
         u = self.velocity_piece(t0 + 0.5 * h)
         x, y, th = self.pose
-
-        def f(t, theta):
-            ud = u(t)
-            s, c = math.sin(theta), math.cos(theta)
-            return (c * ud[0] - s * ud[1], s * ud[0] + c * ud[1], ud[2])
-
         half, tm = 0.5 * h, t0 + 0.5 * h
-        k1 = f(t0, th)
-        k2 = f(tm, th + half * k1[2])
-        k3 = f(tm, th + half * k2[2])
-        k4 = f(t0 + h, th + h * k3[2])
+        sin, cos = math.sin, math.cos
+        u1, um, u4 = u(t0), u(tm), u(t0 + h)
+        s, c = sin(th), cos(th)
+        k1 = (c * u1[0] - s * u1[1], s * u1[0] + c * u1[1], u1[2])
+        t2 = th + half * k1[2]
+        s, c = sin(t2), cos(t2)
+        k2 = (c * um[0] - s * um[1], s * um[0] + c * um[1], um[2])
+        t3 = th + half * k2[2]
+        s, c = sin(t3), cos(t3)
+        k3 = (c * um[0] - s * um[1], s * um[0] + c * um[1], um[2])
+        t4 = th + h * k3[2]
+        s, c = sin(t4), cos(t4)
+        k4 = (c * u4[0] - s * u4[1], s * u4[0] + c * u4[1], u4[2])
         w = h / 6.0
-        self.pose = tuple(p + w * (((a + 2.0 * b) + 2.0 * c) + 1.0 * d) for p, a, b, c, d in zip(self.pose, k1, k2, k3, k4))
+        self.pose = (
+            x + w * (((k1[0] + 2.0 * k2[0]) + 2.0 * k3[0]) + 1.0 * k4[0]),
+            y + w * (((k1[1] + 2.0 * k2[1]) + 2.0 * k3[1]) + 1.0 * k4[1]),
+            th + w * (((k1[2] + 2.0 * k2[2]) + 2.0 * k3[2]) + 1.0 * k4[2]),
+        )
 
     def at(self, t):
         """(R 9-tuple, p, yaw, twist) at time t (the pose integrated to t)."""
@@ -254,6 +263,8 @@ class Physical:
         nu = robot.model.nu
         self.sat_steps = np.zeros(nu, dtype=np.int64)
         self.sat_period = np.zeros(nu)
+        self._ratio = np.zeros(nu)
+        self._inv_limit = 1.0 / robot.act_limit
         self.substeps_total = 0
         self.slip = np.zeros(2)
         self.plant_ns = []
@@ -346,14 +357,15 @@ class Physical:
         first = int(round(delay / self.h)) if delay > 0.0 else 0
         self.clipped = False
         self.sat_period[:] = 0.0
-        force, limit = rb.data.actuator_force, rb.act_limit
+        force, ratio = rb.data.actuator_force, self._ratio
         for k in range(rb.substeps):
             if k == 0:
                 self._set(previous if first > 0 else command)
             elif k == first:
                 self._set(command)
             rb.substep()
-            ratio = np.abs(force) / limit
+            np.abs(force, out=ratio)
+            ratio *= self._inv_limit
             np.maximum(self.sat_period, ratio, out=self.sat_period)
             self.sat_steps += ratio >= 1.0 - 1e-9
         self.substeps_total += rb.substeps

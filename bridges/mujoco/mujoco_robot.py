@@ -582,6 +582,9 @@ class Robot:
         self._gains()
         mujoco.mj_forward(m, d)
         self.hold_q = d.qpos[self.servo_qadr].copy()
+        self.hold_idx = np.flatnonzero(self.hold)
+        self.hold_qadr = self.servo_qadr[self.hold_idx]
+        self.hold_target = self.hold_q[self.hold_idx]
         self.u_servo = np.zeros(len(servo))
         self.wheel_target = np.zeros(2)
         self.omni_target = np.zeros(3)
@@ -657,11 +660,13 @@ class Robot:
                 left, right, clipped = left * k, right * k, True
             self.wheel_target[0] = left * self.wheel_sign[0]
             self.wheel_target[1] = right * self.wheel_sign[1]
+            self.data.ctrl[self.wheel_act] = self.wheel_target
         else:
             sp, tr = self.omni_speed
             k = max(abs(v) / sp, abs(v_lat) / sp, abs(omega) / tr, 1.0)
             clipped = k > 1.0
             self.omni_target[:] = (v / k, v_lat / k, omega / k)
+            self.data.ctrl[self.omni_act] = self.omni_target
         u = np.asarray(rates, dtype=float)
         lim = self.servo_speed[self.chain_servo]
         if np.any(np.abs(u) > lim):
@@ -674,8 +679,8 @@ class Robot:
         """One physics step under the current targets."""
         m, d = self.model, self.data
         u = self.u_servo
-        if self.hold.any():
-            u[self.hold] = self.hold_gain * (self.hold_q[self.hold] - d.qpos[self.servo_qadr[self.hold]])
+        if len(self.hold_idx):
+            u[self.hold_idx] = self.hold_gain * (self.hold_target - d.qpos[self.hold_qadr])
         if self.gravity:
             # The model's bias forces and, cancelled, its passive ones (the URDF's damping): a
             # drive's feedforward, one physics step old.
@@ -683,10 +688,6 @@ class Robot:
             d.ctrl[self.servo_act] = u + ff * self.servo_inv_kv
         else:
             d.ctrl[self.servo_act] = u
-        if self.wheels:
-            d.ctrl[self.wheel_act] = self.wheel_target
-        else:
-            d.ctrl[self.omni_act] = self.omni_target
         mujoco.mj_step(m, d)
 
     # -- measuring --
