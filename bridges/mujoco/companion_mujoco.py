@@ -21,6 +21,7 @@ robot without a controller (commands from the flag), for trying a base or a tabl
 """
 
 import argparse
+import gc
 import json
 import math
 import os
@@ -452,7 +453,13 @@ class MujocoPlant(wire.Bridge):
     def run(self):
         """The session; then the verdict `companion plant` gives a real-time run: exit 7 if
         the robot was stopped or more than --max-miss-fraction of the deadlines were missed."""
-        code = super().run()
+        # No garbage collection during the run: its full passes over the growing records
+        # stalled the loop for up to 24 ms (the records hold no cycles; collected at the end).
+        gc.disable()
+        try:
+            code = super().run()
+        finally:
+            gc.enable()
         c, cycles = self.counts, self.robot.step + 1
         failures = []
         behind = self.behind_ns / (self.a.dt * 1e9)  # periods the schedule slipped by
@@ -670,6 +677,7 @@ def write_run(a, phys, bridge, code, why):
         "host": host.node(),
         "cpus": os.cpu_count(),
         "load_average": os.getloadavg(),
+        "rt": phys.rt,
     }
     if bridge is not None:
         latency.update({
@@ -965,6 +973,10 @@ def parse(argv):
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--max-miss-fraction", type=float, default=0.05,
                    help="real time: a run missing more of its deadlines fails (exit 7), as does one that stopped the robot")
+    p.add_argument("--rt", action="store_true",
+                   help="real-time setup: SCHED_FIFO, one CPU, memory locked (a missing privilege is a warning)")
+    p.add_argument("--rt-priority", type=int, default=80, help="SCHED_FIFO priority with --rt (1-99)")
+    p.add_argument("--cpu", type=int, help="the plant's CPU with --rt (default: the last one)")
     p.add_argument("--spin-us", type=float, default=100.0,
                    help="real time: spin this long before each release, sleep before (µs)")
     p.add_argument("--actuator-delay", type=float, default=0.0,
@@ -976,11 +988,40 @@ def parse(argv):
     return a
 
 
+def real_time_setup(a):
+    """--rt: SCHED_FIFO at --rt-priority, pinned to --cpu, memory locked — what `companion
+    plant --rt` does; each refusal is a warning. Returns what was granted (latency.json)."""
+    got = {"requested": a.rt, "fifo": False, "memory_locked": False, "cpu": None}
+    if not a.rt:
+        return got
+    cpu = a.cpu if a.cpu is not None else (os.cpu_count() or 1) - 1
+    try:
+        os.sched_setaffinity(0, {cpu})
+        got["cpu"] = cpu
+    except OSError as e:
+        print(f"warning: --rt: CPU {cpu}: {e}", file=sys.stderr)
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(a.rt_priority))
+        got["fifo"] = True
+    except OSError as e:
+        print(f"warning: --rt: SCHED_FIFO {a.rt_priority}: {e} (running with the default scheduler)", file=sys.stderr)
+    import ctypes
+
+    libc = ctypes.CDLL(None, use_errno=True)
+    if libc.mlockall(3) == 0:  # MCL_CURRENT | MCL_FUTURE
+        got["memory_locked"] = True
+    else:
+        print(f"warning: --rt: mlockall: {os.strerror(ctypes.get_errno())}", file=sys.stderr)
+    return got
+
+
 def main(argv=None):
     a = parse(argv)
     for bad, why in ((not (a.dt > 0 and math.isfinite(a.dt)), "--dt must be positive"),
                      (not (a.duration > 0 and math.isfinite(a.duration)), "--duration must be positive"),
-                     (a.filmstrip < 0 or a.filmstrip > 100, "--filmstrip: 0 to 100 frames")):
+                     (a.filmstrip < 0 or a.filmstrip > 100, "--filmstrip: 0 to 100 frames"),
+                     (not 1 <= a.rt_priority <= 99, "--rt-priority: 1 to 99"),
+                     (a.cpu is not None and not 0 <= a.cpu < (os.cpu_count() or 1), "--cpu: not a CPU of this machine")):
         if bad:
             print(f"error: {why}", file=sys.stderr)
             return wire.EXIT_ERROR
@@ -996,6 +1037,7 @@ def main(argv=None):
             raise wire.Fatal(str(e))
         robot, _chain, arm_hash = build_robot(a, table)
         phys = Physical(a, robot, _chain, arm_hash, steps)
+        phys.rt = real_time_setup(a)
         if a.open_loop:
             return OpenLoop(a, phys)
         return MujocoPlant(a, phys)

@@ -57,7 +57,6 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
         (a.chaos.is_some(), "--chaos"),
         (a.mcap.is_some(), "--mcap"),
         (a.delay != 0.0, "--delay"),
-        (a.rt, "--rt"),
         (a.max_command_age != 0, "--max-command-age"),
         (
             a.scenario.actuator_lag.is_some(),
@@ -109,6 +108,11 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
     }
     if cfg.no_plots {
         p.arg("--no-plots");
+    }
+    if let Some(rt) = &cfg.rt {
+        // The plant's half of --rt (SCHED_FIFO, its CPU, memory locked); the controller
+        // takes its own.
+        p.args(["--rt", "--rt-priority", &rt.priority.to_string(), "--cpu", &rt.plant_cpu.to_string()]);
     }
     if a.scenario.noise {
         p.args(["--noise", "--seed", &a.scenario.seed.to_string()]);
