@@ -187,16 +187,28 @@ def build_robot(a, table):
         if arm.endswith(".urdf"):
             if not (a.base_link and a.tip_link and a.home):
                 raise wire.Fatal(f"--arm {a.arm}: a URDF needs --base-link, --tip-link and --home")
-            home = [float(x) for x in a.home.split(",")]
+            home = numbers_of("--home", a.home)
             mount = None
             if a.platform == "omni":
-                m = [float(x) for x in a.mount.split(",")]
+                m = numbers_of("--mount", a.mount, 6)
                 mount = (m[:3], m[3:])
             robot = mujoco_robot.Robot(arm, a.base_link, a.tip_link, a.platform, home, a.dt, table, mount=mount)
             return robot, None, urdf_arm_hash(robot, a)
     except mujoco_robot.ModelError as e:
         raise wire.Fatal(str(e))
     raise wire.Fatal(f"--arm {a.arm}: ur5, an arm file (.toml) or a URDF (.urdf)")
+
+
+def numbers_of(flag, text, count=None):
+    """A flag's comma-separated numbers (finite), `count` of them if given; else wire.Fatal."""
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if not v or not all(math.isfinite(x) for x in v) or (count is not None and len(v) != count):
+        n = f"{count} " if count else ""
+        raise wire.Fatal(f"{flag} {text!r}: {n}comma-separated numbers")
+    return v
 
 
 def check_chain(robot, chain, arm, urdf):

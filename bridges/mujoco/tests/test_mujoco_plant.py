@@ -160,11 +160,37 @@ def test_the_png_writer_makes_what_a_png_reader_reads(tmp_path):
     assert zlib.crc32(data[12:29]) == int.from_bytes(data[29:33], "big")  # IHDR's CRC
 
 
+def plant_cli(*args):
+    return subprocess.run([sys.executable, os.path.join(REPO, "bridges", "mujoco", "companion_mujoco.py"), *args],
+                          capture_output=True, text=True)
+
+
 def test_a_run_folder_that_is_a_file_is_refused_before_anything_runs(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
-    r = subprocess.run([sys.executable, os.path.join(REPO, "bridges", "mujoco", "companion_mujoco.py"),
-                        "--open-loop", "1:0,0", "--duration", "1", "--out", str(f)], capture_output=True, text=True)
+    r = plant_cli("--open-loop", "1:0,0", "--duration", "1", "--out", str(f))
     assert r.returncode == 2
     assert f"--out {f} is a file" in r.stderr
     assert f.read_text() == "x"
+
+
+@pytest.mark.parametrize("flags, says", [
+    (["--home", "0.2,x"], "--home '0.2,x': comma-separated numbers"),
+    (["--home", "0.2,1.0"], "--home gives 2 joints, the chain base_footprint -> arm_tool_link"),
+    (["--home", "0.5,1.0,-0.5,-1.0,1.2,0.0,0.5,0.0"], "joint torso_lift_joint at 0.5 is outside its limits"),
+    (["--tip-link", "no_such_link"], "no link named 'no_such_link'"),
+    (["--set", "wheels.kv=1"], "unknown key wheels.kv"),
+    (["--set", "arm.time_constant=-1"], "arm.time_constant must be a positive number"),
+    (["--open-loop", "1:0"], "--open-loop '1:0': SECONDS:V,OMEGA[,V_LAT]"),
+    (["--base-from", "odometry", "--platform", "omni"], "wheel odometry: a wheeled base"),
+])
+def test_bad_input_is_named_with_exit_2_and_nothing_written(tmp_path, flags, says):
+    out = tmp_path / "run"
+    args = dict(zip(TIAGO[::2], TIAGO[1::2]))
+    args.update(zip(flags[::2], flags[1::2]))
+    args.setdefault("--open-loop", "1:0,0")
+    r = plant_cli(*[x for kv in args.items() for x in kv], "--duration", "1", "--out", str(out))
+    assert r.returncode == 2, r.stderr
+    assert says in r.stderr
+    assert "Traceback" not in r.stderr
+    assert not out.exists()
