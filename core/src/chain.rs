@@ -30,7 +30,8 @@
 //! **Validation** ([`Chain::validate`]) names the field that breaks a rule: a rotation
 //! that is not orthonormal (`mount.rotation`, `joints.origin.rotation` with the joint,
 //! `tool.rotation`), an axis that is not a unit vector (`joints.axis`), non-finite values,
-//! empty limits (`joints.lower`), a home outside them (`joints.home`), a non-positive
+//! empty limits (`joints.lower`; a revolute joint may have none: `(−∞, +∞)`, URDF's
+//! `continuous`), a home outside them (`joints.home`), a non-positive
 //! velocity limit (`joints.max_velocity`). A chain with fewer joints than a task needs is
 //! refused by the arm that uses it ([`PlanarArm`](crate::PlanarArm): 3,
 //! [`SpatialArm`](crate::SpatialArm): 6).
@@ -63,9 +64,10 @@ pub struct Joint<T> {
     pub origin: Pose3<T>,
     /// The unit axis in the joint's frame (URDF's `axis`).
     pub axis: Vector3<T>,
-    /// Lower limit `q⁻` (rad or m).
+    /// Lower limit `q⁻` (rad or m); `−∞` with `q⁺ = +∞` for a revolute joint without
+    /// position limits (URDF's `continuous`; see [`JointLimits`]).
     pub lower: T,
-    /// Upper limit `q⁺ > q⁻` (rad or m).
+    /// Upper limit `q⁺ > q⁻` (rad or m); `+∞` for a joint without position limits.
     pub upper: T,
     /// Home position, strictly inside the limits (rad or m).
     pub home: T,
@@ -268,7 +270,14 @@ impl<T: Real, const N: usize> Chain<T, N> {
             if (j.axis.norm_squared() - T::one()).abs() > rotation_tolerance::<T>() {
                 return Err(ParamError::joint("joints.axis", i, Rule::NotUnitVector));
             }
-            for (name, v) in [("joints.lower", j.lower), ("joints.upper", j.upper), ("joints.home", j.home)] {
+            // A revolute joint may have no position limits (−∞, +∞: URDF's `continuous`).
+            let free = j.kind == JointKind::Revolute && crate::params::unbounded(j.lower, j.upper);
+            let checked: &[(&'static str, T)] = if free {
+                &[("joints.home", j.home)]
+            } else {
+                &[("joints.lower", j.lower), ("joints.upper", j.upper), ("joints.home", j.home)]
+            };
+            for &(name, v) in checked {
                 if !v.finite() {
                     return Err(ParamError::joint(name, i, Rule::NonFinite));
                 }

@@ -11,12 +11,46 @@ use crate::se2::Pose;
 use crate::space::{Planar, Space};
 
 /// Joint limits `q⁻ < q⁺` (rad for revolute joints, m for prismatic ones).
+///
+/// A revolute joint without position limits (URDF's `continuous`: a wheel, a wrist that
+/// turns forever) has `q⁻ = −∞`, `q⁺ = +∞` ([`is_unbounded`](Self::is_unbounded)). Every
+/// term of the law that keeps a joint inside its limits is then zero for it by its own
+/// formula, with no special case on the hot path: the penalty (21) (`qᵢ < −∞ + δᵢ` never
+/// holds), `σ̃ᵢ` of the weight (52) (so `Ψ` averages zeros for it over the `N` joints) and
+/// the joint guard's fraction-to-the-boundary rule (its room is infinite); its velocity limit
+/// still applies. Its margins `δᵢ`, `δᵢ±`, `δᵢ±±` must still be finite and positive: they
+/// are unused.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct JointLimits<T, const N: usize> {
-    /// Lower limits `q⁻`.
+    /// Lower limits `q⁻` (`−∞` for an unbounded joint).
     pub lower: SVector<T, N>,
-    /// Upper limits `q⁺`.
+    /// Upper limits `q⁺` (`+∞` for an unbounded joint).
     pub upper: SVector<T, N>,
+}
+
+impl<T: Real, const N: usize> JointLimits<T, N> {
+    /// Whether joint `i` has no position limits (`q⁻ = −∞` and `q⁺ = +∞`).
+    pub fn is_unbounded(&self, i: usize) -> bool {
+        unbounded(self.lower[i], self.upper[i])
+    }
+}
+
+/// Whether `[lower, upper]` is the whole line (`−∞`, `+∞`): a joint without position limits.
+#[inline]
+pub fn unbounded<T: Real>(lower: T, upper: T) -> bool {
+    !lower.finite() && !upper.finite() && lower < T::zero() && upper > T::zero()
+}
+
+/// A margin of `fraction` of a joint's range for each joint (joint units); `1` for a joint
+/// without limits, whose margins are unused ([`JointLimits`]).
+pub fn range_fraction<T: Real, const N: usize>(limits: &JointLimits<T, N>, fraction: T) -> SVector<T, N> {
+    SVector::from_fn(|i, _| {
+        if limits.is_unbounded(i) {
+            T::one()
+        } else {
+            (limits.upper[i] - limits.lower[i]) * fraction
+        }
+    })
 }
 
 /// The primary (manipulation) task: `e_p` (42), the joint-limit penalty `h_ℓ` (20)–(21),
@@ -289,10 +323,11 @@ impl core::fmt::Display for Warning {
 
 impl<T: Real, const N: usize> WeightMargins<T, N> {
     /// The paper's margins: `δ⁻ = 0.2 (q* − q⁻)`, `δ⁺ = 0.2 (q⁺ − q*)`, `δ⁻⁻ = ⅔ δ⁻`,
-    /// `δ⁺⁺ = ⅔ δ⁺`.
+    /// `δ⁺⁺ = ⅔ δ⁺`; `δ⁻ = δ⁺ = 1` (unused) for a joint without limits.
     pub fn paper(limits: &JointLimits<T, N>, q_star: &SVector<T, N>) -> Self {
-        let lower = (q_star - limits.lower) * T::of(0.2);
-        let upper = (limits.upper - q_star) * T::of(0.2);
+        let margin = |i: usize, room: T| if limits.is_unbounded(i) { T::one() } else { room * T::of(0.2) };
+        let lower = SVector::from_fn(|i, _| margin(i, q_star[i] - limits.lower[i]));
+        let upper = SVector::from_fn(|i, _| margin(i, limits.upper[i] - q_star[i]));
         let two_thirds = T::of(2.0) / T::of(3.0);
         Self { lower, lower_inner: lower * two_thirds, upper, upper_inner: upper * two_thirds }
     }
@@ -426,6 +461,9 @@ impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
     pub fn validate(&self) -> Result<(), ParamError> {
         let lim = &self.joint_limits;
         for i in 0..N {
+            if lim.is_unbounded(i) {
+                continue;
+            }
             if !lim.lower[i].finite() {
                 return Err(ParamError::joint("joint_limits.lower", i, Rule::NonFinite));
             }

@@ -90,7 +90,9 @@ use crate::arm_law::{implicit_rhs, solve_redundant, solve_square_into, Linearise
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule, StepError};
 use crate::linalg;
-use crate::params::{JointLimits, PaperRun, Params, PrimaryTask, SecondaryTask, Weight, WeightMargins};
+use crate::params::{
+    range_fraction, JointLimits, PaperRun, Params, PrimaryTask, SecondaryTask, Weight, WeightMargins,
+};
 use crate::primary::{penalty, PrimaryPoint};
 use crate::scalar::Real;
 use crate::se2::Pose;
@@ -105,6 +107,34 @@ pub const SINGULAR_BELOW: f64 = 1e-10;
 pub const DAMPING_BELOW: f64 = 1e-3;
 /// The default damping depth `κ` of [`SpatialArm::with_damping`].
 pub const DAMPING_DEPTH: f64 = 0.1;
+/// How much worse than at home an arm's conditioning may get before it is damped
+/// ([`SpatialArm::onset_from_home`]).
+pub const HOME_RATIO_FACTOR: f64 = 50.0;
+
+/// `cᵢ`: 1 for a revolute joint; `(v̄ / vᵢ)²` for a prismatic one, with `v̄` the fastest
+/// finite speed limit of the revolute joints (1 rad/s if none) — a prismatic joint's metres
+/// made commensurable with the revolute joints' radians by their speed limits (1 if it has
+/// none, or if it is faster than `v̄`).
+fn speed_weights<T: Real, const N: usize>(chain: &Chain<T, N>) -> SVector<T, N> {
+    let mut fastest = T::zero();
+    for j in &chain.joints {
+        if j.kind == JointKind::Revolute && j.max_velocity.finite() && j.max_velocity > fastest {
+            fastest = j.max_velocity;
+        }
+    }
+    if fastest <= T::zero() {
+        fastest = T::one();
+    }
+    SVector::from_fn(|i, _| {
+        let j = &chain.joints[i];
+        if j.kind == JointKind::Prismatic && j.max_velocity < fastest {
+            let r = fastest / j.max_velocity;
+            r * r
+        } else {
+            T::one()
+        }
+    })
+}
 
 /// A spatial arm: a [`Chain`] of six or more joints, for the law of §5.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -122,6 +152,8 @@ pub struct SpatialArm<T, const N: usize> {
     damping_below: T,
     /// `κ`: the damping's depth at a singular configuration, relative to the mean diagonal.
     damping_depth: T,
+    /// `cᵢ` of the redundant solution's weights `wᵢ = cᵢ (1 + ∂²h_ℓ/∂qᵢ²)` (module docs).
+    speed_weights: SVector<T, N>,
 }
 
 /// The arm's frames at one configuration, in the platform's frame.
@@ -240,7 +272,21 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
             singular_below: T::of(SINGULAR_BELOW),
             damping_below: T::of(DAMPING_BELOW),
             damping_depth: T::of(DAMPING_DEPTH),
+            speed_weights: speed_weights(chain),
         })
+    }
+
+    /// The weights `cᵢ` the redundant solution gives each joint (module docs): by default
+    /// a prismatic joint's by its speed limit against the revolute joints'; 1 for every
+    /// joint with `by_speed = false` (the least norm in the joints' own units).
+    pub fn with_speed_weighting(mut self, by_speed: bool) -> Self {
+        self.speed_weights = if by_speed { speed_weights(&self.chain) } else { SVector::repeat(T::one()) };
+        self
+    }
+
+    /// The weights `cᵢ` (module docs).
+    pub fn speed_weights(&self) -> &SVector<T, N> {
+        &self.speed_weights
     }
 
     /// The chain it was built from.
@@ -276,6 +322,53 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
         self.damping_below = unit("damping_below", onset)?;
         self.damping_depth = unit("damping_depth", depth)?;
         Ok(self)
+    }
+
+    /// The ratio `ρ` the law compares with the damping's onset (module docs) at `q` with the
+    /// target where it should be (`e_p = 0`): the arm's own conditioning there, with the
+    /// weights of the redundant solution for more than six joints.
+    pub fn ratio_at(
+        &self,
+        task: &PrimaryTask<T, N, Spatial>,
+        limits: &JointLimits<T, N>,
+        q: &SVector<T, N>,
+    ) -> T {
+        let kin = self.kinematics(q);
+        let r_bd = kin.effector.compose(&task.target_in_effector);
+        let zero = SVector::<T, N>::zeros();
+        let point = SpatialPoint {
+            q,
+            r_bd: &r_bd,
+            gamma: T::zero(),
+            gamma_rate: T::zero(),
+            q_hat: q,
+            q_hat_rate: &zero,
+        };
+        let tm = terms(&kin, task, limits, &point);
+        if N > 6 {
+            let w = tm.hess_l.zip_map(&self.speed_weights, |h, c| c * (T::one() + h));
+            let a = &tm.de_p_dq;
+            let b = SMatrix::<T, N, 6>::from_fn(|i, j| a[(j, i)] / w[i]);
+            hadamard_sym(&(a * b))
+        } else {
+            tm.singularity
+        }
+    }
+
+    /// The damping onset this arm gets when none is set: `min(10⁻³, ρ_home / 50)`, with
+    /// `ρ_home` the [`ratio_at`](Self::ratio_at) its home — damping starts where the arm is
+    /// fifty times worse conditioned than at the posture it prefers, or at the fixed `10⁻³`
+    /// if that comes first. The fixed onset alone damps a redundant arm whose home is already
+    /// near it (the TIAGo's: `ρ_home ≈ 10⁻³` with its slow torso weighed out), which then
+    /// never meets its task.
+    pub fn onset_from_home(&self, task: &PrimaryTask<T, N, Spatial>, limits: &JointLimits<T, N>) -> T {
+        let r = self.ratio_at(task, limits, &self.chain.home()) / T::of(HOME_RATIO_FACTOR);
+        let fixed = T::of(DAMPING_BELOW);
+        if r < fixed && r >= T::zero() {
+            r
+        } else {
+            fixed
+        }
     }
 
     /// The frames at `q`: every joint's axis `zᵢ` and point `oᵢ`, and the end effector.
@@ -389,7 +482,7 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
                 drhs: tm.de_p_du * b,
             };
             let (rhs, drhs) = implicit_rhs(&lin, &gain, pt.guess, half);
-            let w = tm.hess_l.map(|h| T::one() + h);
+            let w = tm.hess_l.zip_map(&self.speed_weights, |h, c| c * (T::one() + h));
             let z = SVector::<T, N>::from_fn(|i, _| -task.null_space_gain * tm.grad_l[i] / w[i]);
             let (onset, depth) = (self.damping_below, self.damping_depth);
             (step.u_q, step.sensitivity, step.condition) = solve_redundant(
@@ -669,7 +762,7 @@ impl<T: Real, const N: usize> Params<T, N, Spatial> {
             primary: PrimaryTask {
                 target_in_effector,
                 penalty_weight: SVector::repeat(p.penalty_weight[0]),
-                penalty_margin: (limits.upper - limits.lower) * margin,
+                penalty_margin: range_fraction(&limits, margin),
                 regularisation_gain: p.regularisation_gain,
                 regularisation_decay: p.regularisation_decay,
                 filter_sigma: p.filter_sigma,

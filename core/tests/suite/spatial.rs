@@ -664,3 +664,106 @@ fn every_platform_runs() {
         assert!(run.margin > 0.0, "{name}");
     }
 }
+
+/// The UR5 with joints 1, 4 and 6 given `limits` (the others as published).
+fn ur5_with(limits: [f64; 2], home: [f64; 3]) -> Result<Chain<f64, 6>, companion_core::ParamError> {
+    let mut c = Chain::<f64, 6>::ur5();
+    for (k, i) in [0, 3, 5].into_iter().enumerate() {
+        c.joints[i].lower = limits[0];
+        c.joints[i].upper = limits[1];
+        c.joints[i].home += home[k];
+    }
+    c.validate().map(|()| c)
+}
+
+/// A revolute joint without position limits (URDF's `continuous`, limits `(−∞, +∞)`): the
+/// chain and the law take it; only a revolute joint may have no limits, and only both at
+/// once; its home is any finite angle.
+#[test]
+fn a_continuous_joint_is_a_revolute_joint_without_limits() {
+    use companion_core::{JointLimits, ParamError, Rule};
+    let inf = f64::INFINITY;
+    let c = ur5_with([-inf, inf], [0.0; 3]).expect("a continuous joint is valid");
+    let lim: JointLimits<f64, 6> = c.limits();
+    assert_eq!(
+        (0..6).map(|i| lim.is_unbounded(i)).collect::<Vec<_>>(),
+        [true, false, false, true, false, true]
+    );
+    // The law is built and its margins are finite (unused) for those joints.
+    let arm = SpatialArm::new(&c).expect("valid");
+    let p = Params::for_arm(&arm, PaperRun::A, arm.level_target(0.2)).expect("valid");
+    assert!(p.primary.penalty_margin.iter().all(|d| d.is_finite() && *d > 0.0));
+    assert!(ControlLaw::new(p, Unicycle::paper(), arm).is_ok());
+    // One side only, or a prismatic joint: refused.
+    assert_eq!(
+        ur5_with([-inf, 1.0], [0.0; 3]).err(),
+        Some(ParamError::joint("joints.lower", 0, Rule::NonFinite))
+    );
+    assert_eq!(
+        ur5_with([-1.0, inf], [0.0; 3]).err(),
+        Some(ParamError::joint("joints.upper", 0, Rule::NonFinite))
+    );
+    assert_eq!(
+        ur5_with([inf, -inf], [0.0; 3]).err(),
+        Some(ParamError::joint("joints.lower", 0, Rule::NonFinite))
+    );
+    let mut prismatic = c;
+    prismatic.joints[0].kind = JointKind::Prismatic;
+    assert_eq!(prismatic.validate().err(), Some(ParamError::joint("joints.lower", 0, Rule::NonFinite)));
+    // A home anywhere: 7 rad is beyond the published ±2π; a non-finite one is refused.
+    assert!(ur5_with([-inf, inf], [7.0, -9.0, 20.0]).is_ok());
+    let mut nan_home = c;
+    nan_home.joints[5].home = f64::NAN;
+    assert_eq!(nan_home.validate().err(), Some(ParamError::joint("joints.home", 5, Rule::NonFinite)));
+}
+
+/// What the law does for a joint without limits: its penalty (21) and its `σ̃ᵢ` of the weight
+/// (52) are zero wherever it is, and the joint guard keeps only its speed limit. So in a
+/// closed loop it is exactly a joint whose limits are never approached: the UR5 with joints
+/// 1, 4 and 6 continuous runs lifted trajectory 1 (a) bit for bit as the same arm with those
+/// limits at ±999 rad (far beyond every margin), and settles as the published arm does; and
+/// from a home 3 turns away, where the published limits would refuse every step, it settles
+/// the same.
+#[test]
+fn the_law_on_continuous_joints() {
+    use companion_core::primary::penalty;
+    use companion_core::secondary::psi_tilde;
+    let inf = f64::INFINITY;
+    for q in [-1e6, -7.0, 0.0, 3.0, 1e6] {
+        assert_eq!(penalty(q, -inf, inf, 1.0), (0.0, 0.0, 0.0), "q = {q}");
+    }
+    let run = |c: Chain<f64, 6>, paper_run: PaperRun| {
+        let arm = SpatialArm::new(&c).expect("valid");
+        let p = Params::for_arm(&arm, paper_run, arm.level_target(0.2)).expect("valid");
+        let law = ControlLaw::new(p, Unicycle::paper(), arm).expect("valid");
+        let target = lifted_for(&arm, &p.primary.target_in_effector);
+        simulate(&law, &target, 0.0, 1e-3, 40.0, 10.0)
+    };
+    let free_arm = ur5_with([-inf, inf], [0.0; 3]).unwrap();
+    let lim = free_arm.limits();
+    let margins = companion_core::WeightMargins::paper(&lim, &free_arm.home());
+    for k in [0.0, 1.0, 50.0] {
+        let mut q = free_arm.home();
+        for i in [0, 3, 5] {
+            q[i] += k;
+        }
+        let (psi, grad) = psi_tilde(&q, &lim.lower, &lim.upper, &margins);
+        assert_eq!((psi, grad[0], grad[3], grad[5]), (0.0, 0.0, 0.0, 0.0), "no weight from the free joints");
+    }
+    // Run (a) (constant weight, full precompensation) and (c) (the filtered weight Ψ).
+    for paper_run in [PaperRun::A, PaperRun::C] {
+        let free = run(free_arm, paper_run);
+        let wide = run(ur5_with([-999.0, 999.0], [0.0; 3]).unwrap(), paper_run);
+        assert_eq!(free.rejected, 0);
+        assert_eq!(free.e_p_tail, wide.e_p_tail, "bit for bit as limits never approached ({paper_run:?})");
+        assert_eq!(free.h_s_windows, wide.h_s_windows);
+        assert_eq!(free.joint_scale_tail, wide.joint_scale_tail);
+        assert!(free.e_p_tail.amax() <= 1e-5, "settles ({paper_run:?}): {}", free.e_p_tail);
+    }
+    // Three turns away: the same geometry, so the same settling.
+    let turns = 3.0 * 2.0 * PI;
+    let far = run(ur5_with([-inf, inf], [turns, -turns, turns]).unwrap(), PaperRun::A);
+    assert_eq!(far.rejected, 0);
+    assert!(far.e_p_tail.amax() <= 1e-5, "settles from 3 turns away: {}", far.e_p_tail);
+    assert!(ur5_with([-2.0 * PI, 2.0 * PI], [turns, 0.0, 0.0]).is_err(), "the published limits refuse it");
+}

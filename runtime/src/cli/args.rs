@@ -7,12 +7,13 @@ use anyhow::Result;
 use clap::{Args, ValueEnum};
 use companion_core::{PaperRun, PlatformKind};
 use companion_plant::PaperTrajectory;
-use companion_runtime::domain::arm::SpatialArmSpec;
+use companion_runtime::domain::arm::{self, ArmChoice, HomeList, SpatialArmSpec, UrdfRequest};
 use companion_runtime::domain::controller::{DiscretisationConfig, Scalar};
 use companion_runtime::domain::record::verdict::DEFAULT_MAX_REJECTED;
 use companion_runtime::domain::record::Acceptance;
 use companion_runtime::domain::scenario::{
-    ConfigFile, LimitsChoice, Options, Scenario, ScenarioBuilder, Target, DEFAULT_MAX_OUTPUT_BYTES,
+    ConfigFile, HomeConfig, LimitsChoice, Options, RobotConfig, Scenario, ScenarioBuilder, Target,
+    DEFAULT_MAX_OUTPUT_BYTES,
 };
 use companion_runtime::run::spatial::{SpatialScenario, SpatialTargetChoice};
 
@@ -181,6 +182,72 @@ pub struct ScenarioArgs {
     /// with the safe zero command) fails, with exit code 6; 0 fails on any rejection.
     #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRACTION", allow_hyphen_values = true)]
     pub max_rejected: f64,
+    /// Where a URDF arm is cut, and its home.
+    #[command(flatten)]
+    pub robot: RobotArgs,
+}
+
+/// The flags of a URDF arm (`--arm robot.urdf`); each may be given instead as a key of the
+/// `--config` file's `[robot]` table (the flag wins).
+#[derive(Args, Clone, Debug, Default)]
+pub struct RobotArgs {
+    /// URDF arm: the link the chain starts from, the platform's frame [default: the root link]
+    #[arg(long, value_name = "LINK", help_heading = "Robot from a URDF (--arm robot.urdf)")]
+    pub base_link: Option<String>,
+    /// URDF arm: the end effector's link (a refusal lists the candidates)
+    #[arg(long, value_name = "LINK", help_heading = "Robot from a URDF (--arm robot.urdf)")]
+    pub tip_link: Option<String>,
+    /// URDF arm: an SRDF file whose <group_state> --home-state gives the home
+    #[arg(long, value_name = "FILE", help_heading = "Robot from a URDF (--arm robot.urdf)")]
+    pub srdf: Option<PathBuf>,
+    /// URDF arm: the SRDF's <group_state name> to use as the home
+    #[arg(long, value_name = "NAME", help_heading = "Robot from a URDF (--arm robot.urdf)")]
+    pub home_state: Option<String>,
+    /// URDF arm: the home, q1,…,qN in the chain's order, or name=value,… over --home-state's
+    #[arg(
+        long,
+        value_name = "LIST",
+        allow_hyphen_values = true,
+        help_heading = "Robot from a URDF (--arm robot.urdf)"
+    )]
+    pub home: Option<String>,
+}
+
+impl RobotArgs {
+    /// Whether any flag is given.
+    fn any(&self) -> bool {
+        self.base_link.is_some()
+            || self.tip_link.is_some()
+            || self.srdf.is_some()
+            || self.home_state.is_some()
+            || self.home.is_some()
+    }
+
+    /// `request` with these flags over the config file's `[robot]` keys (paths in the file
+    /// relative to `config_dir`).
+    fn fill(
+        &self,
+        request: &mut UrdfRequest,
+        config: Option<&RobotConfig>,
+        config_dir: &std::path::Path,
+    ) -> Result<()> {
+        let c = config.cloned().unwrap_or_default();
+        request.base_link = self.base_link.clone().or(c.base_link);
+        request.tip_link = self.tip_link.clone().or(c.tip_link);
+        request.srdf = self.srdf.clone().or(c.srdf.map(|p| config_dir.join(p)));
+        request.home_state = self.home_state.clone().or(c.home_state);
+        request.home = match (&self.home, c.home) {
+            (Some(text), _) => Some(HomeList::parse(text)?),
+            (None, Some(HomeConfig::Values(v))) => Some(HomeList::Values(v)),
+            (None, Some(HomeConfig::Named(m))) => Some(HomeList::Named(m.into_iter().collect())),
+            (None, None) => None,
+        };
+        if let Some(m) = c.mount {
+            request.mount =
+                Some(arm::frame_from_xyz_rpy(m.xyz.as_deref(), m.rpy.as_deref(), "[robot.mount]")?);
+        }
+        Ok(())
+    }
 }
 
 impl ScenarioArgs {
@@ -191,6 +258,30 @@ impl ScenarioArgs {
             None if self.trajectory == 2 => Target::Paper(PaperTrajectory::Two),
             None => Target::Paper(PaperTrajectory::One),
         }
+    }
+
+    /// The spatial arm `--arm` names (`None` for the planar `rpr`): a preset, a TOML arm
+    /// file, or a URDF cut by the robot flags and the config file's `[robot]` table.
+    ///
+    /// # Errors
+    /// A file that cannot be read or breaks a rule, or robot flags without a URDF.
+    pub fn arm_spec(&self, arm: &str) -> Result<Option<SpatialArmSpec>> {
+        let mut choice = ArmChoice::parse(arm);
+        let config = self.config_file()?;
+        match &mut choice {
+            ArmChoice::Urdf(request) => {
+                let dir = self.config.as_deref().and_then(std::path::Path::parent).unwrap_or(std::path::Path::new(""));
+                self.robot.fill(request, config.robot.as_ref(), dir)?;
+            }
+            _ if self.robot.any() => anyhow::bail!(
+                "--base-link, --tip-link, --srdf, --home-state and --home read a URDF: give --arm FILE.urdf (--arm is {arm})"
+            ),
+            _ if config.robot.is_some() => anyhow::bail!(
+                "the config file's [robot] table reads a URDF: give --arm FILE.urdf (--arm is {arm})"
+            ),
+            _ => {}
+        }
+        Ok(SpatialArmSpec::from_choice(&choice)?)
     }
 
     /// The `--config` file (empty without the flag).

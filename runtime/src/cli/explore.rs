@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::study::explore::{self, Exploration, Shard, SpaceFile, SpatialSetup};
 use companion_runtime::sys::signals;
 
@@ -105,7 +104,7 @@ pub fn run(args: &ExploreArgs) -> Result<ExitCode> {
     let out = a.out.clone().context("--out DIR is required")?;
     let shard = a.shard.as_deref().map(Shard::parse).transpose()?.unwrap_or(Shard::WHOLE);
     let sc = &a.scenario;
-    let (builder, spatial) = match SpatialArmSpec::from_choice(&ArmChoice::parse(&a.arm))? {
+    let (builder, spatial) = match sc.arm_spec(&a.arm)? {
         None => (
             sc.builder(
                 sc.config_file()?,

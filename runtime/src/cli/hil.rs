@@ -10,7 +10,6 @@ use std::time::Duration;
 
 use anyhow::{anyhow, bail, Result};
 use clap::{Args, ValueEnum};
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::domain::histogram::fmt_ns;
 use companion_runtime::domain::record::verdict::{rejection_failure, DEFAULT_MAX_MISS_FRACTION};
 use companion_runtime::domain::record::Failure;
@@ -328,7 +327,7 @@ impl HilArgs {
             );
         }
         let more = |b: ScenarioBuilder| b.delay(self.delay).delay_compensation(!self.no_delay_compensation);
-        let hs = match SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm))? {
+        let hs = match self.scenario.arm_spec(&self.arm)? {
             None => HilScenario::Planar(self.scenario.scenario_with(DEFAULT_DURATION, more)?),
             Some(arm) => HilScenario::Spatial(self.scenario.spatial_scenario(arm, DEFAULT_DURATION, more)?),
         };

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::arm::SpatialArmSpec;
 use companion_runtime::domain::record::{Failure, Replay, ReplaySummary, RunOutcome, Summary};
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::sim::{all_scenarios, run_one_replayed, run_one_with};
@@ -79,7 +79,7 @@ const DEFAULT_DURATION: f64 = 120.0;
 pub fn run(args: &SimArgs) -> Result<ExitCode> {
     companion_runtime::sys::signals::install_termination_handler()?;
     let acceptance = args.scenario.acceptance(0.0)?;
-    if let Some(arm) = SpatialArmSpec::from_choice(&ArmChoice::parse(&args.arm))? {
+    if let Some(arm) = args.scenario.arm_spec(&args.arm)? {
         return run_spatial_cli(args, arm, acceptance.max_rejected);
     }
     let outcomes = run_scenarios(args, &acceptance)?;

@@ -6,7 +6,6 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use companion_core::PaperRun;
 use companion_plant::PaperTrajectory;
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::domain::controller::run_name;
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::spatial::{self, SpatialTargetChoice};
@@ -71,7 +70,7 @@ fn parse_run(text: &str) -> Result<(PaperTrajectory, PaperRun)> {
 /// A bad flag, space file, or an I/O failure.
 pub fn run(args: &TuneArgs) -> Result<()> {
     let sc = &args.scenario;
-    let arm = SpatialArmSpec::from_choice(&ArmChoice::parse(&args.arm))?;
+    let arm = args.scenario.arm_spec(&args.arm)?;
     let file = match &arm {
         // As `sim --arm`: the arm's platform settings where the config file has none.
         Some(a) => sc.config_file()?.with_arm_settings(a.platform_defaults()),

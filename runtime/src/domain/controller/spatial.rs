@@ -155,6 +155,12 @@ where
 {
     let o = &spec.overrides;
     let mut arm = SpatialArm::new(chain)?;
+    if o.damping_below.is_none() {
+        // The default onset: the core's, or earlier for an arm already near it at home.
+        let p = spatial_params(spec, &arm)?;
+        let (_, depth) = arm.damping();
+        arm = arm.with_damping(arm.onset_from_home(&p.primary, &p.joint_limits), depth)?;
+    }
     if o.damping_below.is_some() || o.damping_depth.is_some() {
         let (onset, depth) = arm.damping();
         arm = arm.with_damping(o.damping_below.map_or(onset, T::of), o.damping_depth.map_or(depth, T::of))?;

@@ -79,6 +79,57 @@ impl Default for NoiseConfig {
     }
 }
 
+/// `[robot]`: the keys of `--base-link`, `--tip-link`, `--srdf`, `--home-state` and `--home`
+/// for a URDF arm (a flag wins over its key), and the arm's mount on the platform, which has
+/// no flag. Paths are relative to the config file's folder.
+///
+/// ```toml
+/// [robot]
+/// base_link = "base_footprint"
+/// tip_link = "arm_tool_link"
+/// home = [0.2, 1.0, -0.5, -1.0, 1.2, 0.0, 0.5, 0.0]   # or { torso_lift_joint = 0.2, … }
+/// # srdf = "robot.srdf"  and  home_state = "home"
+/// [robot.mount]                                       # the base link on the platform
+/// xyz = [0.0, 0.0, 0.0]
+/// rpy = [0.0, 0.0, 0.0]
+/// ```
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobotConfig {
+    /// The link the chain starts from.
+    pub base_link: Option<String>,
+    /// The end effector's link.
+    pub tip_link: Option<String>,
+    /// An SRDF for `home_state`.
+    pub srdf: Option<PathBuf>,
+    /// A `<group_state>` of `srdf`.
+    pub home_state: Option<String>,
+    /// The home: every joint's value in the chain's order, or a table of joints by name.
+    pub home: Option<HomeConfig>,
+    /// The arm's base link seen from the platform's frame.
+    pub mount: Option<MountConfig>,
+}
+
+/// `[robot] home`: a list in the chain's order, or a table by joint name.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum HomeConfig {
+    /// `[q1, …, qN]`.
+    Values(Vec<f64>),
+    /// `{ name = value, … }`.
+    Named(std::collections::BTreeMap<String, f64>),
+}
+
+/// `[robot.mount]`: `xyz` (m) and `rpy` (rad), each optional (zero).
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MountConfig {
+    /// Translation (m).
+    pub xyz: Option<Vec<f64>>,
+    /// Roll, pitch, yaw about fixed axes x, y, z (rad).
+    pub rpy: Option<Vec<f64>>,
+}
+
 /// The TOML file given with `--config`.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -97,6 +148,9 @@ pub struct ConfigFile {
     /// Plant imperfections.
     #[serde(default)]
     pub plant: PlantFileConfig,
+    /// Where a URDF arm (`--arm robot.urdf`) is cut, its home and its mount (`[robot]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub robot: Option<RobotConfig>,
     /// Read for a spatial arm ([`with_arm_settings`](Self::with_arm_settings)): its law's
     /// `[controller]` keys are allowed (a planar run refuses them).
     #[serde(skip)]

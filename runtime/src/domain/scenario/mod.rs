@@ -29,7 +29,9 @@ use companion_core::{PaperRun, ParamError, PlatformKind, RestFilter};
 use companion_plant::PaperTrajectory;
 use serde::{Serialize, Serializer};
 
-pub use self::config::{ConfigError, ConfigFile, NoiseConfig, PlantFileConfig};
+pub use self::config::{
+    ConfigError, ConfigFile, HomeConfig, MountConfig, NoiseConfig, PlantFileConfig, RobotConfig,
+};
 use crate::domain::controller::{
     platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
     LimitsConfig, RestFilterConfig, Scalar,

@@ -19,11 +19,12 @@
 //! [tool]                           # optional (default: identity)
 //! xyz = [0.0, 0.0, 0.1]
 //! [[joint]]                        # 6 to 8 of them, from the base outwards
+//! name = "shoulder_pan_joint"      # optional (default: joint1, joint2, …)
 //! type = "revolute"                # or "prismatic"
 //! xyz = [0.0, 0.0, 0.089159]       # optional (default 0)
 //! rpy = [0.0, 0.0, 0.0]            # optional (default 0); or rotation = [[…], […], […]]
 //! axis = [0.0, 0.0, 1.0]           # unit vector
-//! limits = [-6.28, 6.28]           # [lower, upper] (rad or m)
+//! limits = [-6.28, 6.28]           # [lower, upper] (rad or m); [-inf, inf]: no limits (revolute)
 //! home = 0.0                       # strictly inside the limits (rad or m)
 //! max_velocity = 3.14              # rad/s or m/s (optional: no limit)
 //! [unicycle]                       # optional: the platform law's settings this arm needs
@@ -41,6 +42,11 @@
 //!
 //! Every error names the field (`joint 3: limits`, `mount.rotation`) and the rule, and the
 //! CLI reports it with exit code 2 before anything runs.
+//!
+//! # A URDF
+//!
+//! `--arm robot.urdf --base-link B --tip-link T` reads the chain between two links of a
+//! vendor's URDF ([`urdf`]) into the same [`ArmDescription`].
 
 use std::path::{Path, PathBuf};
 
@@ -50,13 +56,17 @@ use serde::Deserialize;
 
 use crate::domain::platform_config::{CarConfig, UnicycleConfig};
 
+pub mod urdf;
+
+pub use self::urdf::{HomeList, UrdfError, UrdfRequest};
+
 /// The most joints a spatial arm may have here (the record and the CSV carry this many).
 pub const MAX_JOINTS: usize = 8;
 /// The fewest joints a spatial arm needs (the task has six dimensions).
 pub const MIN_SPATIAL_JOINTS: usize = 6;
 
 /// What `--arm` names.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum ArmChoice {
     /// The paper's planar RPR arm: the planar law and plant.
     Rpr,
@@ -66,15 +76,21 @@ pub enum ArmChoice {
     Panda,
     /// A TOML arm file (module docs).
     File(PathBuf),
+    /// The chain between two links of a URDF ([`urdf`]).
+    Urdf(Box<UrdfRequest>),
 }
 
 impl ArmChoice {
-    /// `rpr`, `ur5`, `panda`, or else a file's path.
+    /// `rpr`, `ur5`, `panda`, or else a file's path: a URDF (with no cut nor home yet: see
+    /// [`ArmChoice::Urdf`]) if it ends in `.urdf` or `.xacro`, else a TOML arm file.
     pub fn parse(s: &str) -> Self {
         match s {
             "rpr" => Self::Rpr,
             "ur5" => Self::Ur5,
             "panda" => Self::Panda,
+            path if urdf::is_urdf(Path::new(path)) => {
+                Self::Urdf(Box::new(UrdfRequest { path: PathBuf::from(path), ..UrdfRequest::default() }))
+            }
             path => Self::File(PathBuf::from(path)),
         }
     }
@@ -191,7 +207,19 @@ impl SpatialArmSpec {
             ArmChoice::Ur5 => Some(Self::Ur5),
             ArmChoice::Panda => Some(Self::Panda),
             ArmChoice::File(p) => Some(Self::File(Box::new(ArmDescription::load(p)?))),
+            ArmChoice::Urdf(r) => Some(Self::File(Box::new(urdf::load(r)?))),
         })
+    }
+
+    /// The joints' names, from the base outwards: a URDF's, a file's `name` keys (`joint1`, …
+    /// where it has none), the presets' as in their vendors' URDFs.
+    pub fn joint_names(&self) -> Vec<String> {
+        match self {
+            Self::Ur5 => UR5_JOINTS.iter().map(|s| s.to_string()).collect(),
+            Self::Panda => (1..=7).map(|i| format!("panda_joint{i}")).collect(),
+            Self::File(d) => d.joint_names.clone(),
+            Self::Scaled(a, _) => a.joint_names(),
+        }
     }
 
     /// The arm's name (`ur5`, `panda`, the file's `name`).
@@ -255,6 +283,16 @@ impl SpatialArmSpec {
     }
 }
 
+/// The UR5's joints as Universal Robots' URDF names them.
+const UR5_JOINTS: [&str; 6] = [
+    "shoulder_pan_joint",
+    "shoulder_lift_joint",
+    "elbow_joint",
+    "wrist_1_joint",
+    "wrist_2_joint",
+    "wrist_3_joint",
+];
+
 /// `c` as a chain of `N` joints, if it has `N`.
 fn resize<T: Copy, const M: usize, const N: usize>(c: Chain<T, M>) -> Option<Chain<T, N>> {
     (M == N).then(|| Chain { mount: c.mount, joints: core::array::from_fn(|i| c.joints[i]), tool: c.tool })
@@ -274,6 +312,15 @@ pub struct ArmDescription {
     pub tool: FrameData<f64>,
     /// The platform law's settings the file carries (`[unicycle]`, `[car]`).
     pub platform: PlatformDefaults,
+    /// The joints' names, from the base outwards (a URDF's; a TOML file's `name` keys, or
+    /// `joint1`, `joint2`, …).
+    pub joint_names: Vec<String>,
+}
+
+impl From<UrdfError> for ArmError {
+    fn from(e: UrdfError) -> Self {
+        Self::Urdf(Box::new(e))
+    }
 }
 
 /// Why an arm file was refused.
@@ -321,6 +368,9 @@ pub enum ArmError {
         /// The factor.
         value: f64,
     },
+    /// A URDF (or its SRDF, or the home) was refused.
+    #[error(transparent)]
+    Urdf(Box<UrdfError>),
     /// A value breaks one of the chain's rules.
     #[error("arm file: {field}: {rule}")]
     Invalid {
@@ -402,13 +452,28 @@ impl ArmDescription {
             .collect::<Result<Vec<_>, ArmError>>()?;
         let platform = PlatformDefaults { unicycle: file.unicycle, car: file.car };
         let name = file.name.unwrap_or_else(|| default_name.to_string());
-        let d = Self { name, mount, joints, tool, platform };
-        match n {
-            6 => d.chain::<f64, 6>().map(|_| ()),
-            7 => d.chain::<f64, 7>().map(|_| ()),
-            _ => d.chain::<f64, 8>().map(|_| ()),
-        }?;
+        let joint_names = file
+            .joint
+            .iter()
+            .enumerate()
+            .map(|(i, j)| j.name.clone().unwrap_or(format!("joint{}", i + 1)))
+            .collect();
+        let d = Self { name, mount, joints, tool, platform, joint_names };
+        d.check()?;
         Ok(d)
+    }
+
+    /// Builds the chain once in `f64` to check every rule of [`Chain`].
+    ///
+    /// # Errors
+    /// Not 6 to 8 joints, or a rule of [`Chain::validate`] (in the file's words).
+    pub fn check(&self) -> Result<(), ArmError> {
+        match self.joints.len() {
+            6 => self.chain::<f64, 6>().map(|_| ()),
+            7 => self.chain::<f64, 7>().map(|_| ()),
+            8 => self.chain::<f64, 8>().map(|_| ()),
+            n => Err(ArmError::JointCount { found: n }),
+        }
     }
 
     /// The chain in scalar type `T` (`N` must be the number of joints).
@@ -470,6 +535,7 @@ enum KindFile {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct JointFile {
+    name: Option<String>,
     #[serde(rename = "type")]
     kind: KindFile,
     // Not `#[serde(flatten)]`: serde does not deny unknown keys through a flattened struct.
@@ -484,6 +550,20 @@ struct JointFile {
 
 fn array<const K: usize>(v: &[f64], field: String) -> Result<[f64; K], ArmError> {
     <[f64; K]>::try_from(v).map_err(|_| ArmError::WrongLength { field, expected: K, found: v.len() })
+}
+
+/// A frame from `xyz` (default 0) and `rpy` (default 0), named `name` in errors (a config
+/// file's `[robot.mount]`).
+///
+/// # Errors
+/// An array of the wrong length.
+pub fn frame_from_xyz_rpy(
+    xyz: Option<&[f64]>,
+    rpy: Option<&[f64]>,
+    name: &str,
+) -> Result<FrameData<f64>, ArmError> {
+    let f = FrameFile { xyz: xyz.map(<[f64]>::to_vec), rpy: rpy.map(<[f64]>::to_vec), rotation: None };
+    frame(Some(&f), name)
 }
 
 /// A frame's numbers: `xyz` (default 0) and `rpy` or `rotation` (default identity).
