@@ -185,15 +185,17 @@ def build_robot(a, table):
             check_chain(robot, chain, arm, urdf)
             return robot, chain, wire.arm_hash(chain.description())
         if arm.endswith(".urdf"):
-            if not (a.base_link and a.tip_link and a.home):
-                raise wire.Fatal(f"--arm {a.arm}: a URDF needs --base-link, --tip-link and --home")
+            if not (a.tip_link and a.home):
+                raise wire.Fatal(f"--arm {a.arm}: a URDF needs --tip-link and --home (and --base-link: the root link)")
+            if not a.base_link:
+                a.base_link = mujoco_robot.Urdf(arm).root_link
             home = numbers_of("--home", a.home)
             mount = None
             if a.platform == "omni":
                 m = numbers_of("--mount", a.mount, 6)
                 mount = (m[:3], m[3:])
             robot = mujoco_robot.Robot(arm, a.base_link, a.tip_link, a.platform, home, a.dt, table, mount=mount)
-            return robot, None, urdf_arm_hash(robot, a)
+            return robot, None, urdf_arm_hash(robot, mount)
     except mujoco_robot.ModelError as e:
         raise wire.Fatal(str(e))
     raise wire.Fatal(f"--arm {a.arm}: ur5, an arm file (.toml) or a URDF (.urdf)")
@@ -225,9 +227,36 @@ def check_chain(robot, chain, arm, urdf):
         raise wire.Fatal(f"the URDF {urdf} is not the arm of {arm}: their effector poses differ by up to {worst:.3g}")
 
 
-def urdf_arm_hash(robot, a):
-    """The arm hash of a URDF's chain: 0 (not checked) until the controller reads URDFs."""
-    return 0
+def urdf_arm_hash(robot, mount):
+    """The arm hash (docs/protocol.md, "The arm hash") of the chain the controller reads from
+    the same URDF (runtime/src/domain/arm/urdf.rs): the mount `mount` = (xyz, rpy), identity by
+    default; fixed joints folded into the next moving joint's origin, after the last into the
+    tool; origins R_z(yaw) R_y(pitch) R_x(roll) with right angles exact; axes normalised;
+    continuous joints unbounded. A plant and a controller reading different robots then
+    refuse each other."""
+    u = robot.urdf
+
+    def frame(f):
+        return {"rotation": list(f[0]), "translation": list(f[1])}
+
+    joints, pending = [], (wire.IDENTITY, (0.0, 0.0, 0.0))
+    for j in u.path_joints(robot.base_link, robot.tip_link):
+        origin = (wire.from_rpy(*j["rpy"]), tuple(j["xyz"]))
+        pending = compose3(pending, origin)
+        if j["type"] not in mujoco_robot.MOVABLE:
+            continue
+        x, y, z = j["axis"]
+        norm = math.sqrt(x * x + y * y + z * z)
+        if j["type"] == "continuous":
+            lower, upper = -math.inf, math.inf
+        else:
+            lower, upper = j["lower"], j["upper"]
+        joints.append({"kind": "prismatic" if j["type"] == "prismatic" else "revolute", "origin": frame(pending),
+                       "axis": [x / norm, y / norm, z / norm], "lower": lower, "upper": upper})
+        pending = (wire.IDENTITY, (0.0, 0.0, 0.0))
+    (mx, my, mz), rpy = mount or ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    m = (wire.from_rpy(*rpy), (mx, my, mz))
+    return wire.arm_hash({"mount": frame(m), "joints": joints, "tool": frame(pending)})
 
 
 # ----- the robot the session drives ---------------------------------------------------------

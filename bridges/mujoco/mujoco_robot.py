@@ -31,6 +31,9 @@ import numpy as np
 HERE = os.path.dirname(os.path.abspath(__file__))
 DEFAULT_TABLE = os.path.join(HERE, "actuators.toml")
 MOVABLE = ("revolute", "continuous", "prismatic")
+# The friction feedforward's direction is tanh(u / 0.01 rad/s): all of the URDF's friction
+# from a commanded 0.03 rad/s (or m/s), none at rest (no chatter about zero).
+FRICTION_RATE = 100.0
 
 
 class ModelError(Exception):
@@ -495,12 +498,16 @@ class Robot:
                 continue
             over = t["joint"].get(j["name"], {})
             for k in over:
-                if k not in ("kv", "effort", "speed"):
-                    raise ModelError(f"actuator table: joint.{j['name']}.{k}: kv, effort or speed")
+                if k not in ("kv", "effort", "speed", "armature"):
+                    raise ModelError(f"actuator table: joint.{j['name']}.{k}: kv, effort, speed or armature")
             kv = float(over["kv"]) if "kv" in over else None
             effort = urdf_value(over.get("effort", t["arm"]["effort"]), j["effort"], f"joint {j['name']}: effort")
             speed = urdf_value(over.get("speed", t["arm"]["speed"]), j["velocity"], f"joint {j['name']}: speed")
             name = self.prefix + j["name"]
+            armature = float(over.get("armature", t["arm"]["armature_prismatic" if j["type"] == "prismatic" else "armature"]))
+            if not (math.isfinite(armature) and armature >= 0.0):
+                raise ModelError(f"joint {j['name']}: armature must be a number >= 0, got {armature}")
+            spec.joint(name).armature = armature
             a = spec.add_actuator(name="servo/" + j["name"], target=name, trntype=mujoco.mjtTrn.mjTRN_JOINT)
             a.set_to_velocity(kv=1.0)
             a.forcelimited = True
@@ -585,48 +592,57 @@ class Robot:
         self.hold_idx = np.flatnonzero(self.hold)
         self.hold_qadr = self.servo_qadr[self.hold_idx]
         self.hold_target = self.hold_q[self.hold_idx]
-        self.u_servo = np.zeros(len(servo))
+        self.target = np.zeros(m.nu)  # each drive's target rate
+        self.integral = np.zeros(m.nu)  # each drive's integral of its rate error (rate units)
+        self.hold_act = self.servo_act[self.hold_idx]
         self.wheel_target = np.zeros(2)
         self.omni_target = np.zeros(3)
         self.clipped = 0  # commands clipped by a drive's speed limit (this period)
 
     def _gains(self):
         """Each velocity servo's gain kv from its time constant τ at the start: kv = I / τ,
-        I the inertia the drive moves (the joint's diagonal of the mass matrix; for a wheel,
-        also its half of the robot's mass at the wheel's radius) — a rate error then decays as
-        exp(−t/τ) until the effort limit — but at least effort / full_effort_error, so that
-        the servo gives its full effort at that rate error (a light wrist link's own inertia
-        would give a gain too weak to overcome the URDF's friction). A table's kv wins."""
+        I the inertia the drive moves (the joint's diagonal of the mass matrix, its drive's
+        armature included; for a wheel, also its half of the robot's mass at the wheel's
+        radius) — a rate error decays as exp(−t/τ) until the effort limit. A table's kv
+        wins."""
         m, d = self.model, self.data
         full = np.zeros((m.nv, m.nv))
         mujoco.mj_fullM(m, d, full)
         self.gains = {}
 
-        def put(act, kv):
+        def put(act, kv, damping=0.0):
+            # Force = kv ctrl − (kv − b) q̇: with the joint's passive damping −b q̇ the joint
+            # feels kv (ctrl − q̇) — the damping compensated, implicitly, as the integrator
+            # treats both (a feedforward of b q̇ one step old is unstable on a light link).
             m.actuator_gainprm[act][0] = kv
-            m.actuator_biasprm[act][2] = -kv
+            m.actuator_biasprm[act][2] = -(kv - damping)
             self.gains[m.actuator(act).name] = kv
 
         tau = positive(self.table, "arm", "time_constant")
-        error = positive(self.table, "arm", "full_effort_error")
         for s, act, dof in zip(self.servo_joints, self.servo_act, self.servo_dof):
-            s["kv"] = s["kv"] if s["kv"] is not None else max(full[dof, dof] / tau, s["effort"] / error)
-            put(act, s["kv"])
+            s["kv"] = s["kv"] if s["kv"] is not None else full[dof, dof] / tau
+            damping = float(m.dof_damping[dof]) if self.gravity else 0.0
+            if s["kv"] < damping:
+                raise ModelError(f"joint {s['joint']}: kv {s['kv']:.4g} is below the URDF's damping {damping}")
+            put(act, s["kv"], damping)
         self.servo_inv_kv = np.array([1.0 / s["kv"] for s in self.servo_joints])
+        self.servo_friction = np.array([float(m.dof_frictionloss[dof]) for dof in self.servo_dof])
+        self.friction_ff = float(self.table["arm"].get("friction_feedforward", 1.0))
         if self.wheels:
             tau = positive(self.table, "wheels", "time_constant")
-            error = positive(self.table, "wheels", "full_effort_error")
             carried = 0.5 * m.body_subtreemass[self.base] * self.wheels["radius"] ** 2
             for side, act, dof in zip(("left", "right"), self.wheel_act, self.wheel_dof):
                 wh = self.wheels[side]
-                kv = max((full[dof, dof] + carried) / tau, wh["effort_limit"] / error)
-                wh["kv"] = wh["kv"] if wh["kv"] is not None else kv
+                wh["kv"] = wh["kv"] if wh["kv"] is not None else (full[dof, dof] + carried) / tau
                 put(act, wh["kv"])
         else:
             tau = positive(self.table, "omni", "time_constant")
             # The drive's axes at the start are the joints' (the base faces x).
             for act, dof in zip(self.omni_act, (0, 1, 2)):
                 put(act, full[dof, dof] / tau)
+        kv = m.actuator_gainprm[:, 0]
+        self.z_max = m.actuator_forcerange[:, 1] / kv
+        self.ki_h = m.opt.timestep / positive(self.table, "simulation", "integral_time")
 
     # -- the kinematics the controller assumes, read from the model --
 
@@ -660,35 +676,41 @@ class Robot:
                 left, right, clipped = left * k, right * k, True
             self.wheel_target[0] = left * self.wheel_sign[0]
             self.wheel_target[1] = right * self.wheel_sign[1]
-            self.data.ctrl[self.wheel_act] = self.wheel_target
+            self.target[self.wheel_act] = self.wheel_target
         else:
             sp, tr = self.omni_speed
             k = max(abs(v) / sp, abs(v_lat) / sp, abs(omega) / tr, 1.0)
             clipped = k > 1.0
             self.omni_target[:] = (v / k, v_lat / k, omega / k)
-            self.data.ctrl[self.omni_act] = self.omni_target
+            self.target[self.omni_act] = self.omni_target
         u = np.asarray(rates, dtype=float)
         lim = self.servo_speed[self.chain_servo]
         if np.any(np.abs(u) > lim):
             clipped = True
             u = np.clip(u, -lim, lim)
-        self.u_servo[self.chain_servo] = u
+        self.target[self.servo_act[self.chain_servo]] = u
         return clipped
 
     def substep(self):
-        """One physics step under the current targets."""
-        m, d = self.model, self.data
-        u = self.u_servo
+        """One physics step under the current targets. Every drive is a PI velocity servo:
+        torque = kv (target − rate) + kv z + feedforward, z the integral of the rate error
+        over the integral time (anti-windup: |kv z| within the effort), the feedforward the
+        model's bias forces (gravity, Coriolis) of the previous step and the URDF's friction in
+        the commanded direction, for the arm's joints."""
+        d = self.data
+        target = self.target
         if len(self.hold_idx):
-            u[self.hold_idx] = self.hold_gain * (self.hold_target - d.qpos[self.hold_qadr])
+            target[self.hold_act] = self.hold_gain * (self.hold_target - d.qpos[self.hold_qadr])
+        z = self.integral
+        z += self.ki_h * (target - d.actuator_velocity)
+        np.clip(z, -self.z_max, self.z_max, out=z)
+        ctrl = target + z
         if self.gravity:
-            # The model's bias forces and, cancelled, its passive ones (the URDF's damping): a
-            # drive's feedforward, one physics step old.
-            ff = d.qfrc_bias[self.servo_dof] - d.qfrc_passive[self.servo_dof]
-            d.ctrl[self.servo_act] = u + ff * self.servo_inv_kv
-        else:
-            d.ctrl[self.servo_act] = u
-        mujoco.mj_step(m, d)
+            u = target[self.servo_act]
+            ff = d.qfrc_bias[self.servo_dof] + self.friction_ff * self.servo_friction * np.tanh(u * FRICTION_RATE)
+            ctrl[self.servo_act] += ff * self.servo_inv_kv
+        d.ctrl[:] = ctrl
+        mujoco.mj_step(self.model, d)
 
     # -- measuring --
 

@@ -138,14 +138,38 @@ def test_trajectory_2_follows_table_1():
 
 def test_the_actuator_table_is_overridden_by_name_and_a_typo_is_refused():
     g0 = tiago().gains
-    g1 = tiago("arm.time_constant=0.0025", "arm.full_effort_error=0.1", "joint.arm_2_joint.kv=123.0").gains
-    # kv = I / τ for the shoulder (its inertia is large), effort / full_effort_error for the
-    # light wrist (URDF effort 6.6 N m), the table's own where it gives one.
+    g1 = tiago("arm.time_constant=0.0025", "joint.arm_7_joint.armature=0.03", "joint.arm_2_joint.kv=123.0").gains
+    # kv = I / τ, I the joint's inertia with its drive's armature (the wrist's is nearly all
+    # armature: 0.01 kg m² by default, its link 4e-5).
     assert g1["servo/arm_1_joint"] == pytest.approx(2 * g0["servo/arm_1_joint"])
-    assert (g0["servo/arm_7_joint"], g1["servo/arm_7_joint"]) == pytest.approx((6.6 / 0.2, 6.6 / 0.1))
+    assert g0["servo/arm_7_joint"] == pytest.approx(0.01 / 0.005, rel=0.01)
+    assert g1["servo/arm_7_joint"] == pytest.approx(0.03 / 0.0025, rel=0.01)
     assert g1["servo/arm_2_joint"] == 123.0
     with pytest.raises(mujoco_robot.ModelError, match="unknown key arm.time_constnat"):
         tiago("arm.time_constnat=0.01")
+
+
+@pytest.mark.parametrize("joint, rate", [("arm_7_joint", 0.5), ("arm_7_joint", 0.02), ("arm_1_joint", 0.5),
+                                         ("torso_lift_joint", 0.05)])
+def test_a_servo_follows_a_step_of_its_rate_without_chatter(joint, rate):
+    # The TIAGo's wrist link alone weighs 4e-5 kg m² against a URDF friction of 1 N m: a stiff
+    # servo on it chattered (±4.8 rad/s each physics step, the joint still); with its drive's
+    # armature and a PI servo it turns as commanded.
+    r = tiago()
+    m, d = r.model, r.data
+    dof = m.jnt_dofadr[m.joint(joint).id]
+    qa = m.jnt_qposadr[m.joint(joint).id]
+    u = [0.0] * 8
+    u[r.chain_names.index(joint)] = rate
+    r.command(0.0, 0.0, 0.0, u)
+    q0 = float(d.qpos[qa])
+    rates = []
+    for _ in range(400):  # 0.2 s
+        r.substep()
+        rates.append(float(d.qvel[dof]))
+    assert min(rates[20:]) > 0.0, "the joint stopped or turned back after 10 ms: chatter"
+    assert max(abs(x - rate) for x in rates[200:]) < 0.05 * rate  # after 100 ms
+    assert float(d.qpos[qa]) - q0 == pytest.approx(0.2 * rate, rel=0.1)
 
 
 def test_the_png_writer_makes_what_a_png_reader_reads(tmp_path):
