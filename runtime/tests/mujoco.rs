@@ -117,10 +117,20 @@ fn ur5_file() -> String {
     workspace().join("examples/arms/ur5.toml").display().to_string()
 }
 
-/// The TIAGo's URDF (example-robot-data) as the MuJoCo plant takes it.
-const TIAGO: [&str; 10] = [
-    "--arm",
-    "tiago_description/robots/tiago_no_hand.urdf",
+/// The TIAGo's URDF as example-robot-data installs it in target/py.
+fn tiago_urdf() -> String {
+    let out = Command::new(python())
+        .args(["-c", "import sys; sys.path.insert(0, 'bridges/mujoco'); import mujoco_robot as m; print(m.resolve_robot_file('tiago_description/robots/tiago_no_hand.urdf'))"])
+        .current_dir(workspace())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).unwrap().trim().to_string()
+}
+
+/// The TIAGo's cut and home (the notes' well-conditioned home), on its wheels: the flags both
+/// the MuJoCo plant and `companion control`/`hil` take, after `--arm URDF`.
+const TIAGO_CUT: [&str; 8] = [
     "--base-link",
     "base_footprint",
     "--tip-link",
@@ -339,8 +349,15 @@ fn a_plant_and_a_controller_with_different_robots_refuse_each_other_by_name() {
     std::fs::write(&other, text).unwrap();
     let other = other.display().to_string();
     let ur5_plant = ["--arm", ur5.as_str(), "--platform", "omni"];
+    let urdf = tiago_urdf();
+    let mut tiago = vec!["--arm", urdf.as_str()];
+    tiago.extend(TIAGO_CUT);
+    // The same URDF cut one link short (arm_7_link, the tool's frame dropped): 8 joints too,
+    // another arm.
+    let mut short = tiago.clone();
+    short[5] = "arm_7_link";
     // (the controller's flags, the plant's, what the controller says, what the plant says)
-    let cases: [(&[&str], &[&str], &str, &str); 4] = [
+    let cases: [(&[&str], &[&str], &str, &str); 5] = [
         (
             &["--arm", "panda", "--platform", "omni"],
             &ur5_plant,
@@ -361,9 +378,15 @@ fn a_plant_and_a_controller_with_different_robots_refuse_each_other_by_name() {
         ),
         (
             &["--arm", "ur5", "--platform", "unicycle"],
-            &TIAGO,
+            &tiago,
             "joint count mismatch: the plant has 8 joints, the controller is built for 6",
             "this bridge has 8 joints, the controller is built for 6",
+        ),
+        (
+            &short,
+            &tiago,
+            "arm mismatch: the plant's arm is 0x",
+            "(arm mismatch): this bridge's arm hash is 0x",
         ),
     ];
     for (control, plant, controller_says, plant_says) in cases {
@@ -385,6 +408,37 @@ fn a_plant_and_a_controller_with_different_robots_refuse_each_other_by_name() {
         assert!(ct.contains(controller_says), "{control:?}: the controller said\n{ct}");
         assert!(pt.contains(plant_says), "{control:?}: the plant said\n{pt}");
     }
+}
+
+/// The TIAGo from its URDF in the demo: the controller reads the same URDF and accepts the
+/// plant (their arm hashes, computed each its own way, agree), 10 s in lockstep run to their
+/// end, and the CSV's e_p is recomputed independently. (The aim for this run —
+/// settled within 2 mm after 20 s — is not met by the law on either plant: docs/mujoco.md.)
+#[test]
+fn the_tiago_from_its_urdf_runs_in_the_demo_against_a_controller_reading_the_same_urdf() {
+    if !available() {
+        return;
+    }
+    let _g = one_at_a_time();
+    let out = out_dir("tiago");
+    let urdf = tiago_urdf();
+    let mut c = Command::new(BIN);
+    c.args(["hil", "--plant", "mujoco", "--name", &demo("tiago"), "--arm", &urdf])
+        .args(TIAGO_CUT)
+        .args(["--lockstep", "--duration", "10", "--plant-arg=--filmstrip=0", "--no-plots", "--out"])
+        .arg(&out);
+    let (st, text) = ended(started(c), "companion hil --plant mujoco (TIAGo)");
+    assert!(st.success(), "{text}");
+    assert!(text.contains("answered 10001 measurements (0 skipped as superseded, 0 dropped"), "{text}");
+    let s = json(&out.join("summary.json"));
+    assert_eq!(s["robot"]["chain"].as_array().map(Vec::len), Some(8), "{s}");
+    assert_eq!(s["robot"]["wheels"]["track"].as_f64().map(|t| (t * 1e4).round()), Some(4044.0), "{s}");
+    let check = Command::new("python3")
+        .arg(workspace().join("scripts/check_spatial_csv.py"))
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
 }
 
 #[test]

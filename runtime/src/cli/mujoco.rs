@@ -47,6 +47,35 @@ fn python() -> Result<PathBuf> {
     Ok(p)
 }
 
+/// A URDF arm's cut, home and mount as the MuJoCo plant takes them: the links (flags over the
+/// config file's `[robot]`, the root by default), the home the controller resolved (any of
+/// `--home`, `--srdf`/`--home-state`, names), the mount (`[robot] mount`).
+fn urdf_flags(a: &HilArgs, s: &HilScenario) -> Result<Vec<String>> {
+    let robot = a.scenario.config_file()?.robot.unwrap_or_default();
+    let flags = &a.scenario.robot;
+    let mut out = Vec::new();
+    if let Some(b) = flags.base_link.clone().or(robot.base_link) {
+        out.extend(["--base-link".to_string(), b]);
+    }
+    if let Some(t) = flags.tip_link.clone().or(robot.tip_link) {
+        out.extend(["--tip-link".to_string(), t]);
+    }
+    let Some(ss) = s.spatial() else { bail!("--plant mujoco: a URDF arm is spatial") };
+    let home: Vec<f64> = match ss.arm.joints() {
+        6 => ss.arm.chain::<f64, 6>()?.home().iter().copied().collect(),
+        7 => ss.arm.chain::<f64, 7>()?.home().iter().copied().collect(),
+        _ => ss.arm.chain::<f64, 8>()?.home().iter().copied().collect(),
+    };
+    out.extend(["--home".to_string(), home.iter().map(f64::to_string).collect::<Vec<_>>().join(",")]);
+    if let Some(m) = robot.mount {
+        let xyz = m.xyz.unwrap_or_else(|| vec![0.0; 3]);
+        let rpy = m.rpy.unwrap_or_else(|| vec![0.0; 3]);
+        let all: Vec<String> = xyz.iter().chain(rpy.iter()).map(f64::to_string).collect();
+        out.extend(["--mount".to_string(), all.join(",")]);
+    }
+    Ok(out)
+}
+
 /// The MuJoCo plant's command for the demo `a` describes (`cfg`, `s` its resolved flags).
 ///
 /// # Errors
@@ -108,6 +137,9 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
     }
     if cfg.no_plots {
         p.arg("--no-plots");
+    }
+    if companion_runtime::domain::arm::urdf::is_urdf(Path::new(&a.arm)) {
+        p.args(urdf_flags(a, s)?);
     }
     if let Some(rt) = &cfg.rt {
         // The plant's half of --rt (SCHED_FIFO, its CPU, memory locked); the controller
