@@ -199,11 +199,15 @@ fn two_lockstep_runs_through_the_demo_are_byte_identical_and_their_csv_checks_in
         (Some(2001), Some(2001)),
         "{s}"
     );
-    // The tracking error of every row recomputed from the logged poses (plain Python, not the
-    // plant's code) agrees with the plant's ep_norm column.
+    e_p_checks_independently(&runs[0]);
+}
+
+/// The tracking error of every row of `run`'s CSV recomputed from the logged poses (plain
+/// Python, not the plant's code) agrees with the plant's `ep_norm` column.
+fn e_p_checks_independently(run: &Path) {
     let check = Command::new("python3")
         .arg(workspace().join("scripts/check_spatial_csv.py"))
-        .arg(&runs[0])
+        .arg(run)
         .output()
         .unwrap();
     assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
@@ -433,12 +437,7 @@ fn the_tiago_from_its_urdf_runs_in_the_demo_against_a_controller_reading_the_sam
     let s = json(&out.join("summary.json"));
     assert_eq!(s["robot"]["chain"].as_array().map(Vec::len), Some(8), "{s}");
     assert_eq!(s["robot"]["wheels"]["track"].as_f64().map(|t| (t * 1e4).round()), Some(4044.0), "{s}");
-    let check = Command::new("python3")
-        .arg(workspace().join("scripts/check_spatial_csv.py"))
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(check.status.success(), "{}", String::from_utf8_lossy(&check.stdout));
+    e_p_checks_independently(&out);
 }
 
 #[test]
