@@ -34,7 +34,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
-use super::mujoco::{plant_process, PlantArg};
+use super::mujoco::{plant_process, DemoFlags, PlantArg};
 use super::sim::print_table;
 use super::terminal::Terminal;
 
@@ -622,7 +622,16 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
     let mut plant = Process::new(&exe);
     if a.plant == PlantArg::Mujoco {
-        plant = plant_process(a, &cfg, &s)?;
+        let unsupported = [
+            (a.transport != TransportArg::Iceoryx2, "--transport zenoh"),
+            (a.chaos.is_some(), "--chaos"),
+            (a.mcap.is_some(), "--mcap"),
+            (a.delay != 0.0, "--delay"),
+            (a.max_command_age != 0, "--max-command-age"),
+        ];
+        let unsupported = unsupported.iter().filter(|(given, _)| *given).map(|(_, f)| *f).collect();
+        let flags = DemoFlags { arm: &a.arm, scenario: &a.scenario, plant_args: &a.plant_args, unsupported };
+        plant = plant_process(&flags, &cfg, &s)?;
     } else {
         plant
             .arg("plant")

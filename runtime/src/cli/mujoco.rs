@@ -12,7 +12,7 @@ use clap::ValueEnum;
 use companion_core::PlatformKind;
 use companion_runtime::run::hil::{HilConfig, HilScenario};
 
-use super::hil::{HilArgs, TransportArg};
+use super::args::ScenarioArgs;
 
 /// `--plant`: which plant `companion hil` starts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, ValueEnum)]
@@ -23,6 +23,19 @@ pub enum PlantArg {
     /// The MuJoCo plant: the robot's URDF with wheels, drives, servos and gravity
     /// (bridges/mujoco; `scripts/setup` installs MuJoCo into target/py).
     Mujoco,
+}
+
+/// What of `companion hil`'s flags the MuJoCo plant's command is made of (the demo's own
+/// `HilArgs`, seen from here without depending on them).
+pub struct DemoFlags<'a> {
+    /// `--arm`.
+    pub arm: &'a str,
+    /// The scenario's flags.
+    pub scenario: &'a ScenarioArgs,
+    /// `--plant-arg`s.
+    pub plant_args: &'a [String],
+    /// The flags given that the MuJoCo plant does not take, by name.
+    pub unsupported: Vec<&'static str>,
 }
 
 /// The workspace this binary was built from (the MuJoCo plant's script lives there).
@@ -50,7 +63,7 @@ fn python() -> Result<PathBuf> {
 /// A URDF arm's cut, home and mount as the MuJoCo plant takes them: the links (flags over the
 /// config file's `[robot]`, the root by default), the home the controller resolved (any of
 /// `--home`, `--srdf`/`--home-state`, names), the mount (`[robot] mount`).
-fn urdf_flags(a: &HilArgs, s: &HilScenario) -> Result<Vec<String>> {
+fn urdf_flags(a: &DemoFlags<'_>, s: &HilScenario) -> Result<Vec<String>> {
     let robot = a.scenario.config_file()?.robot.unwrap_or_default();
     let flags = &a.scenario.robot;
     let mut out = Vec::new();
@@ -80,13 +93,8 @@ fn urdf_flags(a: &HilArgs, s: &HilScenario) -> Result<Vec<String>> {
 ///
 /// # Errors
 /// A flag the MuJoCo plant does not take (named), or no Python to run it.
-pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Process> {
+pub fn plant_process(a: &DemoFlags<'_>, cfg: &HilConfig, s: &HilScenario) -> Result<Process> {
     let refuse = [
-        (a.transport != TransportArg::Iceoryx2, "--transport zenoh"),
-        (a.chaos.is_some(), "--chaos"),
-        (a.mcap.is_some(), "--mcap"),
-        (a.delay != 0.0, "--delay"),
-        (a.max_command_age != 0, "--max-command-age"),
         (
             a.scenario.actuator_lag.is_some(),
             "--actuator-lag (the kinematic plant's; the MuJoCo plant's drives lag)",
@@ -97,7 +105,8 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
         ),
         (a.scenario.target_file.is_some(), "--target-file"),
     ];
-    if let Some((_, flag)) = refuse.iter().find(|(given, _)| *given) {
+    let mut given = a.unsupported.iter().copied().chain(refuse.iter().filter(|(g, _)| *g).map(|(_, f)| *f));
+    if let Some(flag) = given.next() {
         bail!("--plant mujoco does not take {flag}");
     }
     if s.spatial().is_none() {
@@ -117,7 +126,7 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
     let ms = |ns: u64| format!("{}", ns as f64 / 1e6);
     p.arg(script)
         .args(["--name", cfg.name.as_str()])
-        .args(["--arm", &a.arm, "--platform", platform])
+        .args(["--arm", a.arm, "--platform", platform])
         .args(["--trajectory", &a.scenario.trajectory.to_string()])
         .args(["--duration", &base.duration.to_string(), "--dt", &base.dt.to_string()])
         .args(["--deadline-us", &(timing.deadline_ns / 1000).to_string()])
@@ -138,7 +147,7 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
     if cfg.no_plots {
         p.arg("--no-plots");
     }
-    if companion_runtime::domain::arm::urdf::is_urdf(Path::new(&a.arm)) {
+    if companion_runtime::domain::arm::urdf::is_urdf(Path::new(a.arm)) {
         p.args(urdf_flags(a, s)?);
     }
     if let Some(rt) = &cfg.rt {
@@ -149,6 +158,6 @@ pub fn plant_process(a: &HilArgs, cfg: &HilConfig, s: &HilScenario) -> Result<Pr
     if a.scenario.noise {
         p.args(["--noise", "--seed", &a.scenario.seed.to_string()]);
     }
-    p.args(&a.plant_args);
+    p.args(a.plant_args);
     Ok(p)
 }
