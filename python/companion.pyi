@@ -105,6 +105,52 @@ class Output:
     def error(self) -> Optional[str]:
         """The StepError variant if the step was rejected (then the command is zero)."""
 
+class Arm:
+    """A spatial arm (6 to 8 joints): a preset (``'ur5'``, ``'panda'``), a TOML arm file, or the
+    chain between two links of a URDF. ``Law(arm=…)`` and ``simulate(arm=…)`` take one."""
+
+    def __init__(self, arm: Union[Literal["ur5", "panda"], Path]) -> None: ...
+    @staticmethod
+    def from_urdf(
+        path: Path,
+        base_link: Optional[str] = None,
+        tip_link: Optional[str] = None,
+        srdf: Optional[Path] = None,
+        home_state: Optional[str] = None,
+        home: Optional[Union[Sequence[float], dict[str, float]]] = None,
+    ) -> "Arm":
+        """The chain from ``base_link`` (the URDF's root link if None) to ``tip_link`` (required),
+        fixed joints folded, continuous joints without limits; its home from the SRDF's
+        ``<group_state name=home_state>`` and/or ``home`` (every joint's value in the chain's
+        order, or a dict of joints by name over the state's), strictly inside the limits.
+        Raises ``ConfigError`` or ``ScenarioError`` naming the file and the joint or link."""
+    @property
+    def name(self) -> str:
+        """The arm's name (a URDF's ``<robot name>``)."""
+    @property
+    def joints(self) -> int:
+        """The number of joints."""
+    @property
+    def joint_names(self) -> list[str]:
+        """The joints' names, from the base outwards."""
+    @property
+    def lower(self) -> FloatArray:
+        """Lower limits (rad or m; -inf for a continuous joint)."""
+    @property
+    def upper(self) -> FloatArray:
+        """Upper limits (rad or m; inf for a continuous joint)."""
+    @property
+    def max_velocity(self) -> FloatArray:
+        """Speed limits (rad/s or m/s; inf where none)."""
+    @property
+    def home(self) -> FloatArray:
+        """The home configuration (rad or m)."""
+    def forward(self, q: ArrayLike) -> FloatArray:
+        """The tip's pose in the base link's frame at ``q`` (4×4 homogeneous matrix, m)."""
+    def jacobian(self, q: ArrayLike) -> FloatArray:
+        """The geometric Jacobian at ``q`` (6×N): rows (v; ω) of the tip's origin in the base
+        link's axes (Pinocchio's LOCAL_WORLD_ALIGNED with the base link as the world)."""
+
 class Law:
     """One controller: the planar RPR arm or a spatial arm on a platform, in f64 or f32, built
     from companion sim's presets and --config TOML."""
@@ -113,7 +159,7 @@ class Law:
         self,
         platform: Platform = "unicycle",
         choice: Choice = "a",
-        arm: Union[Literal["rpr", "ur5", "panda"], str] = "rpr",
+        arm: Union[Literal["rpr", "ur5", "panda"], Path, "Arm", None] = None,
         scalar: ScalarType = "f64",
         *,
         config: Optional[Path] = None,
@@ -145,7 +191,7 @@ class LawBatch:
         n: int,
         platform: Platform = "unicycle",
         choice: Choice = "a",
-        arm: Union[Literal["rpr", "ur5", "panda"], str] = "rpr",
+        arm: Union[Literal["rpr", "ur5", "panda"], Path, "Arm", None] = None,
         scalar: ScalarType = "f64",
         *,
         config: Optional[Path] = None,
@@ -198,7 +244,7 @@ def simulate(
     trajectory: Literal[1, 2] = 1,
     choice: Choice = "a",
     platform: Platform = "unicycle",
-    arm: Union[Literal["rpr", "ur5", "panda"], str] = "rpr",
+    arm: Union[Literal["rpr", "ur5", "panda"], Path, "Arm", None] = None,
     *,
     dt: float = 0.001,
     duration: Optional[float] = None,

@@ -1,10 +1,10 @@
 #!/usr/bin/env python3
 """The reference bridge: a replacement for `companion plant`, in Python.
 
-Written from docs/protocol.md alone (protocol version 4) with the official iceoryx2 binding
+Written from docs/book/src/bridge.md alone (protocol version 4) with the official iceoryx2 binding
 (`pip install iceoryx2==0.10.0`). It plays the plant: it simulates the paper's unicycle with
 its RPR arm tracking trajectory 1 — or, with `--arm FILE`, an arm file's chain of 6 to 8
-joints tracking trajectory 1 lifted into space (docs/protocol.md §8) — (a bridge to hardware
+joints tracking trajectory 1 lifted into space (docs/book/src/bridge.md §8) — (a bridge to hardware
 would read its sensors in `measure()` and drive its motors in `advance()`), publishes one
 measurement per period, applies the controller's answer from the moment it arrives, and
 reports the measured delay.
@@ -35,7 +35,7 @@ import tomllib
 
 import iceoryx2 as iox
 
-# ----- the wire (docs/protocol.md §3) ---------------------------------------------------------
+# ----- the wire (docs/book/src/bridge.md §3) ---------------------------------------------------------
 
 PROTOCOL_VERSION = 4
 MAX_JOINTS = 8
@@ -144,7 +144,7 @@ assert Command.joints.offset == 128 and Command.joint_scale.offset == 240
 
 
 def known_status(code):
-    """Whether a command status is one the protocol defines (docs/protocol.md, status codes)."""
+    """Whether a command status is one the protocol defines (docs/book/src/bridge.md, status codes)."""
     return (
         code in (0, 0x200, 0x400, 0x500, 0x600, 0x700, 0x800)
         or 0x100 <= code <= 0x105
@@ -156,7 +156,7 @@ def is_refusal(code):
     return code & 0xFF00 == 0x8000
 
 
-# ----- the scenario hash (docs/protocol.md, "The scenario hash") ------------------------------
+# ----- the scenario hash (docs/book/src/bridge.md, "The scenario hash") ------------------------------
 
 
 def canonical_text(value):
@@ -199,7 +199,7 @@ def scenario_hash(value):
 
 
 def rpr_arm_description():
-    """The paper's RPR arm as docs/protocol.md ("The arm hash") describes it."""
+    """The paper's RPR arm as docs/book/src/bridge.md ("The arm hash") describes it."""
     identity = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
 
     def frame(x):
@@ -222,7 +222,7 @@ def rpr_arm_description():
 
 def arm_hash(description):
     """The arm hash: the canonical hash of the description with every negative zero written as
-    zero (docs/protocol.md, "The arm hash")."""
+    zero (docs/book/src/bridge.md, "The arm hash")."""
 
     def positive_zeros(v):
         if isinstance(v, float):
@@ -241,14 +241,14 @@ RPR_LIMITS = [(-math.pi / 3.0, math.pi / 3.0), (0.0, 0.7), (-math.pi / 2.0, math
 
 
 def planar_target(pose, velocity):
-    """A planar target on the wire (docs/protocol.md, the target): position, rotation R_z(θ)
+    """A planar target on the wire (docs/book/src/bridge.md, the target): position, rotation R_z(θ)
     row by row, the exact yaw, the 6-DOF body twist."""
     x, y, th = pose
     s, c = math.sin(th), math.cos(th)
     return (x, y, 0.0), (c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0), th, (velocity[0], velocity[1], 0.0, 0.0, 0.0, velocity[2])
 
 
-# ----- the robot: the paper's unicycle and RPR arm, trajectory 1 (docs/protocol.md §8) ------
+# ----- the robot: the paper's unicycle and RPR arm, trajectory 1 (docs/book/src/bridge.md §8) ------
 
 L, L_E = 0.4, 0.15
 TARGET_IN_EFFECTOR = (0.5, 0.0, 0.0)
@@ -426,7 +426,7 @@ def command_of(c, joints):
     return (c.v, c.omega, tuple(c.joints[i] for i in range(joints)))
 
 
-# ----- a spatial arm (docs/protocol.md §8): an arm file's chain, trajectory 1 lifted ---------
+# ----- a spatial arm (docs/book/src/bridge.md §8): an arm file's chain, trajectory 1 lifted ---------
 # Poses in SE(3) are (R, p): R a 3×3 rotation as a 9-tuple row by row, p a 3-tuple.
 
 IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
@@ -528,8 +528,8 @@ def so3_log(r):
 
 
 class Chain:
-    """An arm file (README, "Arms as data"): the mount on the platform, each joint's frame in
-    the previous joint's moving frame, its axis and limits, and the tool."""
+    """An arm file (docs/book/src/spatial-arms.md, "Arms as data"): the mount on the platform,
+    each joint's frame in the previous joint's moving frame, its axis and limits, and the tool."""
 
     def __init__(self, path):
         try:
@@ -561,7 +561,7 @@ class Chain:
             raise Fatal(f"arm file {path}: {len(self.joints)} joints, the wire carries 1 to {MAX_JOINTS}")
 
     def description(self):
-        """The arm as docs/protocol.md ("The arm hash") describes it."""
+        """The arm as docs/book/src/bridge.md ("The arm hash") describes it."""
 
         def frame(f):
             return {"rotation": list(f[0]), "translation": list(f[1])}
@@ -594,7 +594,7 @@ def planar_pose3(pose):
     return about_axis(2, math.sin(pose[2]), math.cos(pose[2])), (pose[0], pose[1], 0.0)
 
 
-# ----- the transport (docs/protocol.md §2) ----------------------------------------------------
+# ----- the transport (docs/book/src/bridge.md §2) ----------------------------------------------------
 
 
 class Link:
@@ -604,7 +604,7 @@ class Link:
         self.cfg.global_cfg.prefix = iox.FileName.new(PREFIX)
         # No clean-up of every dead node of the prefix when a node is created or dropped: that
         # would let this process erase another demo's just-killed peer before its partner looks
-        # (docs/protocol.md §2). Only this demo's dead nodes are removed, below and in
+        # (docs/book/src/bridge.md §2). Only this demo's dead nodes are removed, below and in
         # peer_state.
         self.cfg.global_cfg.node.cleanup_dead_nodes_on_creation = False
         self.cfg.global_cfg.node.cleanup_dead_nodes_on_destruction = False
@@ -920,7 +920,7 @@ class Bridge:
         return m
 
     def drain(self, seq):
-        """Every waiting command, checked (docs/protocol.md, what the plant checks); returns the
+        """Every waiting command, checked (docs/book/src/bridge.md, what the plant checks); returns the
         last fresh one for `seq` with its arrival time."""
         fresh = None
         while True:

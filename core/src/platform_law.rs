@@ -400,7 +400,7 @@ impl<T: Real, P: Platform<T>, const N: usize, S: Space<T>> PlatformLaw<'_, T, P,
 /// `5x/12` where the mode decays (`7|x|/12` where it grows): an `O(h²)` bias of the mean `α`
 /// with one sign, which no feedback removes from `α`'s phase. It was T2 (a)'s largest
 /// distance from the continuous law at 1 ms, 5.31·10⁻³ (now 4.08·10⁻³; T1 (a) 3.76·10⁻³ →
-/// 3.05·10⁻³: the root README's precision section).
+/// 3.05·10⁻³: the book's precision chapter, docs/book/src/precision.md).
 ///
 /// Where `m ≤ ½` (`x < −1.26`: a mode that grows more than 3.5-fold over the hold) the step
 /// stays explicit: `w_e`.

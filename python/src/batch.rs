@@ -28,7 +28,7 @@ type StepArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<f64>>, Bo
 impl LawBatch {
     /// `n` laws, each built as `Law(platform, choice, arm, scalar, config=…, …)` would be.
     #[new]
-    #[pyo3(signature = (n, platform="unicycle", choice="a", arm="rpr", scalar="f64", *, config=None,
+    #[pyo3(signature = (n, platform="unicycle", choice="a", arm=None, scalar="f64", *, config=None,
         discretisation=None, psi_rate_in_drift=false, explicit_rest_filter=false, limits=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -36,7 +36,7 @@ impl LawBatch {
         n: usize,
         platform: &str,
         choice: &str,
-        arm: &str,
+        arm: Option<&Bound<'_, PyAny>>,
         scalar: &str,
         config: Option<PathBuf>,
         discretisation: Option<String>,
@@ -47,7 +47,7 @@ impl LawBatch {
         let spec = LawSpec {
             platform: platform.into(),
             choice: choice.into(),
-            arm: arm.into(),
+            arm: crate::arm::ArmArg::extract_or_rpr(arm)?,
             scalar: scalar.into(),
             config,
             discretisation,

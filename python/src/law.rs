@@ -18,7 +18,7 @@ use std::sync::Mutex;
 use companion_core::nalgebra::{Matrix3, SVector, Vector3};
 use companion_core::{Manipulator, Measurement, PaperRun, PlatformKind, Pose, Pose3, Spatial, SpatialArm};
 use companion_plant::PaperTrajectory;
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
+use companion_runtime::domain::arm::SpatialArmSpec;
 use companion_runtime::domain::controller::{
     boxed_spatial_controller, AnyController, DiscretisationConfig, Scalar, SpatialStep, StepReport, JOINTS,
 };
@@ -28,6 +28,7 @@ use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
+use crate::arm::ArmArg;
 use crate::errors::{runtime_error, step_error};
 
 /// Numbers of a planar measurement row.
@@ -162,8 +163,8 @@ pub struct LawSpec {
     pub platform: String,
     /// `a`–`d`.
     pub choice: String,
-    /// `rpr`, `ur5`, `panda` or an arm file.
-    pub arm: String,
+    /// `rpr`, `ur5`, `panda`, an arm file, or an `Arm`.
+    pub arm: ArmArg,
     /// `f64` or `f32`.
     pub scalar: String,
     /// `--config`.
@@ -262,7 +263,7 @@ impl LawSpec {
             ..Options::default()
         };
         let err = |e: anyhow::Error| runtime_error(py, &e);
-        let arm = SpatialArmSpec::from_choice(&ArmChoice::parse(&self.arm)).map_err(|e| err(e.into()))?;
+        let arm = self.arm.spec(py)?;
         let mut file = config_file(py, self.config.as_ref())?;
         if let Some(a) = &arm {
             // As `companion sim --arm`: the arm's platform settings where the file has none.
@@ -418,20 +419,20 @@ pub struct Law {
 #[pymethods]
 impl Law {
     /// Builds the law. `platform`: 'unicycle' | 'car' | 'omni'; `choice`: the paper's variant
-    /// 'a'–'d'; `arm`: 'rpr' | 'ur5' | 'panda' | a TOML arm file; `scalar`: 'f64' | 'f32';
+    /// 'a'–'d'; `arm`: 'rpr' | 'ur5' | 'panda' | a TOML arm file | a `companion.Arm`; `scalar`: 'f64' | 'f32';
     /// `config`: a `--config` TOML file; the rest as the flags of the same name.
     ///
     /// Raises a `ParamError` subclass for an invalid parameter, `ConfigError` for a bad file,
     /// `ScenarioError` otherwise.
     #[new]
-    #[pyo3(signature = (platform="unicycle", choice="a", arm="rpr", scalar="f64", *, config=None,
+    #[pyo3(signature = (platform="unicycle", choice="a", arm=None, scalar="f64", *, config=None,
         discretisation=None, psi_rate_in_drift=false, explicit_rest_filter=false, limits=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         platform: &str,
         choice: &str,
-        arm: &str,
+        arm: Option<&Bound<'_, PyAny>>,
         scalar: &str,
         config: Option<PathBuf>,
         discretisation: Option<String>,
@@ -442,7 +443,7 @@ impl Law {
         let spec = LawSpec {
             platform: platform.into(),
             choice: choice.into(),
-            arm: arm.into(),
+            arm: ArmArg::extract_or_rpr(arm)?,
             scalar: scalar.into(),
             config,
             discretisation,
@@ -455,7 +456,7 @@ impl Law {
             inner,
             buf: Vec::with_capacity(32),
             platform: spec.platform,
-            arm: spec.arm,
+            arm: spec.arm.label(),
             scalar: spec.scalar,
         })
     }

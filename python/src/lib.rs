@@ -10,6 +10,7 @@
 //! `StepError` and `ParamError` variants ([`errors`]); no Rust panic crosses the boundary
 //! (pyo3 would turn one into `PanicException`; the law does not panic on any input).
 
+pub mod arm;
 pub mod batch;
 pub mod errors;
 pub mod law;
@@ -22,6 +23,7 @@ use pyo3::prelude::*;
 /// The module `companion`.
 #[pymodule]
 fn companion(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<arm::Arm>()?;
     m.add_class::<law::Law>()?;
     m.add_class::<law::Output>()?;
     m.add_class::<measurement::Measurement>()?;

@@ -5,7 +5,6 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use companion_plant::PaperTrajectory;
-use companion_runtime::domain::arm::{ArmChoice, SpatialArmSpec};
 use companion_runtime::domain::observe::Silent;
 use companion_runtime::domain::record::verdict::DEFAULT_MAX_REJECTED;
 use companion_runtime::domain::record::{Acceptance, Row};
@@ -151,7 +150,7 @@ fn json_dict<'py>(py: Python<'py>, value: &impl serde::Serialize) -> PyResult<Bo
 /// (`timeseries.csv`, `summary.json`, `scenario.json`) are written into `out` if given, else
 /// into a temporary folder that is removed.
 #[pyfunction]
-#[pyo3(signature = (trajectory=1, choice="a", platform="unicycle", arm="rpr", *, dt=0.001, duration=None,
+#[pyo3(signature = (trajectory=1, choice="a", platform="unicycle", arm=None, *, dt=0.001, duration=None,
     scalar="f64", config=None, target_file=None, psi_rate_in_drift=false, explicit_rest_filter=false,
     discretisation=None, limits=None, actuator_lag=None, noise=false, wheel_scale_error=None, seed=1,
     log_every=10, delay=0.0, delay_compensation=true, max_rejected=DEFAULT_MAX_REJECTED, out=None))]
@@ -161,7 +160,7 @@ pub fn simulate<'py>(
     trajectory: u8,
     choice: &str,
     platform: &str,
-    arm: &str,
+    arm: Option<&Bound<'_, PyAny>>,
     dt: f64,
     duration: Option<f64>,
     scalar: &str,
@@ -208,7 +207,7 @@ pub fn simulate<'py>(
     };
     let (platform, choice) = (parse_platform(platform)?, parse_choice(choice)?);
     let err = |e: anyhow::Error| runtime_error(py, &e);
-    let spatial = SpatialArmSpec::from_choice(&ArmChoice::parse(arm)).map_err(|e| err(e.into()))?;
+    let spatial = crate::arm::ArmArg::extract_or_rpr(arm)?.spec(py)?;
     let mut file = config_file(py, config.as_ref())?;
     if let Some(a) = &spatial {
         // As `companion sim --arm`: the arm's platform settings where the file has none.

@@ -1,5 +1,5 @@
 //! The Python reference bridge (`bridges/python/companion_bridge.py`, written from
-//! `docs/protocol.md`) against `companion control`: lockstep equal to `companion sim`, real
+//! `docs/book/src/bridge.md`) against `companion control`: lockstep equal to `companion sim`, real
 //! time, malformed messages both ways, kills, a stall, a pause, a bridge that creates the
 //! services with iceoryx2's defaults, and every mismatch named on both sides — with the
 //! paper's RPR arm, and with a spatial arm of 6 or 7 joints read from an arm file
@@ -320,7 +320,7 @@ impl Arm {
 
 /// The controller first, the bridge second, in lockstep for 5 s: the bridge sends the scenario
 /// hash it computes from `sim`'s scenario.json and its arm's hash, which it computes from
-/// docs/protocol.md's description of the RPR arm or from the arm file (a different hash would
+/// docs/book/src/bridge.md's description of the RPR arm or from the arm file (a different hash would
 /// be refused), and its target in protocol 4's SE(3) fields; it ends where `companion sim`
 /// ends, to the printed digits.
 fn lockstep_equals_sim(arm: Arm) {

@@ -883,3 +883,6 @@ mod over_zenoh;
 /// The same demo with a spatial arm (§5, `--arm`).
 #[path = "hil/spatial.rs"]
 mod spatial;
+
+#[path = "hil/urdf.rs"]
+mod urdf;

@@ -233,7 +233,7 @@ fn tune_finds_a_damping_onset_for_the_ur5_on_the_car_that_sim_confirms() {
 /// 20 s on (no burst comes back). With the car's defaults given by `--config`
 /// (`examples/arms/panda-car-defaults.toml`) it does not settle within the 40 s: the car's
 /// manoeuvres ask joints beyond their published speeds and the joint guard slows the arm — why
-/// the preset carries its own (README, "Spatial arms").
+/// the preset carries its own (docs/book/src/spatial-arms.md).
 #[test]
 fn panda_car() {
     let scenario = tracks("panda", "car", 7);

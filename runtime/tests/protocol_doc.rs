@@ -1,10 +1,12 @@
-//! `docs/protocol.md` against the code it describes.
+//! `docs/book/src/bridge.md` against the code it describes.
 //!
 //! - Its exit-code table (§6, marked `<!-- exit-codes: control -->`) and its sentence on
 //!   `companion plant`'s codes (`<!-- exit-codes: plant -->`) against the CLI's one list,
 //!   [`exit::EXIT_CODES`] (`runtime/src/cli/exit.rs`, included here by path), which `--help`
 //!   prints: the same codes, each row naming what the code means; every "exit N" of the
 //!   document is one of them; `--help` prints the list.
+//! - The HIL chapter's table of every command's exit codes (`docs/book/src/hil.md`, marked
+//!   `<!-- exit-codes: all -->`) against the same list.
 //! - The warning `companion control` gives for the plant's flags it ignores, as §4 quotes it.
 //! - Its Python snippets marked `<!-- doc-test: python -->` (§2: node and prefix, the two
 //!   messages, services and ports; §4: waiting for the peer's ports and the scan for other
@@ -38,7 +40,7 @@ use exit::{ExitCodeDoc, EXIT_CODES};
 const BIN: &str = env!("CARGO_BIN_EXE_companion");
 
 fn doc() -> String {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/protocol.md");
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/book/src/bridge.md");
     std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
@@ -55,7 +57,7 @@ fn codes_of(command: &str) -> Vec<u8> {
 fn after_marker<'a>(doc: &'a str, marker: &str) -> Vec<&'a str> {
     let lines: Vec<&str> = doc.lines().collect();
     let at: Vec<usize> = (0..lines.len()).filter(|&i| lines[i].trim() == marker).collect();
-    assert_eq!(at.len(), 1, "docs/protocol.md must have exactly one line {marker:?}");
+    assert_eq!(at.len(), 1, "the document must have exactly one line {marker:?}");
     lines[at[0] + 1..].to_vec()
 }
 
@@ -125,6 +127,31 @@ fn help_prints_the_exit_code_list() {
     }
 }
 
+/// The table of every command's exit codes in the HIL chapter (`docs/book/src/hil.md`, marked
+/// `<!-- exit-codes: all -->`) against the same list: every code, in order, each row saying
+/// what the code means (its key phrase, the row's backticks aside).
+#[test]
+fn the_hil_chapters_exit_codes_are_the_clis() {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/book/src/hil.md");
+    let doc = std::fs::read_to_string(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let rows = table_rows(&doc, "<!-- exit-codes: all -->");
+    let documented: Vec<u8> = rows.iter().map(|(c, _)| *c).collect();
+    let all: Vec<u8> = EXIT_CODES.iter().map(|e| e.code).collect();
+    assert_eq!(
+        documented, all,
+        "hil.md: the exit codes (left) differ from runtime/src/cli/exit.rs's (right)"
+    );
+    for (code, row) in &rows {
+        let e = EXIT_CODES.iter().find(|e| e.code == *code).unwrap();
+        assert!(
+            row.replace('`', "").contains(e.key),
+            "hil.md: the row of exit code {code} does not say {:?} (EXIT_CODES: {:?}):\n{row}",
+            e.key,
+            e.meaning
+        );
+    }
+}
+
 #[test]
 fn the_documents_exit_codes_are_the_clis() {
     let doc = doc();
@@ -133,14 +160,14 @@ fn the_documents_exit_codes_are_the_clis() {
     assert_eq!(
         documented,
         codes_of("control"),
-        "docs/protocol.md §6: the codes of `companion control` (left) differ from runtime/src/cli/exit.rs's \
+        "bridge.md §6: the codes of `companion control` (left) differ from runtime/src/cli/exit.rs's \
          EXIT_CODES (right)"
     );
     for (code, row) in &rows {
         let e = EXIT_CODES.iter().find(|e| e.code == *code).unwrap();
         assert!(
             row.contains(e.key),
-            "docs/protocol.md §6: the row of exit code {code} does not say {:?} (EXIT_CODES: {:?}):\n{row}",
+            "bridge.md §6: the row of exit code {code} does not say {:?} (EXIT_CODES: {:?}):\n{row}",
             e.key,
             e.meaning
         );
@@ -155,7 +182,7 @@ fn the_documents_exit_codes_are_the_clis() {
         .unwrap_or_else(|| {
             panic!("no \"`companion plant` uses … the same way\" after the marker: {text:.200}")
         });
-    assert_eq!(numbers(list), codes_of("plant"), "docs/protocol.md §6: the codes of `companion plant`");
+    assert_eq!(numbers(list), codes_of("plant"), "bridge.md §6: the codes of `companion plant`");
 
     // Every "exit N", "exit code N", "exits N" anywhere in the document is a code of the list.
     let known: BTreeSet<u8> = EXIT_CODES.iter().map(|e| e.code).collect();
@@ -164,7 +191,10 @@ fn the_documents_exit_codes_are_the_clis() {
             let rest = &doc[at + pattern.len()..];
             let digits: String = rest.chars().take_while(char::is_ascii_digit).collect();
             if let Ok(code) = digits.parse::<u8>() {
-                assert!(known.contains(&code), "docs/protocol.md mentions {pattern}{code}, not an exit code");
+                assert!(
+                    known.contains(&code),
+                    "the bridge chapter mentions {pattern}{code}, not an exit code"
+                );
             }
         }
     }
@@ -395,7 +425,7 @@ fn the_documents_python_snippets_run_against_the_pinned_binding_and_a_live_contr
 fn control_warns_about_the_plant_flags_it_ignores_as_the_document_says() {
     let quoted = "warning: companion control ignores --duration, --lockstep: the plant decides them";
     let doc = doc().split_whitespace().collect::<Vec<_>>().join(" ");
-    assert!(doc.contains(&format!("*\"{quoted} …\"*")), "docs/protocol.md §4 no longer quotes {quoted:?}");
+    assert!(doc.contains(&format!("*\"{quoted} …\"*")), "bridge.md §4 no longer quotes {quoted:?}");
     let name = format!("pdw{}", std::process::id());
     let run = |extra: &[&str]| {
         let c = Command::new(BIN)

@@ -1,4 +1,4 @@
-//! `companion explore`'s Slurm job array (`docs/explore/README.md`, "On a Slurm cluster") on a
+//! `companion explore`'s Slurm job array (`docs/book/src/explore-tune.md`, "On a Slurm cluster") on a
 //! real single-node Slurm: munge, slurmctld and slurmd from Debian's packages (Slurm 22.05),
 //! configured in a temporary folder on free ports, started by this test and stopped by it
 //! (also when it fails).
@@ -359,10 +359,10 @@ impl Drop for Cluster {
     }
 }
 
-/// The fenced block after the line `<!-- slurm: NAME -->` of docs/explore/README.md.
+/// The fenced block after the line `<!-- slurm: NAME -->` of docs/book/src/explore-tune.md.
 fn doc_block(doc: &str, name: &str) -> String {
     let marker = format!("<!-- slurm: {name} -->");
-    let rest = doc.split_once(&marker).unwrap_or_else(|| panic!("docs/explore/README.md has no {marker}")).1;
+    let rest = doc.split_once(&marker).unwrap_or_else(|| panic!("the explore chapter has no {marker}")).1;
     let body =
         rest.trim_start().strip_prefix("```sh\n").unwrap_or_else(|| panic!("no ```sh block after {marker}"));
     body.split_once("\n```").unwrap().0.to_string() + "\n"
@@ -399,9 +399,10 @@ fn the_documented_job_array_merges_to_the_unsharded_run_with_a_cancelled_and_rer
         eprintln!("skipped: the Slurm job-array test cannot run here: {why}");
         return;
     }
-    let doc =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/explore/README.md"))
-            .unwrap();
+    let doc = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/book/src/explore-tune.md"),
+    )
+    .unwrap();
     let script = doc_block(&doc, "script");
     let script = replace_once(&script, "--array=1-16", &format!("--array=1-{SHARDS}"));
     let script = replace_once(&script, "N=16", &format!("N={SHARDS}"));

@@ -1,8 +1,8 @@
 //! The tracking floor against the control period for both discretisations — the figure and
-//! the table of the README's "Sampled-data controller" section:
+//! the table of the book's precision chapter (docs/book/src/precision.md):
 //!
 //! ```text
-//! cargo run --release -p companion-tests --example floors -- docs/floors.svg
+//! cargo run --release -p companion-tests --example floors -- docs/book/src/img/floors.svg
 //! ```
 //!
 //! Runs T1 (a), T1 (c) and T2 (a) (unicycle, the paper's parameters) at periods from 0.25

@@ -1,6 +1,6 @@
 //! The chaotic runs with the Ψ̇ term, by statistics over nearby starts (SPEC §4: runs (b) and
-//! (d) are compared over many runs, never one by one) — the figures of the README's
-//! "Reproducing the paper" and precision sections on the Ψ̇ chatter:
+//! (d) are compared over many runs, never one by one) — the figures of the book's
+//! "Reproducing the paper" and precision chapters on the Ψ̇ chatter:
 //!
 //! ```text
 //! cargo run --release -p companion-tests --example nearby_starts [K] [PERIOD]

@@ -1,5 +1,5 @@
 //! The default law's pointwise distance from the continuous closed loop, beside its tracking
-//! floor — the table of the README's precision section:
+//! floor — the table of the book's precision chapter:
 //!
 //! ```text
 //! cargo run --release -p companion-tests --example pointwise

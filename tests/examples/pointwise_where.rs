@@ -1,5 +1,5 @@
 //! Where and why the default law leaves the continuous one: the time series behind the
-//! README's "On the continuous law's path" table, for one run (unicycle, the paper's
+//! precision chapter's "On the continuous law's path" table, for one run (unicycle, the paper's
 //! parameters):
 //!
 //! ```text

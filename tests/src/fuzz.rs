@@ -39,7 +39,7 @@ pub const REACH: f64 = 1e6;
 /// The largest distance (m) between the robot and the target in the `f32` law's domain. At
 /// 100–200 km, `f32` resolves positions to 1–2 cm and the terms of (24) to nothing: a 10⁸-step
 /// fuzz found the `f32` law rejecting every step there (`NumericalFailure`) with the arm at
-/// its prismatic stop; within 10 km it never did. (The README states the domain.)
+/// its prismatic stop; within 10 km it never did. (docs/book/src/law.md states the domain.)
 pub const F32_REACH: f64 = 1e4;
 
 /// The largest car steering `|ξ|` (1/m) in the law's domain, for the fuzz.

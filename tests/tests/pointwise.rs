@@ -12,7 +12,7 @@
 //! step took the exact weight); halving the period divides the distance by ≥ 3.2 (measured
 //! 3.96, 3.98, 4.10: second order). T2 (a)'s 4.08e−3 is still `q₁` at 7.52 s displaced along
 //! the motion by the phase of the transverse function's `α` (3.3e−3 rad ahead, made before
-//! 5 s; the README's precision section and `--example pointwise_where`). Beside it the literal
+//! 5 s; the book's precision chapter and `--example pointwise_where`). Beside it the literal
 //! sampling of the law (`--discretisation sampled`): first order, 4.16e−2 / 1.52e−1 /
 //! 1.28e−2 at 1 ms.
 

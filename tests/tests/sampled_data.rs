@@ -133,7 +133,7 @@ fn aims_at_one_hundred_hertz() {
     for s in summaries(&refs) {
         assert_eq!(s.rejected_steps, 0, "{}: rejected steps", s.scenario);
         assert!(s.min_joint_margin.iter().all(|m| *m > 0.0), "{}: a joint reached its limit", s.scenario);
-        // Bounded: the car with the paper's RPR arm does not always track (see the README),
+        // Bounded: the car with the paper's RPR arm does not always track (see docs/book/src/paper.md),
         // but nothing runs away (measured worst 1.4 m, the car on trajectory 2).
         assert!(
             s.final_ep_norm < 3.0 && s.max_ep_norm_after_20s < 3.0,
@@ -184,7 +184,7 @@ fn far_target(d: f64) -> Target {
 /// 134 s (1 000 m, runs c and d, which have no pre-compensation and take their time).
 /// (The car-like platform with the paper's RPR arm does not converge from 5 m for runs a, c
 /// and d: its transverse function's excursions exceed the arm's reach — the same with the
-/// continuous law — see the README.)
+/// continuous law — see docs/book/src/precision.md, "Far targets".)
 #[test]
 fn far_targets_are_reached() {
     let mut list = Vec::new();
@@ -213,7 +213,7 @@ fn far_targets_are_reached() {
 }
 
 /// The joint guard (the law's safeguard against a held command stepping over a joint limit)
-/// never acts in the paper's eight runs, as the README says: the arm law (30) is applied as
+/// never acts in the paper's eight runs, as docs/book/src/law.md says: the arm law (30) is applied as
 /// is at every step.
 #[test]
 fn the_joint_guard_never_acts_in_the_papers_runs() {

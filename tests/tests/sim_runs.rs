@@ -170,7 +170,7 @@ fn omnidirectional_platform_tracks_both_trajectories() {
 }
 
 /// The car-like platform with its built-in parameters (found by `companion tune`, see the
-/// README's "car-like platform": ε = 0.152, η = (21.9, 1.9, 15.4), k = 26.6,
+/// docs/book/src/law.md, "The car-like platform": ε = 0.152, η = (21.9, 1.9, 15.4), k = 26.6,
 /// K̄ = diag(1, 2.07, 254)) and realistic velocity limits tracks trajectory 1 with runs (a) and
 /// (c) — (c) parks behind the target and stops, (a) keeps manoeuvring — which the issue asks
 /// ≥ 95 % of the time after 20 s. On trajectory 2 it tracks run (c) about half the time

@@ -110,60 +110,99 @@ pub enum LimitsArg {
 /// The scenario flags shared by `sim` and `hil`.
 #[derive(Args, Clone, Debug)]
 pub struct ScenarioArgs {
+    /// The paper's trajectory: 1 or 2.
+    ///
     /// The target's motion: the paper's trajectory 1 (circle) or 2 (Table 1); with a spatial
     /// --arm, lifted with a vertical sine.
-    #[arg(long, visible_alias = "traj", default_value = "1", value_parser = clap::value_parser!(u8).range(1..=2), allow_hyphen_values = true)]
+    #[arg(long, visible_alias = "traj", default_value = "1", value_name = "1|2", value_parser = clap::value_parser!(u8).range(1..=2), allow_hyphen_values = true)]
     pub trajectory: u8,
+    /// Your own target: a TOML file of body velocities.
+    ///
     /// A user-defined target motion: a TOML file of piecewise-constant body velocities
-    /// (replaces --trajectory).
+    /// (replaces --trajectory); planar, or with a spatial --arm 6-DOF body twists
+    /// (sim-plant/examples/target3d.toml).
     #[arg(long, value_name = "FILE")]
     pub target_file: Option<PathBuf>,
+    /// The paper's control variant (§4.3).
+    ///
     /// The control variant of the paper's §4.3: a = Ψ≡1 + Choice 1 (51); b = Ψ filtered +
     /// Choice 1 (40); c = Ψ filtered + Choice 2; d = Ψ filtered + Choice 3.
-    #[arg(long, value_enum, default_value = "a")]
+    #[arg(long, value_enum, default_value = "a", value_name = "a|b|c|d", hide_possible_values = true)]
     pub choice: ChoiceArg,
-    /// The wheeled platform.
-    #[arg(long, value_enum, default_value = "unicycle")]
+    /// The base: unicycle, car or omni.
+    ///
+    /// The wheeled platform: `unicycle` (differential drive, the paper's §4), `car` (car-like,
+    /// the paper's §5, Lemma 2) or `omni` (omnidirectional).
+    #[arg(
+        long,
+        value_enum,
+        default_value = "unicycle",
+        value_name = "PLATFORM",
+        hide_possible_values = true
+    )]
     pub platform: PlatformArg,
-    /// The control period and integration step, in seconds.
+    /// Control period and integration step, in s.
     #[arg(long, default_value_t = 0.001, value_name = "SECONDS", allow_hyphen_values = true)]
     pub dt: f64,
+    /// Simulated time in s [sim: 120, hil and plant: 30].
+    ///
     /// The simulated duration, in seconds [default: 120 for `sim`; 30 for `hil` and `plant`;
     /// `control` ignores it (warning): its run ends at the plant's END_OF_RUN measurement].
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub duration: Option<f64>,
     /// The controller's scalar type.
-    #[arg(long, value_enum, default_value = "f64")]
+    ///
+    /// The controller's scalar type: `f64` (the reference) or `f32` (what a Cortex-M4F runs).
+    #[arg(long, value_enum, default_value = "f64", value_name = "f64|f32", hide_possible_values = true)]
     pub scalar: ScalarArg,
+    /// A TOML file overriding parameters.
+    ///
     /// A TOML file overriding parameters, in tables `controller`, `unicycle`, `car`,
     /// `velocity_limits` and `plant`; each key is the name of the field it sets in
     /// companion-core (e.g. `gain`, `filter_sigma`) or companion-plant; unknown keys are errors.
     #[arg(long, value_name = "FILE")]
     pub config: Option<PathBuf>,
+    /// Add the Ψ̇ term to ∂h_s/∂t (the paper preset leaves it out).
+    ///
     /// Put the Ψ̇ (h_s1 − h_s2) term in the pre-compensated drift ∂h_s/∂t (the paper preset
     /// leaves it out; with it runs b and d chatter).
     #[arg(long)]
     pub psi_rate_in_drift: bool,
+    /// Advance the rest filter (28) by explicit Euler.
+    ///
     /// Advance the rest filter (28) by explicit Euler, as a literal discretisation of the
     /// paper would; at dt = 1 ms runs b–d then chatter at the Nyquist frequency during
     /// transients. The default is linearly implicit (see companion-core's `RestFilter`).
     #[arg(long)]
     pub explicit_rest_filter: bool,
+    /// midpoint (the default, 2nd order) or sampled (the literal law).
+    ///
     /// How the control law becomes a command held over one period: `midpoint` evaluates it
     /// at the state predicted for the middle of the hold (second order in the period,
     /// compensates the measurement delay; the default); `sampled` at the measured state
-    /// (first order: the literal sampling of the paper's continuous law).
-    #[arg(long, value_enum)]
+    /// (first order: the literal sampling of the paper's continuous law). The book's chapter
+    /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
+    #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
     /// Platform velocity limits, met by one common scale factor.
-    #[arg(long, value_enum)]
+    ///
+    /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs),
+    /// unless the config file sets some, or `realistic` (a realistic robot's limits, see
+    /// `companion_plant::realistic_limits`).
+    #[arg(long, value_enum, value_name = "none|realistic", hide_possible_values = true)]
     pub limits: Option<LimitsArg>,
+    /// Plant: a first-order actuator lag of this time constant, in s.
+    ///
     /// Plant imperfection: first-order actuator lag with this time constant, in seconds.
     #[arg(long, value_name = "SECONDS", allow_hyphen_values = true)]
     pub actuator_lag: Option<f64>,
+    /// Plant: Gaussian measurement noise (σ = 1 mm, 1 mrad).
+    ///
     /// Plant imperfection: Gaussian measurement noise (σ = 1 mm, 1 mrad, 0.5 mrad on joints).
     #[arg(long)]
     pub noise: bool,
+    /// Plant: the wheels turn (1 + E) times as fast as commanded.
+    ///
     /// Plant imperfection: the wheels turn (1 + E) times faster than commanded (E > -1; e.g.
     /// -0.05: 5 % slower).
     #[arg(long, value_name = "E", allow_hyphen_values = true)]
@@ -171,16 +210,22 @@ pub struct ScenarioArgs {
     /// Seed of the plant's noise generator.
     #[arg(long, default_value_t = 1, allow_hyphen_values = true)]
     pub seed: u64,
+    /// One row of timeseries.csv every N steps.
+    ///
     /// Log one row of timeseries.csv every N steps (the first and last steps always).
     #[arg(long, default_value_t = 10, value_name = "N", allow_hyphen_values = true)]
     pub log_every: u64,
+    /// The largest timeseries.csv allowed, in MB.
+    ///
     /// Refuse a run whose timeseries.csv would exceed this size, in MB (estimated at 330
     /// bytes per row; the message says the size and the --log-every that fits).
     #[arg(long, default_value_t = DEFAULT_MAX_OUTPUT_BYTES / 1_000_000, value_name = "MB", allow_hyphen_values = true)]
     pub max_output_mb: u64,
+    /// Exit 6 above this fraction of rejected steps.
+    ///
     /// A run in which the law rejects more than this fraction of the steps (answering them
     /// with the safe zero command) fails, with exit code 6; 0 fails on any rejection.
-    #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRACTION", allow_hyphen_values = true)]
+    #[arg(long, default_value_t = DEFAULT_MAX_REJECTED, value_name = "FRAC", allow_hyphen_values = true)]
     pub max_rejected: f64,
     /// Where a URDF arm is cut, and its home.
     #[command(flatten)]

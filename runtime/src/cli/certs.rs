@@ -8,14 +8,20 @@ use clap::Args;
 /// Flags of `companion certs`.
 #[derive(Args, Clone, Debug)]
 pub struct CertsArgs {
+    /// The folder to write into (nothing in it is overwritten).
+    ///
     /// The folder to write into (made owner-only if missing; no file in it is overwritten).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// The hosts: NAME or NAME=ADDR[+ADDR], comma-separated.
+    ///
     /// The hosts, comma-separated: each NAME (the certificate's name, what the peer's
     /// --tls-peer expects) or NAME=ADDR[+ADDR] (more addresses it is reached at, e.g.
     /// plant.local=192.168.1.20: the controller's --connect host must be one of them).
     #[arg(long, value_name = "NAME[=ADDR],…")]
     pub hosts: String,
+    /// How long the certificates are valid, in days.
+    ///
     /// How long the certificates are valid, in days (1–36500).
     #[arg(long, default_value_t = 365, value_parser = clap::value_parser!(u32).range(1..=36_500))]
     pub days: u32,

@@ -1,7 +1,7 @@
 //! The exit codes of `companion`, and the table `--help` prints.
 //!
 //! [`EXIT_CODES`] is the one list: `--help` renders it ([`help`]), and
-//! `runtime/tests/protocol_doc.rs` compares it with the table of `docs/protocol.md` §6 (it
+//! `runtime/tests/protocol_doc.rs` compares it with the table of `docs/book/src/bridge.md` §6 (it
 //! includes this file by path, so nothing here may depend on the rest of the crate).
 
 /// Exit code: a bad flag, config file or other error (nothing of the run is written).
@@ -29,7 +29,7 @@ pub const EXIT_PANIC: u8 = 101;
 /// Exit code: ended early by SIGINT or SIGTERM (files are written).
 pub const EXIT_INTERRUPTED: u8 = 130;
 
-/// One exit code as `--help` and `docs/protocol.md` list it.
+/// One exit code as `--help` and `docs/book/src/bridge.md` list it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ExitCodeDoc {
     /// The code.
@@ -38,7 +38,7 @@ pub struct ExitCodeDoc {
     pub commands: &'static [&'static str],
     /// What it means (one line; `--help` wraps it).
     pub meaning: &'static str,
-    /// A phrase of `meaning` that the row of `docs/protocol.md` §6 must contain too (so that
+    /// A phrase of `meaning` that the row of `docs/book/src/bridge.md` §6 must contain too (so that
     /// the document cannot give the code another meaning).
     pub key: &'static str,
 }
@@ -113,7 +113,7 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
 /// The width `--help` wraps the table's meanings at (columns, indentation included).
 const WIDTH: usize = 100;
 
-/// The table of exit codes, as `--help` shows it (and the README repeats it): one entry per
+/// The table of exit codes, as `--help` shows it (and docs/book/src/hil.md repeats it): one entry per
 /// code, the commands it applies to in parentheses unless all do, wrapped at 100 columns.
 pub fn help() -> String {
     let mut out = String::from("Exit codes:");

@@ -10,6 +10,7 @@ use companion_runtime::sys::signals;
 
 use super::args::ScenarioArgs;
 use super::exit::{EXIT_FOLDER_BUSY, EXIT_INTERRUPTED};
+use super::footer::{long_after, short_after};
 use super::terminal::Terminal;
 
 /// `companion explore` flags.
@@ -25,8 +26,11 @@ pub struct ExploreArgs {
 /// `companion explore merge`.
 #[derive(Subcommand, Clone, Debug)]
 pub enum ExploreCommand {
+    /// Merge the shards of one exploration into the files of the unsharded run.
+    ///
     /// Merge the folders of the shards of one exploration (`--shard K/N`) into the files an
     /// unsharded run writes, byte for byte. Every shard must be finished and intact.
+    #[command(after_help = short_after("explore-tune.md"), after_long_help = long_after("explore-tune.md"))]
     Merge(MergeArgs),
 }
 
@@ -48,6 +52,8 @@ pub struct ExploreRunArgs {
     /// The scenario every sample starts from (its start and parameters are then sampled);
     /// `--seed` seeds the samples' draws (and the plant's noise, with --noise).
     pub scenario: ScenarioArgs,
+    /// A TOML file of the ranges to sample.
+    ///
     /// A TOML file of ranges to sample: `[initial]` (distance, bearing, heading, q1–q3,
     /// alpha_1, alpha_2, steering), `[parameters]` (epsilon, eta_1..3, k, epsilon_1,
     /// epsilon_2, k_bar_1..3, d, gain, lambda, stroke; with a spatial --arm joint_speed,
@@ -55,6 +61,8 @@ pub struct ExploreRunArgs {
     /// target (distance 0.5–6 m, any bearing and relative heading; the planar arm only).
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
+    /// rpr (the paper's), ur5, panda or an arm file.
+    ///
     /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
     /// file) run as `sim --arm` runs it (its platform settings, the lifted --trajectory, the
     /// start at home). With a spatial arm the space file draws α(0) and parameters only, and
@@ -65,10 +73,14 @@ pub struct ExploreRunArgs {
     /// How many samples.
     #[arg(long, default_value_t = 1000, value_name = "N")]
     pub samples: u64,
+    /// Output folder; the same command again resumes it.
+    ///
     /// Output folder: results.csv, summary.json, plots; run the same command again to resume
     /// after an interruption.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Only part K of N of the samples (explore merge joins them).
+    ///
     /// Run only part K of N of the samples (for a cluster); `explore merge` joins the parts.
     #[arg(long, value_name = "K/N")]
     pub shard: Option<String>,

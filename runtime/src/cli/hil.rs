@@ -102,24 +102,37 @@ pub struct HilArgs {
     #[command(flatten)]
     /// The scenario (give both roles the same one). `--duration` defaults to 30 s here.
     pub scenario: ScenarioArgs,
+    /// Control rate in Hz [default: 1/--dt].
+    ///
     /// Control rate in Hz (default: 1/--dt, so that simulated time runs at wall-clock speed).
     #[arg(long, value_name = "HZ", allow_hyphen_values = true)]
     pub rate: Option<f64>,
+    /// Deadline after each period's release, in µs.
+    ///
     /// Deadline of each command after its period's release, in microseconds (at most the
     /// period).
     #[arg(long, default_value_t = 500, value_name = "US", value_parser = clap::value_parser!(u64).range(1..=1_000_000), allow_hyphen_values = true)]
     pub deadline_us: u64,
+    /// The plant waits for every command: the same run as sim.
+    ///
     /// Lockstep: the plant waits for every command (deterministic, no deadlines; the same
     /// timeseries.csv as `companion sim`). For `hil` and `plant`: `control` follows what the
     /// plant announces (it warns that it ignores the flag).
     #[arg(long)]
     pub lockstep: bool,
+    /// Waiting: adaptive, spin, event or hybrid.
+    ///
     /// How each process waits for the other's message: `adaptive` busy-polls while it keeps
     /// its CPU and waits on the iceoryx2 event for a while after it is preempted (on a shared
     /// machine busy-polling alone missed 70-84 % of the deadlines; `companion latency`
-    /// measures every mode idle and under load).
-    #[arg(long, value_enum, default_value = "adaptive")]
+    /// measures every mode idle and under load); `spin` busy-polls; `event` waits on the
+    /// iceoryx2 event service with a bounded wait; `hybrid` sleeps until shortly before the
+    /// expected message, then spins. The book's Latency chapter (docs/book/src/latency.md)
+    /// compares them.
+    #[arg(long, value_enum, default_value = "adaptive", value_name = "MODE", hide_possible_values = true)]
     pub wait: WaitArg,
+    /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process.
+    ///
     /// Real-time setup: mlockall, SCHED_FIFO, one CPU per process, pre-faulted stack (a missing
     /// privilege is a warning).
     #[arg(long)]
@@ -127,114 +140,166 @@ pub struct HilArgs {
     /// SCHED_FIFO priority with --rt.
     #[arg(long, default_value_t = 80, value_parser = clap::value_parser!(i32).range(1..=99), allow_hyphen_values = true)]
     pub rt_priority: i32,
+    /// The plant's CPU with --rt [default: 1 with 2+ CPUs].
+    ///
     /// The plant's CPU with --rt (default: 1 on a machine with two or more CPUs).
     #[arg(long, value_name = "CPU", allow_hyphen_values = true)]
     pub plant_cpu: Option<usize>,
-    /// The controller's CPU with --rt (default: 0).
+    /// The controller's CPU with --rt [default: 0].
     #[arg(long, value_name = "CPU", allow_hyphen_values = true)]
     pub control_cpu: Option<usize>,
+    /// The demo's name: its services and its lock.
+    ///
     /// The demo's name: its iceoryx2 services are companion/NAME/…, so demos with different
     /// names never meet; one process per role and name (a lock in /tmp/companion).
     #[arg(long, default_value = "demo")]
     pub name: String,
+    /// Output folder (the plant writes it).
+    ///
     /// Output folder (the plant writes it; `control` writes nothing and warns that it ignores
     /// the flag).
     #[arg(long, default_value = DEFAULT_OUT, value_name = "DIR")]
     pub out: PathBuf,
+    /// The plant also writes the run as MCAP, for Foxglove.
+    ///
     /// The plant also writes the run as an MCAP file for Foxglove (the robot in 3D: frame
     /// transforms, a scene, joint states, command, tracking error), one frame per row of
     /// timeseries.csv (--log-every decimates it too). For `hil` and `plant`.
     #[arg(long, value_name = "FILE")]
     pub mcap: Option<PathBuf>,
+    /// Periods held after a miss before the robot stops.
+    ///
     /// Periods the plant holds the last command after a miss before it stops the robot
     /// (0–100000).
     #[arg(long, default_value_t = 20, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=100_000), allow_hyphen_values = true)]
     pub hold_periods: u32,
+    /// Apply answers up to K periods old (slow links).
+    ///
     /// Real time: apply an answer to a measurement up to K periods old when the answer to the
     /// current one has not come by the deadline (0–8; 0: only the current period's). For
     /// links whose round trip is longer than the deadline, e.g. Zenoh across a network; the
     /// plant measures and announces the delay, the controller predicts over it.
     #[arg(long, default_value_t = 0, value_name = "K", value_parser = clap::value_parser!(u32).range(0..=i64::from(MAX_COMMAND_AGE)), allow_hyphen_values = true)]
     pub max_command_age: u32,
+    /// Exit 7 above this fraction of missed deadlines.
+    ///
     /// A real-time run that misses more than this fraction of its deadlines fails (exit code
     /// 7, with a warning); so does one in which the robot was stopped.
-    #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRACTION", allow_hyphen_values = true)]
+    #[arg(long, default_value_t = DEFAULT_MAX_MISS_FRACTION, value_name = "FRAC", allow_hyphen_values = true)]
     pub max_miss_fraction: f64,
+    /// --wait hybrid: µs to spin before the message.
+    ///
     /// Hybrid waiting: how long before the expected message to stop sleeping and spin (µs,
     /// at most 1 s).
     #[arg(long, default_value_t = 100, value_name = "US", value_parser = clap::value_parser!(u64).range(0..=1_000_000), allow_hyphen_values = true)]
     pub spin_margin_us: u64,
+    /// Silence before checking the peer is alive, in ms.
+    ///
     /// Silence (no message) after which a process checks whether its peer is alive (ms,
     /// 1–60000).
     #[arg(long, default_value_t = 20, value_name = "MS", value_parser = clap::value_parser!(u64).range(1..=60_000), allow_hyphen_values = true)]
     pub silence_ms: u64,
+    /// Give up on a live but silent peer after this, in s.
+    ///
     /// Give up when the peer is alive but silent for this long (s, at most 3600).
     #[arg(long, default_value_t = 2.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub peer_timeout: f64,
+    /// How long to wait for the peer to join, in s.
+    ///
     /// How long to wait for the peer to join at start (s, at most 86400).
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub startup_timeout: f64,
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// Shared memory, or Zenoh across machines.
+    ///
     /// The transport between the two roles: iceoryx2 shared memory on one machine, or Zenoh
     /// over mutual TLS across machines (`companion plant --transport zenoh --listen
     /// quic/ADDR:PORT`, `companion control --transport zenoh --connect quic/ADDR:PORT`, each with
     /// --tls-ca, --tls-cert, --tls-key and --tls-peer; `companion hil` picks a free local port
-    /// and makes throwaway certificates). Zenoh needs a build with `--features zenoh`.
-    #[arg(long, value_enum, default_value = "iceoryx2")]
+    /// and makes throwaway certificates). Zenoh needs a build with `--features zenoh`. The
+    /// book's chapter "Two machines" (docs/book/src/two-machines.md) sets it up step by step.
+    #[arg(
+        long,
+        value_enum,
+        default_value = "iceoryx2",
+        value_name = "iceoryx2|zenoh",
+        hide_possible_values = true
+    )]
     pub transport: TransportArg,
+    /// Zenoh: the endpoint to listen on (the plant).
+    ///
     /// Zenoh: listen on this endpoint, quic/ADDR:PORT (usually the plant; 0.0.0.0 for every
     /// interface; tcp/ADDR:PORT only with --insecure).
     #[arg(long, value_name = "quic/ADDR:PORT")]
     pub listen: Option<String>,
+    /// Zenoh: the endpoint to connect to (the controller).
+    ///
     /// Zenoh: connect to this endpoint, quic/ADDR:PORT (usually the controller; retried until
     /// the peer listens, up to --startup-timeout). Over TLS the listener's certificate must be
     /// valid for ADDR.
     #[arg(long, value_name = "quic/ADDR:PORT")]
     pub connect: Option<String>,
+    /// Zenoh over TLS: the deployment's CA certificate (PEM).
+    ///
     /// Zenoh over TLS: the deployment's CA certificate, which the peer's certificate must be
     /// signed by (PEM; `companion certs` writes it as ca.pem).
     #[arg(long, value_name = "FILE")]
     pub tls_ca: Option<PathBuf>,
+    /// Zenoh over TLS: this host's certificate (PEM).
+    ///
     /// Zenoh over TLS: this host's certificate, signed by the CA (PEM, HOST.pem).
     #[arg(long, value_name = "FILE")]
     pub tls_cert: Option<PathBuf>,
+    /// Zenoh over TLS: this host's private key (PEM).
+    ///
     /// Zenoh over TLS: this host's private key (PEM, HOST.key, owner-only).
     #[arg(long, value_name = "FILE")]
     pub tls_key: Option<PathBuf>,
+    /// Zenoh over TLS: the certificate name of the one peer served.
+    ///
     /// Zenoh over TLS: the name (common name) on the certificate of the only peer this side
     /// serves, e.g. ctrl.local on the plant and plant.local on the controller; a peer with
     /// another certificate of the same CA is refused and named in the log.
     #[arg(long, value_name = "NAME[,NAME]")]
     pub tls_peer: Option<String>,
+    /// Zenoh: plain TCP, no authentication, no encryption.
+    ///
     /// Zenoh: plain TCP (tcp/ endpoints) with neither authentication nor encryption — anyone
     /// who reaches the port can drive the robot and anyone on the path read and alter the
     /// traffic. Warned at start and recorded in summary.json.
     #[arg(long)]
     pub insecure: bool,
+    /// Lockstep: simulate this pure delay, in s.
+    ///
     /// Lockstep only: the plant simulates a pure delay between a measurement and the moment
     /// its command takes effect (s, 0 to 8 periods and at most the law's max_delay), and
     /// announces it to the controller — the same run as `companion sim --delay`. In real
     /// time the plant measures the delay itself.
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_negative_numbers = true)]
     pub delay: f64,
+    /// The controller ignores the delay the plant announces.
+    ///
     /// The controller ignores the delay the plant announces (predicts over 0), to see what the
     /// delay does uncompensated.
     #[arg(long)]
     pub no_delay_compensation: bool,
+    /// rpr (the paper's), ur5, panda or an arm file.
+    ///
     /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
     /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml) — the
     /// spatial law of §5 on the paper's trajectory lifted (--trajectory 1|2) or a spatial
-    /// --target-file, as `companion sim --arm`, with the platform settings the arm carries
-    /// (`panda`: the unicycle's epsilon_2 = 0.8 m and its own Lemma 2 parameters on the car;
-    /// see `companion sim --help`). Give both
-    /// roles the same arm: the handshake compares the arms' hashes.
+    /// --target-file, as `companion sim --arm`, with the platform settings the arm carries.
+    /// Give both roles the same arm: the handshake compares the arms' hashes. What each preset
+    /// carries and why: the book's chapter "Spatial arms" (docs/book/src/spatial-arms.md).
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,
     /// No live progress line.
     #[arg(long)]
     pub quiet: bool,
+    /// A soak: inject faults from this seed, check the counts.
+    ///
     /// A soak: inject faults from this seed — SIGSTOPs of either process (20–400 ms, every
     /// 1–3 s), corrupted commands (2 per second) and commands held back for 2 to
     /// --hold-periods/2 periods (one every 2 s) — and check that the counts in latency.json

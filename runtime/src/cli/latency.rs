@@ -15,29 +15,56 @@ use super::terminal::Terminal;
 /// `companion latency` flags.
 #[derive(Args, Clone, Debug)]
 pub struct LatencyArgs {
+    /// Samples per measurement.
+    ///
     /// Samples per measurement (HIL: cycles at 1 kHz, so 100000 takes 100 s per wait mode).
     #[arg(long, default_value_t = 20_000, value_name = "N", allow_hyphen_values = true)]
     pub cycles: u64,
+    /// Warm-up iterations before each measurement.
+    ///
     /// Unrecorded warm-up iterations before each ping-pong and step measurement.
     #[arg(long, default_value_t = 1_000, value_name = "N", allow_hyphen_values = true)]
     pub warmup: u64,
     /// Output folder (created if missing).
     #[arg(long, default_value = "out/latency", value_name = "DIR")]
     pub out: PathBuf,
+    /// Real-time setup for every part.
+    ///
     /// Real-time setup for every part (mlockall, SCHED_FIFO, one CPU per process).
     #[arg(long)]
     pub rt: bool,
     /// The HIL wait modes to measure.
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "adaptive,spin,hybrid,event")]
+    ///
+    /// The HIL wait modes to measure, comma-separated: adaptive, spin, hybrid, event (as
+    /// `companion hil --wait`).
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "adaptive,spin,hybrid,event",
+        value_name = "MODES",
+        hide_possible_values = true
+    )]
     pub hil_modes: Vec<WaitArg>,
+    /// The loads: idle and/or busy (a busy thread per CPU).
+    ///
     /// The loads to measure each HIL wait mode under: `idle` (the machine as it is) and
     /// `busy` (this program runs one busy-looping thread per online CPU, at normal priority,
     /// for the whole HIL run).
-    #[arg(long, value_enum, value_delimiter = ',', default_value = "idle,busy")]
+    #[arg(
+        long,
+        value_enum,
+        value_delimiter = ',',
+        default_value = "idle,busy",
+        value_name = "LOADS",
+        hide_possible_values = true
+    )]
     pub loads: Vec<LoadArg>,
     /// Skip part (4), the full HIL cycle.
     #[arg(long)]
     pub skip_hil: bool,
+    /// Only the Zenoh ping-pongs, hop by hop, and the Unix socket.
+    ///
     /// Only the Zenoh ping-pongs (each configuration, split hop by hop) and the Unix socket
     /// they are compared with.
     #[arg(long)]

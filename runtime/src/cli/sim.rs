@@ -22,6 +22,8 @@ pub struct SimArgs {
     #[command(flatten)]
     /// The scenario.
     pub scenario: ScenarioArgs,
+    /// Every run of the paper, laid out as its Figures 3–10.
+    ///
     /// Run every paper run (trajectories 1 and 2 × a–d), b and d with the Ψ̇ term, the car-like
     /// and omnidirectional platforms, and write an index page laying them out like the paper's
     /// Figures 3–10. Scenario flags other than --dt, --scalar, --log-every are ignored.
@@ -33,33 +35,36 @@ pub struct SimArgs {
     /// Skip the plots (CSV and JSON only).
     #[arg(long)]
     pub no_plots: bool,
+    /// Simulate a pure delay (s), told to the controller.
+    ///
     /// Simulate a pure delay between a measurement and the moment its command takes effect
     /// (compute and transport; a bridge over a network adds 0.1–5 ms), in seconds: from 0 to
     /// 8 periods (and at most the law's max_delay, 50 ms). The controller is told it and
     /// predicts over it.
     #[arg(long, default_value_t = 0.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub delay: f64,
+    /// With --delay: do not tell the controller.
+    ///
     /// With --delay: do not tell the controller (to see what the delay does uncompensated).
     #[arg(long)]
     pub no_delay_compensation: bool,
+    /// rpr (the paper's), ur5, panda or an arm file.
+    ///
     /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
     /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml). A spatial
     /// arm runs the SE(3) law of §5 on the paper's trajectory lifted with a 5 cm vertical
     /// sine at the arm's home height (--trajectory 1|2), or on a spatial --target-file of
     /// 6-DOF body twists (sim-plant/examples/target3d.toml); it writes top and side views.
     /// An arm carries the platform settings it needs where the paper's cannot work with its
-    /// published joint speeds: `panda` (and examples/arms/panda.toml) runs the unicycle with
-    /// Lemma 1's epsilon_2 = 0.8 m instead of the paper's 0.4 (with 0.4 the manoeuvres ask
-    /// its shoulder for 2.59 rad/s, beyond the published 2.175, and it does not settle), and
-    /// the car with Lemma 2's (epsilon, eta_1, eta_2, eta_3, k) = (0.176, 12.1, 3.33, 28.2,
-    /// 19.9) instead of the car's defaults (with those the car's sharp turns and reversals ask
-    /// its joints 1 and 7 for up to 2.5 times their published speeds and it does not settle;
-    /// docs/explore/panda-car.toml found these); an arm file may carry `[unicycle]` and
-    /// `[car]` tables as --config's. A --config table of the same name overrides the arm's. The UR5 on the unicycle tracks --trajectory 2 with
-    /// --config examples/arms/ur5-trajectory2.toml (the paper's settings ask its base,
-    /// shoulder and elbow for more than their published 180 deg/s: 70 % tracked).
+    /// published joint speeds (`panda`: the unicycle's epsilon_2 = 0.8 m and its own Lemma 2
+    /// parameters on the car); an arm file may carry `[unicycle]` and `[car]` tables as
+    /// --config's, and a --config table of the same name overrides the arm's. What each
+    /// preset carries and why, and what holds each arm back: the book's chapter "Spatial
+    /// arms" (docs/book/src/spatial-arms.md).
     #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
     pub arm: String,
+    /// Also write the run as an MCAP file for Foxglove.
+    ///
     /// Also write the run as an MCAP file for Foxglove (the robot in 3D: frame transforms,
     /// a scene, joint states, command, tracking error), one frame per row of timeseries.csv
     /// (so --log-every decimates it too). Folders are created if missing; a path that cannot

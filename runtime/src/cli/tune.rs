@@ -22,14 +22,21 @@ pub struct TuneArgs {
     /// The scenario the candidates run (platform, limits, config, dt); `--seed` seeds the
     /// design.
     pub scenario: ScenarioArgs,
+    /// The runs, as trajectory and choice, e.g. 1a,1c,2c.
+    ///
     /// The set of runs, as trajectory and choice, e.g. `1a,1c,2c` [default: trajectories 1 and
     /// 2 with --choice; with --target-file, that file with --choice].
     #[arg(long, value_name = "LIST", value_delimiter = ',')]
     pub runs: Vec<String>,
+    /// A TOML file of the ranges to search.
+    ///
     /// A TOML file of ranges to search: `[parameters]` knob = [low, high] (low > 0), and
-    /// `[objective]` effort_weight [default: the platform's space, see the README].
+    /// `[objective]` effort_weight [default: the platform's space, see the book's chapter
+    /// "Explore and tune", docs/book/src/explore-tune.md].
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
+    /// rpr (the paper's), ur5, panda or an arm file.
+    ///
     /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
     /// file), each run of the set as `sim --arm` runs it (its platform settings, the lifted
     /// trajectory or a spatial --target-file, the start at home). The knobs are the platform
@@ -39,6 +46,8 @@ pub struct TuneArgs {
     /// Candidate evaluations (each runs the whole set).
     #[arg(long, default_value_t = 200, value_name = "N")]
     pub budget: usize,
+    /// Output folder: preset.toml, report.json, the front.
+    ///
     /// Output folder: preset.toml, report.json, candidates.csv, pareto.svg.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,

@@ -41,7 +41,7 @@ pub struct CarConfig {
 }
 
 impl Default for CarConfig {
-    /// The car-like defaults, found by `companion tune` (README, "The car-like platform"):
+    /// The car-like defaults, found by `companion tune` (docs/book/src/law.md, "The car-like platform"):
     /// on trajectory 1 runs (a) and (c) and trajectory 2 run (c), with the paper's RPR arm and
     /// the realistic velocity limits,
     ///

@@ -1,7 +1,7 @@
 //! The iceoryx2 transport of the HIL loop: names, service settings, one endpoint per role,
 //! peer liveness, and the checks that make a mismatched peer a clear error.
 //!
-//! `docs/protocol.md` in the repository is the protocol as a bridge author reads it; this is
+//! `docs/book/src/bridge.md` in the repository is the protocol as a bridge author reads it; this is
 //! its implementation for both roles.
 //!
 //! ## Names

@@ -482,7 +482,7 @@ fn config(
         set("transport/link/tx/lease", &ms)?;
     }
     // Zenoh's low-latency transport is measured by `companion latency` beside the default
-    // (README, "Two machines (Zenoh)", where the time goes, hop by hop); not the default.
+    // (docs/book/src/two-machines.md, "Where the time goes, hop by hop"); not the default.
     if tuning.low_latency {
         set("transport/unicast/lowlatency", "true")?;
         set("transport/unicast/qos/enabled", "false")?;

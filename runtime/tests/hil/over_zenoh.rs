@@ -485,8 +485,8 @@ fn floor_of(d: &Path, seconds: f64) -> f64 {
 /// delay, with 2 ms each way through the delaying proxy and the delay compensation, and the
 /// same without it. `COMPANION_ZENOH_DELAY_S` sets the duration: by default 6 s (CI: the
 /// mechanism — older answers applied, the delay measured and announced, no stop); 30 s gives
-/// the floors after 20 s that the README quotes, and then the aims are asserted (compensated
-/// ≤ 2× the undelayed floor, uncompensated ≥ 10× the compensated).
+/// the floors after 20 s that docs/book/src/two-machines.md quotes, and then the aims are
+/// asserted (compensated ≤ 2× the undelayed floor, uncompensated ≥ 10× the compensated).
 #[test]
 fn two_ms_each_way_is_compensated_in_real_time() {
     let _g = serial();
@@ -590,8 +590,8 @@ fn in_namespace(ns: &str, args: &[&str]) -> Demo {
 }
 
 /// The plant in one namespace listening on its veth address, the controller in the other
-/// connecting to it over mutual TLS: the two-machine setup of the README on one machine, its
-/// certificates made by `companion certs` as the README says.
+/// connecting to it over mutual TLS: the two-machine setup of docs/book/src/two-machines.md on
+/// one machine, its certificates made by `companion certs` as the chapter says.
 fn across_namespaces(pair: &NetnsPair, tag: &str, extra: &[&str]) -> (Demo, Demo, PathBuf) {
     let d = dir(tag);
     let n = name(tag);

@@ -119,7 +119,7 @@ pub const PANDA_UNICYCLE: UnicycleConfig = UnicycleConfig { epsilon_1: 0.2, epsi
 /// (curvature within ±1, turns within 0.36 rad/s after 20 s) and settle it: ‖e_p‖ at most
 /// 3.8e−7 from 20 s to 120 s, the guard idle. Only 2 of that study's 1 000 samples settle,
 /// and 9 of 100 within ±10 % of this one (`docs/explore/panda-car-207.toml`): a narrow
-/// island, not a robust setting (README, "Spatial arms", says what that means).
+/// island, not a robust setting (docs/book/src/spatial-arms.md says what that means).
 pub const PANDA_CAR: CarConfig = CarConfig { epsilon: 0.176, eta_1: 12.1, eta_2: 3.33, eta_3: 28.2, k: 19.9 };
 
 /// The platform law's settings an arm carries (module docs): each, if given, replaces the

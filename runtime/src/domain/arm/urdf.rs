@@ -763,14 +763,29 @@ impl Tree {
         Some(up)
     }
 
-    /// Leaf links whose chain from `base` has 6 to 8 moving joints and none that cannot be
-    /// driven.
+    /// The links at the end of an arm below `base`: their chain from `base` has 6 to 8
+    /// moving joints and none that cannot be driven, and nothing below them moves (the last
+    /// moving joint's link and the frames fixed to it: a flange, a tool, a sensor).
     fn tips(&self, base: &str) -> Vec<String> {
-        let is_parent: std::collections::HashSet<&str> =
-            self.joints.iter().map(|j| j.parent.as_str()).collect();
+        // Whether anything below a link moves, from the leaves up.
+        let mut moving_below: std::collections::HashSet<&str> = std::collections::HashSet::new();
+        for j in &self.joints {
+            if j.kind.moves() {
+                let mut link = j.parent.as_str();
+                loop {
+                    if !moving_below.insert(link) {
+                        break;
+                    }
+                    match self.parent_of.get(link) {
+                        Some(&k) => link = &self.joints[k].parent,
+                        None => break,
+                    }
+                }
+            }
+        }
         self.links
             .iter()
-            .filter(|l| !is_parent.contains(l.as_str()))
+            .filter(|l| !moving_below.contains(l.as_str()))
             .filter(|l| {
                 self.path_down(base, l).is_some_and(|p| {
                     let js = p.iter().map(|&j| &self.joints[j]);
@@ -781,6 +796,7 @@ impl Tree {
                             .all(|j| !matches!(j.kind, Kind::Floating | Kind::Planar) && j.mimic.is_none())
                 })
             })
+            .take(12)
             .cloned()
             .collect()
     }
@@ -1176,7 +1192,7 @@ mod tests {
         assert_eq!(load(&r).expect("the root is the base").joint_names.len(), 7);
         r.tip_link = None;
         let e = load(&r).unwrap_err().to_string();
-        assert!(e.contains("give --tip-link") && e.contains("from `base_footprint`: tool"), "{e}");
+        assert!(e.contains("give --tip-link") && e.contains("from `base_footprint`: l6, tool"), "{e}");
         r.tip_link = Some("tol".into());
         let e = load(&r).unwrap_err().to_string();
         assert_eq!(e, format!("--tip-link tol: {} has no such link", r.path.display()));

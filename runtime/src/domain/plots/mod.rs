@@ -439,7 +439,7 @@ pub struct FloorCurve {
 }
 
 /// The tracking floor against the control period, log-log, with the slopes 1 and 2 for
-/// reference: the figure of the README's "Sampled-data controller".
+/// reference: the figure of docs/book/src/precision.md.
 ///
 /// # Errors
 /// The file cannot be written.

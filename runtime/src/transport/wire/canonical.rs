@@ -168,7 +168,7 @@ mod tests {
 
     #[test]
     fn the_rpr_arm_is_described_as_documented() {
-        // The paper's arm written by hand from docs/protocol.md (§8), as a bridge would.
+        // The paper's arm written by hand from docs/book/src/bridge.md (§8), as a bridge would.
         let id = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
         let at = |x: f64| json!({"rotation": id, "translation": [x, 0.0, 0.0]});
         let pi = core::f64::consts::PI;

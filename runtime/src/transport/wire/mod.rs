@@ -2,7 +2,7 @@
 //! and the rules that decide whether a message is used.
 //!
 //! The complete protocol (services and their settings, start-up, events, silence, end of
-//! run, versioning) is `docs/protocol.md` in the repository: a bridge author needs nothing
+//! run, versioning) is `docs/book/src/bridge.md` in the repository: a bridge author needs nothing
 //! else. This module is its implementation; a test checks the layouts below against the
 //! document's. Its parts, each a file (their items are re-exported here, one path each):
 //! `layout` (the two `#[repr(C)]` types, sizes, flags, platform codes, type names), `codec`

@@ -24,7 +24,7 @@
 //! **Why a rotation matrix and not a quaternion.** The core computes with matrices
 //! ([`companion_core::so3`] says why), and a spatial lockstep run must equal the in-process
 //! simulation bit for bit: matrix → quaternion → matrix is not exact (a bridge that holds a
-//! quaternion converts it once, with the formula in `docs/protocol.md`).
+//! quaternion converts it once, with the formula in `docs/book/src/bridge.md`).
 //!
 //! A spatial reading checks that `R` is a rotation (`max |RᵀR − I| ≤ 10⁻⁶`, `det R > 0`:
 //! [`ROTATION_TOLERANCE`]); a planar reading checks that the target is planar (`z`, `v_z`,

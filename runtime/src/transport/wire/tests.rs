@@ -210,16 +210,16 @@ fn protocol_doc_layout(text: &str, title: &str) -> Vec<(usize, String, String)> 
 #[test]
 fn module_docs_and_protocol_document_give_the_real_layouts() {
     let module = include_str!("mod.rs");
-    let protocol = include_str!("../../../../docs/protocol.md");
+    let protocol = include_str!("../../../../docs/book/src/bridge.md");
     for (what, doc) in [
         ("module docs", module_doc_layout(module, "Layout of [`MeasurementMsg`]")),
-        ("docs/protocol.md", protocol_doc_layout(protocol, "MeasurementMsg")),
+        ("docs/book/src/bridge.md", protocol_doc_layout(protocol, "MeasurementMsg")),
     ] {
         check_layout(&format!("{what}, measurement"), &doc, &measurement_fields(), MEASUREMENT_SIZE);
     }
     for (what, doc) in [
         ("module docs", module_doc_layout(module, "Layout of [`CommandMsg`]")),
-        ("docs/protocol.md", protocol_doc_layout(protocol, "CommandMsg")),
+        ("docs/book/src/bridge.md", protocol_doc_layout(protocol, "CommandMsg")),
     ] {
         check_layout(&format!("{what}, command"), &doc, &command_fields(), COMMAND_SIZE);
     }
@@ -231,7 +231,7 @@ fn bytes_follow_the_in_memory_layout() {
     let m = MeasurementMsg::new(header(), &meas());
     let b = m.to_bytes();
     assert_eq!(MeasurementMsg::from_bytes(&b), m);
-    // Offsets written out from docs/protocol.md, independently of the struct.
+    // Offsets written out from docs/book/src/bridge.md, independently of the struct.
     assert_eq!(&b[0..4], &4u32.to_le_bytes());
     assert_eq!(&b[8..16], &7u64.to_le_bytes());
     assert_eq!(&b[32..40], &0xa5u64.to_le_bytes());
