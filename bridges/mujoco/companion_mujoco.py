@@ -7,7 +7,7 @@ scenario and arm hashes, lockstep and real time, END_OF_RUN, liveness, every fau
 exit code. The robot is a MuJoCo model read from a URDF with what a URDF lacks
 (bridges/mujoco/mujoco_robot.py, the table in actuators.toml): a differential-drive base on
 its wheels, or an omnidirectional base; arm and torso servos with effort limits and gravity
-compensation. It tracks the paper's trajectory 1 or 2 lifted into space (docs/protocol.md
+compensation. It tracks the paper's trajectory 1 or 2 lifted into space (docs/book/src/bridge.md
 §8), and writes the run's files: timeseries.csv (the spatial run's columns, then the
 physics'), summary.json, latency.json (with the plant's own step time), scenario.json, a
 filmstrip rendered off-screen and index.html.
@@ -51,10 +51,10 @@ import mujoco  # noqa: E402
 import mujoco_robot  # noqa: E402
 from companion_bridge import compose3, inverse3, so3_log, transpose  # noqa: E402
 
-# ----- the target: the paper's trajectories lifted (docs/protocol.md §8) -------------------
+# ----- the target: the paper's trajectories lifted (docs/book/src/bridge.md §8) -------------------
 
 TABLE1_OMEGA = math.pi * math.pi / 20.0
-# The exit code of a completed run that did not keep real time (companion's, docs/protocol.md §6).
+# The exit code of a completed run that did not keep real time (companion's, docs/book/src/bridge.md §6).
 EXIT_DEADLINES = 7
 
 
@@ -228,7 +228,7 @@ def check_chain(robot, chain, arm, urdf):
 
 
 def urdf_arm_hash(robot, mount):
-    """The arm hash (docs/protocol.md, "The arm hash") of the chain the controller reads from
+    """The arm hash (docs/book/src/bridge.md, "The arm hash") of the chain the controller reads from
     the same URDF (runtime/src/domain/arm/urdf.rs): the mount `mount` = (xyz, rpy), identity by
     default; fixed joints folded into the next moving joint's origin, after the last into the
     tool; origins R_z(yaw) R_y(pitch) R_x(roll) with right angles exact; axes normalised;
@@ -277,7 +277,7 @@ class Physical:
         # MuJoCo enforces): the margins are measured to them.
         self.limits = [(j[3], j[4]) for j in chain.joints] if chain is not None else robot.limits
         n = len(self.home)
-        # r*_ed: 0.2 m along the flange's z, level at home (docs/protocol.md §8), from the model.
+        # r*_ed: 0.2 m along the flange's z, level at home (docs/book/src/bridge.md §8), from the model.
         r, p = robot.tool_in_base(self.home)
         home_pose = (tuple(r.flatten().tolist()), tuple(p.tolist()))
         self.star = (transpose(home_pose[0]), (0.0, 0.0, wire.TARGET_DISTANCE))
@@ -526,7 +526,7 @@ class MujocoPlant(wire.Bridge):
         return EXIT_DEADLINES if code == wire.EXIT_OK and failures else code
 
     def publish(self, seq, flags, delay):
-        # The drives' own lag, announced as part of the delay (docs/protocol.md, "The
+        # The drives' own lag, announced as part of the delay (docs/book/src/bridge.md, "The
         # delay": a bridge adds what it knows of its actuators).
         return super().publish(seq, flags, delay + self.a.actuator_delay)
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""What the physics does to the law: the figures of docs/mujoco.md's side-by-side table, from
+"""What the physics does to the law: the figures of docs/book/src/mujoco.md's side-by-side table, from
 run folders of either plant — `companion sim --arm … --log-every 1` (the kinematic plant) or
 the MuJoCo plant (lockstep) — computed the same way from each run's timeseries.csv:
 

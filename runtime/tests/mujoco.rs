@@ -417,7 +417,7 @@ fn a_plant_and_a_controller_with_different_robots_refuse_each_other_by_name() {
 /// The TIAGo from its URDF in the demo: the controller reads the same URDF and accepts the
 /// plant (their arm hashes, computed each its own way, agree), 10 s in lockstep run to their
 /// end, and the CSV's e_p is recomputed independently. (The aim for this run —
-/// settled within 2 mm after 20 s — is not met by the law on either plant: docs/mujoco.md.)
+/// settled within 2 mm after 20 s — is not met by the law on either plant: docs/book/src/mujoco.md.)
 #[test]
 fn the_tiago_from_its_urdf_runs_in_the_demo_against_a_controller_reading_the_same_urdf() {
     if !available() {

@@ -318,12 +318,19 @@ pub struct HilArgs {
     /// Set by `companion hil` on the plant it starts.
     #[arg(long, hide = true)]
     pub child: bool,
-    /// The plant `companion hil` starts: `kinematic` (`companion plant`) or `mujoco` (the
-    /// robot's URDF in MuJoCo, with wheels, drives, servos and gravity: docs/mujoco.md).
-    #[arg(long, value_enum, default_value = "kinematic")]
+    /// The plant hil starts: kinematic or mujoco.
+    ///
+    /// The plant `companion hil` starts: `kinematic` (`companion plant`: the kinematics
+    /// integrated exactly) or `mujoco` (the MuJoCo plant, bridges/mujoco: the robot's URDF with
+    /// wheels, drives, servos and gravity, in target/py's Python). The book's chapter "Physics
+    /// plant (MuJoCo)" (docs/book/src/mujoco.md) tells what it simulates and measures.
+    #[arg(long, value_enum, default_value = "kinematic", value_name = "PLANT", hide_possible_values = true)]
     pub plant: PlantArg,
+    /// --plant mujoco: one more of its own flags.
+    ///
     /// With --plant mujoco: one more argument for the MuJoCo plant (repeatable), e.g.
-    /// `--plant-arg=--set=arm.time_constant=0.002`.
+    /// `--plant-arg=--set=arm.time_constant=0.002` or `--plant-arg=--filmstrip=0`
+    /// (`target/py/bin/python bridges/mujoco/companion_mujoco.py --help` lists them).
     #[arg(long = "plant-arg", value_name = "ARG", allow_hyphen_values = true)]
     pub plant_args: Vec<String>,
 }
@@ -815,7 +822,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     if a.plant == PlantArg::Mujoco || !a.plant_args.is_empty() {
         bail!(
             "--plant and --plant-arg are for `companion hil`; the MuJoCo plant alone is \
-             target/py/bin/python bridges/mujoco/companion_mujoco.py (docs/mujoco.md)"
+             target/py/bin/python bridges/mujoco/companion_mujoco.py (docs/book/src/mujoco.md)"
         );
     }
     let (mut cfg, s) = a.resolve()?;
