@@ -185,17 +185,35 @@ def build_robot(a, table):
             check_chain(robot, chain, arm, urdf)
             return robot, chain, wire.arm_hash(chain.description())
         if arm.endswith(".urdf"):
-            if not (a.tip_link and a.home):
-                raise wire.Fatal(f"--arm {a.arm}: a URDF needs --tip-link and --home (and --base-link: the root link)")
-            if not a.base_link:
-                a.base_link = mujoco_robot.Urdf(arm).root_link
-            home = numbers_of("--home", a.home)
+            # The controller's chain, read by the reference bridge's second implementation of
+            # companion's URDF reader (its arm hash and forward kinematics), and MuJoCo's model
+            # of the same file: checked against each other below.
+            path = mujoco_robot.resolve_robot_file(arm)
+            if not a.tip_link or not (a.home or a.home_state):
+                raise wire.Fatal(f"--arm {a.arm}: a URDF needs --tip-link and --home (or --srdf and --home-state)")
+            # The cut and a list home checked here, each error named (the chain's reader
+            # assumes them well formed).
+            urdf = mujoco_robot.Urdf(path)
+            base = a.base_link or urdf.root_link
+            names = [j["name"] for j in urdf.chain(base, a.tip_link)]
+            if a.home and "=" not in a.home and len(numbers_of("--home", a.home)) != len(names):
+                raise wire.Fatal(
+                    f"--home gives {len(numbers_of('--home', a.home))} joints, the chain {base} -> {a.tip_link} of "
+                    f"{path} has {len(names)} ({', '.join(names)})"
+                )
+            try:
+                chain = wire.UrdfChain(path, base, a.tip_link, a.home, a.srdf, a.home_state)
+            except (ValueError, OSError) as e:
+                raise wire.Fatal(f"--home {a.home!r} / --srdf {a.srdf!r}: {e}")
+            home = [j[5] for j in chain.joints]
             mount = None
             if a.platform == "omni":
                 m = numbers_of("--mount", a.mount, 6)
                 mount = (m[:3], m[3:])
-            robot = mujoco_robot.Robot(arm, a.base_link, a.tip_link, a.platform, home, a.dt, table, mount=mount)
-            return robot, None, urdf_arm_hash(robot, mount)
+                chain.mount = (wire.from_rpy(*m[3:]), tuple(m[:3]))
+            robot = mujoco_robot.Robot(path, base, a.tip_link, a.platform, home, a.dt, table, mount=mount)
+            check_chain(robot, chain, arm, path)
+            return robot, chain, wire.arm_hash(chain.description())
     except mujoco_robot.ModelError as e:
         raise wire.Fatal(str(e))
     raise wire.Fatal(f"--arm {a.arm}: ur5, an arm file (.toml) or a URDF (.urdf)")
@@ -225,38 +243,6 @@ def check_chain(robot, chain, arm, urdf):
         worst = max(worst, float(np.abs(np.array(rc).reshape(3, 3) - r).max()), float(np.abs(np.array(pc) - p).max()))
     if worst > 1e-9:
         raise wire.Fatal(f"the URDF {urdf} is not the arm of {arm}: their effector poses differ by up to {worst:.3g}")
-
-
-def urdf_arm_hash(robot, mount):
-    """The arm hash (docs/book/src/bridge.md, "The arm hash") of the chain the controller reads from
-    the same URDF (runtime/src/domain/arm/urdf.rs): the mount `mount` = (xyz, rpy), identity by
-    default; fixed joints folded into the next moving joint's origin, after the last into the
-    tool; origins R_z(yaw) R_y(pitch) R_x(roll) with right angles exact; axes normalised;
-    continuous joints unbounded. A plant and a controller reading different robots then
-    refuse each other."""
-    u = robot.urdf
-
-    def frame(f):
-        return {"rotation": list(f[0]), "translation": list(f[1])}
-
-    joints, pending = [], (wire.IDENTITY, (0.0, 0.0, 0.0))
-    for j in u.path_joints(robot.base_link, robot.tip_link):
-        origin = (wire.from_rpy(*j["rpy"]), tuple(j["xyz"]))
-        pending = compose3(pending, origin)
-        if j["type"] not in mujoco_robot.MOVABLE:
-            continue
-        x, y, z = j["axis"]
-        norm = math.sqrt(x * x + y * y + z * z)
-        if j["type"] == "continuous":
-            lower, upper = -math.inf, math.inf
-        else:
-            lower, upper = j["lower"], j["upper"]
-        joints.append({"kind": "prismatic" if j["type"] == "prismatic" else "revolute", "origin": frame(pending),
-                       "axis": [x / norm, y / norm, z / norm], "lower": lower, "upper": upper})
-        pending = (wire.IDENTITY, (0.0, 0.0, 0.0))
-    (mx, my, mz), rpy = mount or ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
-    m = (wire.from_rpy(*rpy), (mx, my, mz))
-    return wire.arm_hash({"mount": frame(m), "joints": joints, "tool": frame(pending)})
 
 
 # ----- the robot the session drives ---------------------------------------------------------
@@ -999,7 +985,9 @@ def parse(argv):
     p.add_argument("--urdf", help="with an arm file: the URDF to simulate (default: the UR5's ur5_robot.urdf)")
     p.add_argument("--base-link", help="with a URDF: the platform's link (the TIAGo: base_footprint)")
     p.add_argument("--tip-link", help="with a URDF: the effector's link (the TIAGo: arm_tool_link)")
-    p.add_argument("--home", help="with a URDF: the chain's joints at the start, q1,…,qN")
+    p.add_argument("--home", help="with a URDF: the chain's joints at the start, q1,…,qN, or name=value,…")
+    p.add_argument("--srdf", help="with a URDF: an SRDF whose <group_state> --home-state gives the home")
+    p.add_argument("--home-state", help="with a URDF: the SRDF's <group_state> name")
     p.add_argument("--mount", default="0,0,0,0,0,0", help="a URDF arm on the omni base: x,y,z,roll,pitch,yaw")
     p.add_argument("--platform", choices=["unicycle", "omni"], default="omni")
     p.add_argument("--trajectory", type=int, choices=[1, 2], default=1, help="the paper's trajectory, lifted")

@@ -170,6 +170,8 @@ def canonical_text(value):
             return
         if isinstance(v, bool):
             lines.append(f"{path}={'true' if v else 'false'}\n")
+        elif isinstance(v, (int, float)) and not math.isfinite(v):
+            return  # JSON has no infinity: a continuous joint's limits are null, as companion writes them
         elif isinstance(v, (int, float)):
             bits = struct.unpack("<Q", struct.pack("<d", float(v)))[0]
             lines.append(f"{path}={bits:016x}\n")
@@ -589,6 +591,81 @@ class Chain:
         return compose3(f, self.tool)
 
 
+class UrdfChain(Chain):
+    """The chain between two links of a URDF (docs/book/src/your-robot.md), read here with the
+    standard library alone — a second implementation of companion's reader, so the handshake's
+    arm hash checks the two against each other: fixed joints folded into the next moving
+    joint's origin (or the tool after the last), continuous joints revolute without limits,
+    axes normalised, the home from `home` (every value in order, or name=value over an SRDF
+    group state's)."""
+
+    def __init__(self, path, base_link, tip_link, home, srdf=None, home_state=None):
+        import xml.etree.ElementTree as ET
+
+        try:
+            root = ET.parse(path).getroot()
+        except (OSError, ET.ParseError) as e:
+            raise Fatal(f"URDF {path}: {e}")
+        joints = {}
+        for j in root.findall("joint"):
+            joints[j.find("child").get("link")] = j
+        links = [lk.get("name") for lk in root.findall("link")]
+        base = base_link or next(lk for lk in links if lk not in joints)
+        if not tip_link:
+            raise Fatal(f"URDF {path}: give --tip-link")
+        path_up, link = [], tip_link
+        while link != base:
+            if link not in joints:
+                raise Fatal(f"URDF {path}: link {tip_link!r} is not below {base!r}")
+            path_up.append(joints[link])
+            link = joints[link].find("parent").get("link")
+
+        def numbers(el, attr, default):
+            return tuple(float(x) for x in el.get(attr).split()) if el is not None and el.get(attr) else default
+
+        self.name = root.get("name", path)
+        self.mount = (IDENTITY, (0.0, 0.0, 0.0))
+        self.joints, names = [], []
+        pending = (IDENTITY, (0.0, 0.0, 0.0))
+        for j in reversed(path_up):
+            o = j.find("origin")
+            origin = (from_rpy(*numbers(o, "rpy", (0.0, 0.0, 0.0))), numbers(o, "xyz", (0.0, 0.0, 0.0)))
+            kind = j.get("type")
+            if kind == "fixed":
+                pending = compose3(pending, origin)
+                continue
+            if kind not in ("revolute", "continuous", "prismatic") or j.find("mimic") is not None:
+                raise Fatal(f"URDF {path}: joint {j.get('name')!r} ({kind}) cannot be driven")
+            a = numbers(j.find("axis"), "xyz", (1.0, 0.0, 0.0))
+            n = math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+            lim = j.find("limit")
+            if kind == "continuous":
+                lower, upper = -math.inf, math.inf
+            else:
+                lower, upper = float(lim.get("lower", 0)), float(lim.get("upper", 0))
+            self.joints.append(
+                ("prismatic" if kind == "prismatic" else "revolute", compose3(pending, origin),
+                 (a[0] / n, a[1] / n, a[2] / n), lower, upper, None)
+            )  # fmt: skip
+            names.append(j.get("name"))
+            pending = (IDENTITY, (0.0, 0.0, 0.0))
+        self.tool = pending
+        values = {}
+        if srdf:
+            for gs in ET.parse(srdf).getroot().findall("group_state"):
+                if gs.get("name") == home_state:
+                    values.update({e.get("name"): float(e.get("value").split()[0]) for e in gs.findall("joint")})
+        if home and all("=" in x for x in home.split(",")):
+            values.update({k.strip(): float(v) for k, v in (x.split("=") for x in home.split(","))})
+        elif home:
+            values.update(zip(names, (float(x) for x in home.split(","))))
+        missing = [n for n in names if n not in values]
+        if missing:
+            raise Fatal(f"URDF {path}: no home for {', '.join(missing)} (--home)")
+        self.joints = [j[:5] + (values[n],) for j, n in zip(self.joints, names)]
+        self.joint_names = names
+
+
 def planar_pose3(pose):
     """The platform's (x, y, θ) as a pose in space: a rotation about z, height 0."""
     return about_axis(2, math.sin(pose[2]), math.cos(pose[2])), (pose[0], pose[1], 0.0)
@@ -845,7 +922,10 @@ class Bridge:
         names)."""
         self.a = a
         command = CommandWithoutJointScale if a.short_command else Command
-        if robot is None:
+        if robot is None and a.arm and a.arm.endswith(".urdf"):
+            chain = UrdfChain(a.arm, a.base_link, a.tip_link, a.home, a.srdf, a.home_state)
+            robot = SpatialRobot(a.dt, chain)
+        elif robot is None:
             robot = SpatialRobot(a.dt, Chain(a.arm)) if a.arm else Robot(a.dt)
         self.robot = robot
         self.joints = len(self.robot.q)
@@ -1300,9 +1380,14 @@ def main(argv=None):
     p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
     p.add_argument(
         "--arm",
-        help="an arm file of 6 to 8 joints (examples/arms/ur5.toml): its chain tracks trajectory 1 lifted "
-        "(default: the paper's RPR arm on trajectory 1)",
+        help="an arm file of 6 to 8 joints (examples/arms/ur5.toml) or a URDF (with --tip-link and --home): "
+        "its chain tracks trajectory 1 lifted (default: the paper's RPR arm on trajectory 1)",
     )
+    p.add_argument("--base-link", help="URDF arm: the chain's first link (default: the root link)")
+    p.add_argument("--tip-link", help="URDF arm: the end effector's link")
+    p.add_argument("--srdf", help="URDF arm: an SRDF whose <group_state> --home-state gives the home")
+    p.add_argument("--home-state", help="URDF arm: the SRDF's <group_state> name")
+    p.add_argument("--home", help="URDF arm: q1,…,qN in the chain's order, or name=value,… over --home-state's")
     p.add_argument("--out", help="write the run's figures as JSON here")
     p.add_argument("--rows", help="(real time) write one CSV row per period here: t, |e_p|, fresh/held/stopped, delay")
     a = finish_arguments(p.parse_args(argv))

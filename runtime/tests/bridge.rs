@@ -356,6 +356,49 @@ fn lockstep_equals_sim(arm: Arm) {
     }
 }
 
+#[path = "common/robots.rs"]
+mod robots;
+
+/// The TIAGo from its URDF: the bridge reads the file with its own reader (Python's standard
+/// library) and the controller with companion's; the handshake compares their arm hashes, so a
+/// fold of the fixed joints, an axis or a limit read differently by the two would be refused.
+/// The run then ends where `companion sim` ends, to the printed digits.
+#[test]
+fn a_urdf_arm_through_the_python_bridge_equals_the_simulation() {
+    if !available() {
+        return;
+    }
+    let _g = serial();
+    let d = dir("lockstep-urdf");
+    let n = name("lockstep-urdf");
+    let tiago = robots::tiago();
+    // The bridge simulates the unicycle (the TIAGo's base).
+    let flags: Vec<&str> = tiago.iter().map(String::as_str).collect();
+    let (reference, scenario) = sim(&d, "3", &flags);
+    let out = d.join("bridge.json");
+    let mut control = vec!["--name", n.as_str(), "--duration", "3"];
+    control.extend(&flags);
+    let mut bridge = vec!["--name", n.as_str(), "--duration", "3", "--lockstep"];
+    bridge.extend(["--scenario-json", scenario.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    bridge.extend(tiago.iter().map(String::as_str));
+    let ((bs, bt), (cs, ct)) = pair(&control, &bridge);
+    assert!(bs.success() && cs.success(), "bridge:\n{bt}\ncontroller:\n{ct}");
+    let got = json(&out);
+    assert_eq!(printed_spatial(&got), printed_spatial(&reference));
+    assert_eq!((got["steps"].as_u64(), got["joints"].as_u64()), (Some(3001), Some(8)), "{got}");
+    // A chain cut one link short (the same joints, another tool): refused for the arm.
+    let n = name("urdf-refused");
+    let mut control = vec!["--name", n.as_str(), "--duration", "1"];
+    control.extend(&flags);
+    let mut bridge = vec!["--name", n.as_str(), "--duration", "1", "--lockstep"];
+    let short: Vec<&str> =
+        tiago.iter().map(|a| if a == "arm_tool_link" { "arm_7_link" } else { a.as_str() }).collect();
+    bridge.extend(short);
+    let ((bs, bt), (cs, ct)) = pair(&control, &bridge);
+    assert!(!bs.success() && !cs.success(), "bridge:\n{bt}\ncontroller:\n{ct}");
+    assert!(ct.contains("arm mismatch") || bt.contains("arm"), "bridge:\n{bt}\ncontroller:\n{ct}");
+}
+
 #[test]
 fn lockstep_through_the_python_bridge_equals_the_simulation_to_the_printed_digits() {
     if !available() {

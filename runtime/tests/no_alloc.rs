@@ -736,3 +736,66 @@ fn the_simulation_loop_of_either_arm_allocates_nothing() {
     assert_eq!((n, end.unwrap(), rows.0.len()), (0, LoopEnd::Completed, 2_001));
     assert!(rows.0[2_000].plant.ep_norm < rows.0[0].plant.ep_norm, "the arm tracks");
 }
+
+/// `companion ros2`'s own work in a period allocates nothing: the inputs taken and checked
+/// (the HIL's safety rules), the generated target, the law's step on the measurement made of
+/// them — 2 000 periods of the UR5 at 1 kHz. (The messages' decoding and encoding are RustDDS's
+/// and serde's, inside the transport's calls.)
+#[cfg(feature = "ros2")]
+#[test]
+fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
+    use companion_core::nalgebra::SVector;
+    use companion_core::{Measurement, Pose};
+    use companion_runtime::domain::controller::boxed_spatial_controller;
+    use companion_runtime::run::ros2::inputs::{Ages, FaultCounts, Latest};
+    use companion_runtime::run::ros2::target::{planar_pose, Generator};
+    use companion_runtime::transport::ros2::msgs::{self, JointSample, Time};
+    use companion_runtime::transport::ros2::{Arrived, Inputs, StampedPose};
+
+    let ss = ur5_scenario(5.0);
+    let chain = ss.arm.chain::<f64, 6>().unwrap();
+    let mut law = boxed_spatial_controller::<6>(&ss.base.controller, &ss.arm).unwrap();
+    let star = law.target_in_effector();
+    let plant = companion_runtime::run::spatial::build_plant(&ss, &chain, &star).unwrap();
+    let mut target = Generator::new(plant, 1e-3);
+    let mut latest = Latest::new(6, false);
+    let mut counts = FaultCounts::default();
+    let ages = Ages { max_age_ns: 5_000_000, silence_ns: 20_000_000 };
+    let home = chain.home();
+    let base0 = Pose::new(0.5, -0.2, 0.3);
+    let (n, finite) = allocations_in(|| {
+        let mut finite = true;
+        for k in 0..2000u64 {
+            let stamp = Time::from_ns(k as i64 * 1_000_000);
+            let mut joints = [f64::NAN; 8];
+            joints[..6].copy_from_slice(home.as_slice());
+            let sample = JointSample { stamp, joints, found: 0b11_1111, malformed: false };
+            let inputs = Inputs {
+                joints: Arrived { last: Some(sample), samples: 1, undecodable: 0 },
+                base: Arrived {
+                    last: Some(StampedPose { stamp, pose: msgs::Pose::default() }),
+                    samples: 1,
+                    undecodable: 0,
+                },
+                ..Inputs::default()
+            };
+            latest.update(&inputs, k * 1_000_000, &mut counts);
+            let s = latest.check(k * 1_000_000, k as i64 * 1_000_000 + 200_000, ages).unwrap();
+            let t = k as f64 * 1e-3;
+            let (pose, twist) = target.at(t, &base0).unwrap();
+            let meas = Measurement {
+                t,
+                base: planar_pose(&s.base).unwrap(),
+                steering: 0.0,
+                joints: SVector::<f64, 6>::from_column_slice(&s.joints[..6]),
+                target: pose,
+                target_velocity: twist,
+            };
+            let r = law.step(&meas, 1e-3, 2e-4);
+            finite &= r.command.joints.iter().all(|x| x.is_finite()) && r.command.platform.v.is_finite();
+        }
+        finite
+    });
+    assert!(finite);
+    assert_eq!(n, 0, "the node's period allocated {n} times in 2000 periods");
+}

@@ -236,19 +236,22 @@ pub struct ScenarioArgs {
 /// `--config` file's `[robot]` table (the flag wins).
 #[derive(Args, Clone, Debug, Default)]
 pub struct RobotArgs {
-    /// URDF arm: the link the chain starts from, the platform's frame [default: the root link]
+    /// URDF: the chain's first link, the platform's frame [default: the root]
     #[arg(long, value_name = "LINK", help_heading = "Robot from a URDF (--arm robot.urdf)")]
     pub base_link: Option<String>,
-    /// URDF arm: the end effector's link (a refusal lists the candidates)
+    /// URDF: the end effector's link (a refusal lists the candidates)
     #[arg(long, value_name = "LINK", help_heading = "Robot from a URDF (--arm robot.urdf)")]
     pub tip_link: Option<String>,
-    /// URDF arm: an SRDF file whose <group_state> --home-state gives the home
+    /// URDF: an SRDF whose <group_state> --home-state gives the home
     #[arg(long, value_name = "FILE", help_heading = "Robot from a URDF (--arm robot.urdf)")]
     pub srdf: Option<PathBuf>,
-    /// URDF arm: the SRDF's <group_state name> to use as the home
+    /// URDF: the SRDF's <group_state> to use as the home
     #[arg(long, value_name = "NAME", help_heading = "Robot from a URDF (--arm robot.urdf)")]
     pub home_state: Option<String>,
-    /// URDF arm: the home, q1,…,qN in the chain's order, or name=value,… over --home-state's
+    /// URDF: the home, q1,…,qN in the chain's order or name=value,…
+    ///
+    /// By name, the values replace or complete those of --home-state (e.g. the TIAGo's torso
+    /// beside an arm state). Strictly inside each joint's limits.
     #[arg(
         long,
         value_name = "LIST",

@@ -46,6 +46,9 @@ pub struct ExitCodeDoc {
 /// The commands of the HIL demo.
 const HIL_ROLES: &[&str] = &["hil", "plant", "control"];
 
+/// The commands that keep real time: the HIL demo's and the ROS 2 node.
+const REAL_TIME: &[&str] = &["hil", "plant", "control", "ros2"];
+
 /// Every exit code of `companion`, in increasing order.
 pub const EXIT_CODES: &[ExitCodeDoc] = &[
     ExitCodeDoc { code: 0, commands: &[], meaning: "success", key: "success" },
@@ -77,16 +80,17 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
     },
     ExitCodeDoc {
         code: EXIT_REJECTED,
-        commands: &["sim", "hil", "plant", "control"],
+        commands: &["sim", "hil", "plant", "control", "ros2"],
         meaning: "the run completed, but the law rejected more than --max-rejected of its steps",
         key: "--max-rejected",
     },
     ExitCodeDoc {
         code: EXIT_DEADLINES,
-        commands: HIL_ROLES,
+        commands: REAL_TIME,
         meaning: "the run completed, but real time was not kept: the plant stopped the robot, or (hil and plant \
-                  only) more than --max-miss-fraction of the deadlines were missed; when 6 applies too, hil and \
-                  plant exit 6, control exits 7",
+                  only) more than --max-miss-fraction of the deadlines were missed, or (ros2) more than \
+                  --max-miss-fraction of its periods were zero commands for a stale, silent or bad input or late; \
+                  when 6 applies too, hil, plant and ros2 exit 6, control exits 7",
         key: "stopped the robot",
     },
     ExitCodeDoc {
@@ -104,7 +108,7 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
     ExitCodeDoc { code: EXIT_PANIC, commands: &[], meaning: "a panic: a bug, please report it", key: "panic" },
     ExitCodeDoc {
         code: EXIT_INTERRUPTED,
-        commands: &["sim", "hil", "plant", "control", "explore"],
+        commands: &["sim", "hil", "plant", "control", "explore", "ros2"],
         meaning: "interrupted by SIGINT or SIGTERM; the run's files are written",
         key: "SIGINT",
     },

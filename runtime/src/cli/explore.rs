@@ -61,14 +61,14 @@ pub struct ExploreRunArgs {
     /// target (distance 0.5–6 m, any bearing and relative heading; the planar arm only).
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
-    /// rpr (the paper's), ur5, panda or an arm file.
+    /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
     ///
     /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
     /// file) run as `sim --arm` runs it (its platform settings, the lifted --trajectory, the
     /// start at home). With a spatial arm the space file draws α(0) and parameters only, and
     /// may scale the arm: `joint_speed` (every joint's published speed times it) and `reach`
     /// (every length of the arm times it), to see what limits its tracking and by how much.
-    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    #[arg(long, default_value = "rpr", hide_default_value = true, value_name = "ARM")]
     pub arm: String,
     /// How many samples.
     #[arg(long, default_value_t = 1000, value_name = "N")]

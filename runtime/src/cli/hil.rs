@@ -285,7 +285,7 @@ pub struct HilArgs {
     /// delay does uncompensated.
     #[arg(long)]
     pub no_delay_compensation: bool,
-    /// rpr (the paper's), ur5, panda or an arm file.
+    /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
     ///
     /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
     /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml) — the
@@ -293,7 +293,7 @@ pub struct HilArgs {
     /// --target-file, as `companion sim --arm`, with the platform settings the arm carries.
     /// Give both roles the same arm: the handshake compares the arms' hashes. What each preset
     /// carries and why: the book's chapter "Spatial arms" (docs/book/src/spatial-arms.md).
-    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    #[arg(long, default_value = "rpr", hide_default_value = true, value_name = "ARM")]
     pub arm: String,
     /// No live progress line.
     #[arg(long)]

@@ -130,14 +130,15 @@ fn transport(s: &str) -> Result<Transport, String> {
         "iox-event" => Ok(Transport::IoxEvent),
         "uds" => Ok(Transport::Uds),
         "zenoh" => Ok(Transport::Zenoh),
-        _ => Err(format!("unknown transport {s:?} (iox-spin, iox-event, uds, zenoh)")),
+        "dds" => Ok(Transport::Dds),
+        _ => Err(format!("unknown transport {s:?} (iox-spin, iox-event, uds, zenoh, dds)")),
     }
 }
 
 /// Flags of the hidden `latency-peer` subcommand (the echoing side).
 #[derive(Args, Clone, Debug)]
 pub struct PeerArgs {
-    /// The transport: iox-spin, iox-event, uds or zenoh.
+    /// The transport: iox-spin, iox-event, uds, zenoh or dds.
     #[arg(long, value_parser = transport)]
     pub transport: Transport,
     /// The iceoryx2 demo name.

@@ -11,6 +11,7 @@ mod footer;
 mod hil;
 mod latency;
 mod mujoco;
+mod ros2;
 mod sim;
 mod terminal;
 mod tune;
@@ -83,6 +84,12 @@ enum Command {
     /// and the full HIL cycle in each wait mode.
     #[command(after_help = short_after("latency.md"), after_long_help = long_after("latency.md"))]
     Latency(latency::LatencyArgs),
+    /// The controller as a ROS 2 node, over DDS (a build with `--features ros2`).
+    ///
+    /// Reads joint states, odometry and the target over DDS, sends the base's twist and the
+    /// joint velocities at a fixed period, and writes summary.json. No ROS installation needed.
+    #[command(after_help = short_after("ros2.md"), after_long_help = long_after("ros2.md"))]
+    Ros2(Box<ros2::Ros2Args>),
     /// The TLS material of a deployment: a CA, a certificate and key per host.
     ///
     /// The TLS material of a deployment: a CA, and a certificate and key per host, for the
@@ -105,6 +112,7 @@ pub fn main() -> ExitCode {
         Command::Explore(a) => explore::run(a),
         Command::Tune(a) => tune::run(a).map(|()| ExitCode::SUCCESS),
         Command::Latency(a) => latency::run(a).map(|()| ExitCode::SUCCESS),
+        Command::Ros2(a) => ros2::run(a),
         Command::Certs(a) => certs::run(a).map(|()| ExitCode::SUCCESS),
         Command::LatencyPeer(a) => latency::run_peer(a).map(|()| ExitCode::SUCCESS),
     };

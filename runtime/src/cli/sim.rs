@@ -48,10 +48,10 @@ pub struct SimArgs {
     /// With --delay: do not tell the controller (to see what the delay does uncompensated).
     #[arg(long)]
     pub no_delay_compensation: bool,
-    /// rpr (the paper's), ur5, panda or an arm file.
+    /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
     ///
     /// The arm: `rpr` (the paper's planar arm, §4), the presets `ur5` (6 joints) and `panda`
-    /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml). A spatial
+    /// (7 joints), or a TOML arm file of 6–8 joints (see examples/arms/ur5.toml), or a URDF file (.urdf) cut between --base-link and --tip-link with its --home (the book's "Your robot"). A spatial
     /// arm runs the SE(3) law of §5 on the paper's trajectory lifted with a 5 cm vertical
     /// sine at the arm's home height (--trajectory 1|2), or on a spatial --target-file of
     /// 6-DOF body twists (sim-plant/examples/target3d.toml); it writes top and side views.
@@ -61,7 +61,7 @@ pub struct SimArgs {
     /// --config's, and a --config table of the same name overrides the arm's. What each
     /// preset carries and why, and what holds each arm back: the book's chapter "Spatial
     /// arms" (docs/book/src/spatial-arms.md).
-    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    #[arg(long, default_value = "rpr", hide_default_value = true, value_name = "ARM")]
     pub arm: String,
     /// Also write the run as an MCAP file for Foxglove.
     ///

@@ -35,13 +35,13 @@ pub struct TuneArgs {
     /// "Explore and tune", docs/book/src/explore-tune.md].
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
-    /// rpr (the paper's), ur5, panda or an arm file.
+    /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
     ///
     /// The arm: `rpr` (the paper's planar arm), or a spatial arm (`ur5`, `panda`, an arm
     /// file), each run of the set as `sim --arm` runs it (its platform settings, the lifted
     /// trajectory or a spatial --target-file, the start at home). The knobs are the platform
     /// law's, `lambda` and the arm's `damping_below`.
-    #[arg(long, default_value = "rpr", value_name = "rpr|ur5|panda|FILE")]
+    #[arg(long, default_value = "rpr", hide_default_value = true, value_name = "ARM")]
     pub arm: String,
     /// Candidate evaluations (each runs the whole set).
     #[arg(long, default_value_t = 200, value_name = "N")]

@@ -23,6 +23,16 @@ pub fn monotonic_ns() -> u64 {
     clock_ns(libc::CLOCK_MONOTONIC)
 }
 
+/// `CLOCK_REALTIME` in nanoseconds since the Unix epoch: the system clock, ROS 2's time
+/// (message stamps), which may step; durations are measured with [`monotonic_ns`].
+#[inline]
+pub fn realtime_ns() -> i64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: `ts` is a valid, writable timespec; CLOCK_REALTIME always exists.
+    unsafe { libc::clock_gettime(libc::CLOCK_REALTIME, &mut ts) };
+    ts.tv_sec * 1_000_000_000 + ts.tv_nsec
+}
+
 /// `CLOCK_MONOTONIC_RAW` in nanoseconds: the hardware clock without NTP's frequency
 /// corrections — a second clock to check measurements made with [`monotonic_ns`].
 #[inline]
@@ -73,12 +83,16 @@ pub struct RtConfig {
     pub lock_memory: bool,
     /// Bytes of stack to pre-fault.
     pub prefault_stack: usize,
+    /// Threads the calling thread starts afterwards inherit its `SCHED_FIFO` priority (a
+    /// process whose library threads carry its messages: the ROS 2 node's RustDDS); otherwise
+    /// they get the normal scheduler (`SCHED_RESET_ON_FORK`).
+    pub inherited: bool,
 }
 
 impl RtConfig {
     /// Priority 80, memory locked, 512 KiB of stack pre-faulted, pinned to `cpu`.
     pub fn with_cpu(cpu: Option<usize>) -> Self {
-        Self { priority: 80, cpu, lock_memory: true, prefault_stack: 512 * 1024 }
+        Self { priority: 80, cpu, lock_memory: true, prefault_stack: 512 * 1024, inherited: false }
     }
 }
 
@@ -132,10 +146,11 @@ pub fn apply(cfg: &RtConfig) -> RtReport {
         }
     }
     let param = libc::sched_param { sched_priority: cfg.priority };
-    // SCHED_RESET_ON_FORK: threads and processes started later get the normal scheduler,
-    // not this real-time priority. On Linux, pid 0 names the calling thread.
+    // SCHED_RESET_ON_FORK (unless `inherited`): threads and processes started later get the
+    // normal scheduler, not this real-time priority. On Linux, pid 0 names the calling thread.
     // SAFETY: `param` is a valid sched_param.
-    let r = unsafe { libc::sched_setscheduler(0, libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK, &param) };
+    let policy = if cfg.inherited { libc::SCHED_FIFO } else { libc::SCHED_FIFO | libc::SCHED_RESET_ON_FORK };
+    let r = unsafe { libc::sched_setscheduler(0, policy, &param) };
     if r == 0 {
         rep.fifo = true;
     } else {
@@ -400,13 +415,20 @@ mod tests {
             cpu: Some(100_000),
             lock_memory: false,
             prefault_stack: 64 * 1024,
+            inherited: false,
         });
         assert!(rep.warnings.iter().any(|w| w.contains("CPU 100000")));
         // Back to the normal scheduler so the test harness is not left real-time.
         reset_thread();
         // Pinning does not change what the machine has, and reset gives every CPU back.
         let n = online_cpus();
-        let rep = apply(&RtConfig { priority: 1, cpu: Some(0), lock_memory: false, prefault_stack: 0 });
+        let rep = apply(&RtConfig {
+            priority: 1,
+            cpu: Some(0),
+            lock_memory: false,
+            prefault_stack: 0,
+            inherited: false,
+        });
         assert_eq!(online_cpus(), n);
         reset_thread();
         if rep.pinned.is_some() {

@@ -22,6 +22,8 @@ pub mod certs;
 pub mod error;
 pub mod ipc;
 pub mod link;
+#[cfg(feature = "ros2")]
+pub mod ros2;
 pub mod wire;
 #[cfg(feature = "zenoh")]
 pub mod zenoh_link;

@@ -6,34 +6,9 @@
 
 use super::*;
 
-/// example-robot-data's `robots/REL` in the test environment (target/py).
-pub fn robot(rel: &str) -> String {
-    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/py/lib");
-    let found = std::fs::read_dir(&py).ok().into_iter().flatten().flatten().find_map(|e| {
-        let p = e.path().join("site-packages/cmeel.prefix/share/example-robot-data/robots").join(rel);
-        p.exists().then_some(p)
-    });
-    found
-        .unwrap_or_else(|| panic!("{rel}: example-robot-data is not in target/py: run scripts/setup"))
-        .display()
-        .to_string()
-}
-
-/// The TIAGo's arm with its torso, the notes' well-conditioned home.
-fn tiago() -> Vec<String> {
-    [
-        "--arm",
-        &robot("tiago_description/robots/tiago_no_hand.urdf"),
-        "--base-link",
-        "base_footprint",
-        "--tip-link",
-        "arm_tool_link",
-        "--home",
-        "0.2,1.0,-0.5,-1.0,1.2,0.0,0.5,0.0",
-    ]
-    .map(String::from)
-    .to_vec()
-}
+#[path = "../common/robots.rs"]
+mod robots;
+use robots::{robot, tiago};
 
 #[test]
 fn a_urdf_arm_in_lockstep_is_byte_identical_to_sim() {

@@ -25,6 +25,12 @@ pub enum LatencyError {
     /// `--transport zenoh` in a build without the feature.
     #[error("{}", crate::transport::BUILD_WITH_ZENOH)]
     NoZenoh,
+    /// `--transport dds` in a build without the `ros2` feature.
+    #[error("the DDS ping-pong needs a build with --features ros2")]
+    NoDds,
+    /// The DDS ping-pong's participant, topics or samples (RustDDS's message).
+    #[error("DDS ping-pong: {0}")]
+    Dds(String),
     /// A demo name made of this process's id is too long (a pid of 7 digits).
     #[error(transparent)]
     Name(#[from] NameError),

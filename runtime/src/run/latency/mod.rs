@@ -12,7 +12,8 @@
 //!    otherwise pick — and, in a build with the `zenoh` feature, a Zenoh ping-pong over
 //!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's) and,
 //!    where network namespaces are permitted (root), across a veth pair into a namespace
-//!    (skipped with a warning otherwise);
+//!    (skipped with a warning otherwise); in a build with the `ros2` feature, a DDS ping-pong
+//!    (RustDDS on loopback UDP, as `companion ros2` talks to a robot: module `dds`);
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
@@ -29,6 +30,8 @@
 //! give p50 … p99.99 and the maximum, and the ratios (4)/(2) and (3)/(2) of the medians.
 //! Children are the hidden subcommands `latency-peer` (ping-pong echo) and `hil`.
 
+#[cfg(feature = "ros2")]
+pub mod dds;
 pub mod error;
 pub mod hops;
 pub mod pingpong;
@@ -436,6 +439,18 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
     checked("unix datagram socket ping-pong", c);
     let uds_p50 = uds.percentiles().p50;
     push("3", "unix datagram socket ping-pong, blocking".into(), uds, &mut rows);
+    #[cfg(feature = "ros2")]
+    let dds_p50 = {
+        observer.note(&format!(
+            "(3) DDS ping-pong (RustDDS on loopback UDP, as companion ros2), {} round trips",
+            a.cycles
+        ));
+        let (h, c) = dds::round_trips(&exe, a.cycles, a.warmup, a.rt, observer)?;
+        checked("dds ping-pong", c);
+        let p50 = h.percentiles().p50;
+        push("3", "dds ping-pong (RustDDS), reliable, poll".into(), h, &mut rows);
+        p50
+    };
     #[cfg_attr(not(feature = "zenoh"), allow(unused_mut))]
     let mut zenoh_hops: Vec<hops::HopReport> = Vec::new();
     #[cfg(feature = "zenoh")]
@@ -612,6 +627,8 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
         ratios.push(("unix socket / iceoryx2 busy-poll".to_string(), ratio(uds_p50, iox_p50)));
         ratios.push(("iceoryx2 events / iceoryx2 busy-poll".to_string(), ratio(iox_ev_p50, iox_p50)));
     }
+    #[cfg(feature = "ros2")]
+    ratios.push(("dds / unix socket".to_string(), ratio(dds_p50, uds_p50)));
     #[cfg(feature = "zenoh")]
     ratios.push(("zenoh / unix socket (aim: at most 2)".to_string(), ratio(zenoh_p50, uds_p50)));
     #[cfg(feature = "zenoh")]
@@ -707,6 +724,10 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<(), LatencyE
         }
         #[cfg(not(feature = "zenoh"))]
         Transport::Zenoh => Err(LatencyError::NoZenoh),
+        #[cfg(feature = "ros2")]
+        Transport::Dds => dds::peer(&a.name),
+        #[cfg(not(feature = "ros2"))]
+        Transport::Dds => Err(LatencyError::NoDds),
     }
 }
 

@@ -44,6 +44,9 @@ pub enum Transport {
     /// Zenoh over loopback TCP, both sides sleeping until the message arrives (a build with
     /// the `zenoh` feature).
     Zenoh,
+    /// DDS (RustDDS) over loopback UDP, both sides sleeping in a poll (a build with the `ros2`
+    /// feature).
+    Dds,
 }
 
 impl Transport {
@@ -54,6 +57,7 @@ impl Transport {
             Self::IoxEvent => "iox-event",
             Self::Uds => "uds",
             Self::Zenoh => "zenoh",
+            Self::Dds => "dds",
         }
     }
 }

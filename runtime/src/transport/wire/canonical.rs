@@ -46,7 +46,8 @@
 //!
 //! Every number as in the scenario hash, but a negative zero is written as zero (`−0.0` and
 //! `0.0` are the same arm: a rotation computed from `rpy` gives the one, a matrix written by
-//! hand the other).
+//! hand the other), and a joint without limits (a URDF's `continuous`: `lower` −∞, `upper`
+//! +∞) has `null` ones — JSON has no infinity — which add no line to the text.
 //!
 //! What the controller prefers (home position, velocity limits, gains) is not part of it: the
 //! scenario hash covers that. A plant simulating a UR5 and a controller built for a Panda, or

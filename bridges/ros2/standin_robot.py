@@ -1,0 +1,395 @@
+#!/usr/bin/env python3
+"""A stand-in for a ROS 2 mobile manipulator, over Eclipse Cyclone DDS (the middleware under
+rmw_cyclonedds) with ROS 2's topic names, type names and layouts (ros2_msgs.py) — no ROS
+installation. It is the kinematic robot `companion ros2` drives in the tests:
+
+- publishes `sensor_msgs/JointState` (the arm's joints by name, plus `--extra-joint`s the node
+  must ignore) and `nav_msgs/Odometry` at `--rate`, stamped with the system clock;
+- integrates the commands it receives from the moment they arrive: the base's
+  `geometry_msgs/TwistStamped` (exactly, as a body twist held constant) and the joints'
+  `std_msgs/Float64MultiArray` (in `--joint-names` order);
+- with `--target topics` publishes the target (lifted trajectory 1, in closed form) as a
+  `geometry_msgs/PoseStamped` and its body twist as a `geometry_msgs/TwistStamped`; with
+  `--target node` reads the target the node generates and checks it against the same closed
+  form;
+- measures the tracking error with its own kinematics (the reference bridge's reading of the
+  arm file: bridges/python/companion_bridge.py), independently of the node;
+- `--inject KIND@T` for `--inject-for` seconds from T seconds after the first command: `stale`
+  (joint states stamped 1 s old), `nan` (a NaN joint position), `names` (the arm's last joint
+  left out), `silent` (no joint states);
+- on SIGINT or SIGTERM writes `--out` (JSON) and exits 0.
+
+    python3 bridges/ros2/standin_robot.py --arm examples/arms/ur5.toml --rate 1000 --out r.json &
+    companion ros2 --arm ur5 --duration 15
+"""
+
+import argparse
+import json
+import math
+import os
+import signal
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.join(HERE, "..", "python"))
+
+import ros2_msgs as m  # noqa: E402
+from companion_bridge import (  # noqa: E402
+    LIFT_AMPLITUDE,
+    LIFT_PERIOD,
+    TARGET_DISTANCE,
+    Chain,
+    compose3,
+    inverse3,
+    planar_pose3,
+    so3_log,
+    transpose,
+)
+from cyclonedds.core import Policy, Qos, ReadCondition, SampleState, ViewState, InstanceState, WaitSet  # noqa: E402
+from cyclonedds.domain import DomainParticipant  # noqa: E402
+from cyclonedds.pub import DataWriter  # noqa: E402
+from cyclonedds.sub import DataReader  # noqa: E402
+from cyclonedds.topic import Topic  # noqa: E402
+from cyclonedds.util import duration  # noqa: E402
+
+UR5_JOINTS = "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
+STOP = False
+
+
+def _stop(*_):
+    global STOP
+    STOP = True
+
+
+def dds_topic(name):
+    """ROS 2's topic `/a/b` on DDS: `rt/a/b`."""
+    return "rt" + (name if name.startswith("/") else "/" + name)
+
+
+def quaternion_z(yaw):
+    return m.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
+
+
+def yaw_of(q):
+    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
+
+
+def rotation_of(q):
+    x, y, z, w = q.x, q.y, q.z, q.w
+    return (
+        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
+    )  # fmt: skip
+
+
+def se2_step(pose, v, v_lat, omega, dt):
+    """The platform moved by the body twist (v, v_lat, ω) held for dt (exactly)."""
+    x, y, th = pose
+    phi = omega * dt
+    if abs(phi) < 1e-9:
+        a, b = 1.0 - phi * phi / 6.0, phi / 2.0
+    else:
+        a, b = math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
+    dx, dy = (a * v - b * v_lat) * dt, (b * v + a * v_lat) * dt
+    s, c = math.sin(th), math.cos(th)
+    return (x + c * dx - s * dy, y + s * dx + c * dy, th + phi)
+
+
+class LiftedTrajectory1:
+    """The paper's trajectory 1 lifted (docs/protocol.md §8), in closed form: the circle of
+    radius 0.1 m and period 4 s from r_bd(0) = (2.6, 1, z0), level, and z0 + A sin(2πt/T)."""
+
+    def __init__(self, height):
+        self.height = height
+
+    def pose(self, t):
+        a = math.pi * t / 2.0
+        p = (2.6 + 0.1 * (math.cos(a) - 1.0), 1.0 - 0.1 * math.sin(a),
+             self.height + LIFT_AMPLITUDE * math.sin(2 * math.pi * t / LIFT_PERIOD))  # fmt: skip
+        return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), p
+
+    def twist(self, t):
+        k, a, w = math.pi / 20.0, math.pi * t / 2.0, 2 * math.pi / LIFT_PERIOD
+        return (-k * math.sin(a), -k * math.cos(a), LIFT_AMPLITUDE * w * math.cos(w * t)), (0.0, 0.0, 0.0)
+
+
+class Robot:
+    def __init__(self, chain, joints):
+        self.chain = chain
+        self.q = [j[5] for j in chain.joints]
+        self.base = (0.0, 0.0, 0.0)
+        self.v = (0.0, 0.0, 0.0)
+        self.qdot = [0.0] * joints
+        home = chain.end_effector(self.q)
+        # r*_ed: TARGET_DISTANCE along the flange's z, level when the arm is at home.
+        self.star = (transpose(home[0]), (0.0, 0.0, TARGET_DISTANCE))
+        self.height = compose3(home, self.star)[1][2]
+
+    def advance(self, dt):
+        if dt <= 0:
+            return
+        self.base = se2_step(self.base, self.v[0], self.v[1], self.v[2], dt)
+        self.q = [q + dt * d for q, d in zip(self.q, self.qdot)]
+
+    def effector_star(self):
+        return compose3(compose3(planar_pose3(self.base), self.chain.end_effector(self.q)), self.star)
+
+    def errors(self, target):
+        """(‖p̃‖ in metres, ‖e_p‖) against the target pose."""
+        e = self.effector_star()
+        r = compose3(inverse3(e), target)
+        pos = math.sqrt(sum(x * x for x in r[1]))
+        rot = math.sqrt(sum(x * x for x in so3_log(r[0])))
+        return pos, math.sqrt(pos * pos + rot * rot)
+
+
+class PlanarRobot(Robot):
+    """The unicycle carrying the paper's RPR arm: integrated as the spatial robot, not measured."""
+
+    def __init__(self):
+        self.q = [0.0, 0.35, 0.0]
+        self.base = (0.0, 0.0, 0.0)
+        self.v = (0.0, 0.0, 0.0)
+        self.qdot = [0.0] * 3
+        self.height = 0.0
+
+
+def qos(args, depth=None):
+    rel = Policy.Reliability.Reliable(duration(milliseconds=100)) if args.reliable else Policy.Reliability.BestEffort
+    return Qos(rel, Policy.History.KeepLast(depth or 10), Policy.Durability.Volatile)
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--arm", required=True, help="arm file (TOML), or rpr (the paper's planar arm)")
+    p.add_argument("--joint-names", default=UR5_JOINTS)
+    p.add_argument("--extra-joint", action="append", default=["torso_lift_joint"], help="listed too, first")
+    p.add_argument("--rate", type=float, default=1000.0)
+    p.add_argument("--domain-id", type=int, default=0)
+    p.add_argument("--target", choices=["topics", "node"], default="node")
+    p.add_argument("--joint-states", default="/joint_states")
+    p.add_argument("--odom", default="/mobile_base_controller/odom")
+    p.add_argument("--base-command", default="/mobile_base_controller/cmd_vel")
+    p.add_argument("--joint-command", default="/arm_velocity_controller/commands")
+    p.add_argument("--target-pose", default="/companion/target_pose")
+    p.add_argument("--target-twist", default="/companion/target_twist")
+    p.add_argument("--diagnostics", default="/diagnostics")
+    p.add_argument("--best-effort", dest="reliable", action="store_false")
+    p.add_argument("--inject", default=None, help="stale@T, nan@T, names@T or silent@T (s after the first command)")
+    p.add_argument("--inject-for", type=float, default=0.5)
+    p.add_argument("--final-at", type=float, default=None,
+                   help="the node's --duration: the final error is taken this long after the first command")
+    p.add_argument("--trace", action="store_true", help="every error sample (t, ‖p̃‖, ‖e_p‖) in --out")
+    p.add_argument("--out", required=True)
+    args = p.parse_args(argv)
+    signal.signal(signal.SIGINT, _stop)
+    signal.signal(signal.SIGTERM, _stop)
+
+    if args.arm == "rpr":
+        # The paper's planar arm: its joints only (q(0) = (0, 0.35, 0)); no error measured here.
+        chain, names, n = None, args.joint_names.split(","), 3
+        robot = PlanarRobot()
+    else:
+        chain = Chain(args.arm)
+        names = args.joint_names.split(",")
+        n = len(chain.joints)
+        robot = Robot(chain, n)
+    if len(names) != n:
+        raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
+    traj = LiftedTrajectory1(robot.height)
+    inject, inject_at = None, None
+    if args.inject:
+        inject, at = args.inject.split("@")
+        inject_at = float(at)
+
+    dp = DomainParticipant(args.domain_id)
+    q = qos(args)
+
+    def writer(name, t):
+        return DataWriter(dp, Topic(dp, dds_topic(name), t, qos=q), qos=q)
+
+    def reader(name, t, depth=None):
+        qq = qos(args, depth)
+        return DataReader(dp, Topic(dp, dds_topic(name), t, qos=q), qos=qq)
+
+    joints_w = writer(args.joint_states, m.JointState)
+    odom_w = writer(args.odom, m.Odometry)
+    base_r = reader(args.base_command, m.TwistStamped, 100)
+    joint_r = reader(args.joint_command, m.Float64MultiArray, 100)
+    diag_r = reader(args.diagnostics, m.DiagnosticArray, 100)
+    if args.target == "topics":
+        tpose_w = writer(args.target_pose, m.PoseStamped)
+        ttwist_w = writer(args.target_twist, m.TwistStamped)
+        target_r = None
+    else:
+        target_r = reader(args.target_pose, m.PoseStamped, 1000)
+    ws = WaitSet(dp)
+    any_state = SampleState.Any | ViewState.Any | InstanceState.Any
+    for r in (base_r, joint_r):
+        ws.attach(ReadCondition(r, any_state))
+
+    period = 1.0 / args.rate
+    every = max(1, int(round(args.rate / 100.0)))
+    t0_mono = time.monotonic()
+    t0_real_ns = time.time_ns()
+    last_mono = t0_mono
+    next_pub = t0_mono
+    res = {
+        "published": 0, "late_publishes": 0, "base_commands": 0, "joint_commands": 0,
+        "zero_commands": 0, "nonzero_commands": 0, "last_command_zero": None, "commands_in_fault": [0, 0], "commands_after_fault": [0, 0],
+        "bad_command_length": 0, "target_messages": 0, "target_max_deviation": 0.0, "diagnostics": 0,
+        "diagnostic_levels": {}, "errors": [], "publish_gaps_ms": [],
+    }  # fmt: skip
+    first_cmd = None
+    latencies = []  # a base command's stamp to its application here (ms)
+    s0_ns = None  # the node's first target stamp (its run's epoch)
+    last_pub_mono = None
+
+    def target_at_real(ns):
+        if args.target == "topics":
+            return traj.pose((ns - t0_real_ns) * 1e-9)
+        if s0_ns is None:
+            return None
+        return traj.pose((ns - s0_ns) * 1e-9)
+
+    def window(now):
+        if first_cmd is None or inject_at is None:
+            return None
+        t = now - first_cmd
+        if inject_at <= t < inject_at + args.inject_for:
+            return "in"
+        if t >= inject_at + args.inject_for + 0.2:
+            return "after"
+        return None
+
+    def note_command(is_zero, now):
+        nonlocal first_cmd
+        if first_cmd is None and not is_zero:
+            first_cmd = now
+        res["zero_commands" if is_zero else "nonzero_commands"] += 1
+        res["last_command_zero"] = is_zero
+        w = window(now)
+        # Allow 50 ms of transition after the fault starts (a silent publisher is noticed
+        # after --silence-ms).
+        if w == "in" and now - first_cmd >= inject_at + 0.05:
+            res["commands_in_fault"][0 if is_zero else 1] += 1
+        elif w == "after":
+            res["commands_after_fault"][0 if is_zero else 1] += 1
+
+    while not STOP:
+        now = time.monotonic()
+        timeout = max(0.0, next_pub - now)
+        ws.wait(duration(microseconds=int(timeout * 1e6)))
+        # Both clocks at once: the state is integrated to `now`, stamped and judged at `now_ns`.
+        now, now_ns = time.monotonic(), time.time_ns()
+        robot.advance(now - last_mono)
+        last_mono = now
+        for s in base_r.take(N=100):
+            if not isinstance(s, m.TwistStamped):
+                continue
+            tw = s.twist
+            robot.v = (tw.linear.x, tw.linear.y, tw.angular.z)
+            res["base_commands"] += 1
+            latencies.append((now_ns - s.header.stamp.ns()) * 1e-6)
+        for s in joint_r.take(N=100):
+            if not isinstance(s, m.Float64MultiArray):
+                continue
+            if len(s.data) != n:
+                res["bad_command_length"] += 1
+                continue
+            robot.qdot = list(s.data)
+            res["joint_commands"] += 1
+            note_command(all(x == 0.0 for x in s.data) and robot.v == (0.0, 0.0, 0.0), now)
+        for s in diag_r.take(N=100):
+            if isinstance(s, m.DiagnosticArray) and s.status:
+                res["diagnostics"] += 1
+                lv = str(int(s.status[0].level))
+                res["diagnostic_levels"][lv] = res["diagnostic_levels"].get(lv, 0) + 1
+        if target_r is not None:
+            for s in target_r.take(N=1000):
+                if not isinstance(s, m.PoseStamped):
+                    continue
+                stamp = s.header.stamp.ns()
+                if s0_ns is None:
+                    s0_ns = stamp
+                res["target_messages"] += 1
+                if res["target_messages"] % every or chain is None:
+                    continue
+                want = traj.pose((stamp - s0_ns) * 1e-9)[1]
+                got = (s.pose.position.x, s.pose.position.y, s.pose.position.z)
+                dev = math.sqrt(sum((a - b) ** 2 for a, b in zip(got, want)))
+                dev = max(dev, max(abs(a - b) for a, b in zip(rotation_of(s.pose.orientation), (1, 0, 0, 0, 1, 0, 0, 0, 1))))
+                res["target_max_deviation"] = max(res["target_max_deviation"], dev)
+        if now < next_pub:
+            continue
+        if now - next_pub > period:
+            res["late_publishes"] += 1
+            next_pub = now
+        next_pub += period
+        stamp_ns = now_ns
+        fault = window(now) == "in" and inject
+        js = m.JointState(header=m.Header(stamp=m.Time.of_ns(stamp_ns - (1_000_000_000 if fault == "stale" else 0)), frame_id=""))
+        js.name = list(args.extra_joint) + names
+        js.position = [0.0] * len(args.extra_joint) + list(robot.q)
+        if fault == "nan":
+            js.position[-1] = float("nan")
+        if fault == "names":
+            js.name, js.position = js.name[:-1], js.position[:-1]
+        if fault != "silent":
+            joints_w.write(js)
+        x, y, th = robot.base
+        od = m.Odometry(header=m.Header(stamp=m.Time.of_ns(stamp_ns), frame_id="odom"), child_frame_id="base_link")
+        od.pose.pose.position = m.Point(x=x, y=y, z=0.0)
+        od.pose.pose.orientation = quaternion_z(th)
+        od.twist.twist.linear.x, od.twist.twist.angular.z = robot.v[0], robot.v[2]
+        odom_w.write(od)
+        if args.target == "topics":
+            rot, pos = traj.pose((stamp_ns - t0_real_ns) * 1e-9)
+            lin, ang = traj.twist((stamp_ns - t0_real_ns) * 1e-9)
+            hdr = m.Header(stamp=m.Time.of_ns(stamp_ns), frame_id="odom")
+            tpose_w.write(m.PoseStamped(header=hdr, pose=m.Pose(position=m.Point(*pos), orientation=m.Quaternion())))
+            ttwist_w.write(m.TwistStamped(header=hdr, twist=m.Twist(linear=m.Vector3(*lin), angular=m.Vector3(*ang))))
+        res["published"] += 1
+        if last_pub_mono is not None:
+            res["publish_gaps_ms"].append((now - last_pub_mono) * 1e3)
+        last_pub_mono = now
+        # The error (forward kinematics in Python) at most 100 times a second: at 1 kHz every
+        # publish would take the CPU the robot's own timing needs.
+        tgt = target_at_real(now_ns) if res["published"] % every == 0 else None
+        if tgt is not None and first_cmd is not None and chain is not None:
+            pos, full = robot.errors(tgt)
+            res["errors"].append((now - first_cmd, pos, full))
+
+    errs = res.pop("errors")
+    gaps = sorted(res.pop("publish_gaps_ms"))
+    res["publish_gap_ms"] = {
+        "p50": gaps[len(gaps) // 2] if gaps else None,
+        "p99": gaps[int(len(gaps) * 0.99)] if gaps else None,
+        "max": gaps[-1] if gaps else None,
+    }
+    latencies.sort()
+    res["command_latency_ms"] = {
+        "p50": latencies[len(latencies) // 2] if latencies else None,
+        "p99": latencies[int(len(latencies) * 0.99)] if latencies else None,
+        "max": latencies[-1] if latencies else None,
+    }
+    res["first_command_s"] = None if first_cmd is None else first_cmd - t0_mono
+    if args.final_at is not None and errs:
+        before = [e for e in errs if e[0] <= args.final_at - 0.05]
+        last2 = [e for e in before if e[0] >= args.final_at - 2.05]
+        res["final_position_error"] = before[-1][1] if before else None
+        res["final_ep_norm"] = before[-1][2] if before else None
+        res["max_position_error_last_2_s"] = max(e[1] for e in last2) if last2 else None
+    res["error_samples"] = len(errs)
+    if args.trace:
+        res["trace"] = errs
+    with open(args.out, "w") as f:
+        json.dump(res, f, indent=1)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

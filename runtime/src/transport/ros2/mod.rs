@@ -1,0 +1,412 @@
+//! ROS 2's data plane (cargo feature `ros2`): the node's topics over DDS with ROS 2's names,
+//! types and layouts, through Atostek's pure-Rust `ros2-client` on RustDDS — no ROS
+//! installation, no C library.
+//!
+//! A ROS 2 topic `/a/b` of type `pkg/Type` is the DDS topic `rt/a/b` of type
+//! `pkg::msg::dds_::Type_`, its samples CDR (little-endian, XCDR1) in the field order of the
+//! `.msg` file ([`msgs`]). [`Ros2Endpoint`] is the node: one DDS participant on the domain,
+//! one ROS node (visible to `ros2 node list` through `ros_discovery_info`), its subscriptions
+//! (joint states, base pose, the target) and publishers (base command, joint velocities,
+//! target, diagnostics) with the configured QoS ([`Qos`]).
+//!
+//! Reading is non-blocking ([`Ros2Endpoint::take_inputs`]: every sample that arrived since the
+//! last call, the latest of each kind kept); the node's own timer decides when to read. The
+//! messages are decoded into fixed storage (no allocation of this crate's code on the node's
+//! period); RustDDS allocates each sample's buffer on its own threads and on `write`.
+
+pub mod msgs;
+
+pub use self::msgs::{StampedPose, StampedTwist};
+
+use std::sync::Arc;
+
+use self::msgs::{
+    DiagnosticArray, JointSample, JointStateSeed, JointVelocities, OdometryIn, Pose, PoseStampedIn,
+    PoseStampedOut, Ros2Type, Time, Twist, TwistStampedIn, TwistStampedOut,
+};
+use ros2_client::{
+    Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
+    Subscription,
+};
+
+/// Reliability and history depth of every topic of the node (ROS 2's defaults: reliable,
+/// keep last 10, volatile — what `ros2_control`'s controllers and `joint_state_broadcaster`
+/// use).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Qos {
+    /// Reliable (`true`) or best effort.
+    pub reliable: bool,
+    /// Keep last `depth` samples (1–1000).
+    pub depth: u16,
+}
+
+impl Default for Qos {
+    fn default() -> Self {
+        Self { reliable: true, depth: 10 }
+    }
+}
+
+impl Qos {
+    fn profile(self) -> QosProfile {
+        use ros2_client::qos::{Durability, History, WhenFull};
+        let p = QosProfile::publisher_default()
+            .durability(Durability::Volatile)
+            .history(History::KeepLast { depth: usize::from(self.depth) });
+        if self.reliable {
+            // A full send window fails the write at once (counted) rather than holding the
+            // node's period up for 100 ms, ros2-client's default.
+            p.reliability_reliable(WhenFull::Fail)
+        } else {
+            p.reliability_best_effort()
+        }
+    }
+
+    /// `reliable, keep last 10`.
+    pub fn describe(self) -> String {
+        format!("{}, keep last {}", if self.reliable { "reliable" } else { "best effort" }, self.depth)
+    }
+}
+
+/// Where the platform's pose comes from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BasePoseKind {
+    /// `nav_msgs/Odometry` (`diff_drive_controller`'s `~/odom`, a localisation's odometry).
+    Odometry,
+    /// `geometry_msgs/PoseStamped` (a motion-capture system).
+    PoseStamped,
+}
+
+/// How the base command is sent.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TwistKind {
+    /// `geometry_msgs/TwistStamped` (Jazzy's `diff_drive_controller`, `~/cmd_vel`).
+    Stamped,
+    /// `geometry_msgs/Twist` (Humble's, `~/cmd_vel_unstamped`).
+    Unstamped,
+}
+
+/// Whether the node reads the target or sends the one it generates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetTopics {
+    /// Subscribe to the target's pose (`PoseStamped`) and twist (`TwistStamped`).
+    Read,
+    /// Publish the generated target's pose on the pose topic.
+    Write,
+}
+
+/// The node's names and settings on the DDS domain.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EndpointConfig {
+    /// `ROS_DOMAIN_ID` (0–232).
+    pub domain_id: u16,
+    /// The node's name (`companion`).
+    pub node_name: String,
+    /// The node's namespace (`/`).
+    pub namespace: String,
+    /// Every topic's QoS.
+    pub qos: Qos,
+    /// `sensor_msgs/JointState` in.
+    pub joint_states: String,
+    /// The base pose in.
+    pub base_pose: String,
+    /// Its type.
+    pub base_pose_kind: BasePoseKind,
+    /// The target's pose (in, or out when generated).
+    pub target_pose: String,
+    /// The target's body twist in (`TwistStamped`).
+    pub target_twist: String,
+    /// Read or write the target.
+    pub target: TargetTopics,
+    /// The base command out.
+    pub base_command: String,
+    /// Its type.
+    pub twist: TwistKind,
+    /// `std_msgs/Float64MultiArray` of joint velocities out.
+    pub joint_command: String,
+    /// `diagnostic_msgs/DiagnosticArray` out.
+    pub diagnostics: String,
+    /// The frame of the base command's header (`base_link`).
+    pub base_frame: String,
+    /// The world frame of the generated target's header (`odom`).
+    pub world_frame: String,
+}
+
+/// Why the node could not join the domain.
+#[derive(Debug, thiserror::Error)]
+pub enum Ros2Error {
+    /// The DDS participant or an entity of the node could not be made.
+    #[error("ROS 2: {what}: {detail}")]
+    Create {
+        /// What was being made.
+        what: String,
+        /// RustDDS's or ros2-client's message.
+        detail: String,
+    },
+    /// A topic, node or namespace name that ROS 2 does not allow.
+    #[error("ROS 2: {what} {name:?} is not a valid ROS 2 name: {detail}")]
+    Name {
+        /// Topic, node or namespace.
+        what: &'static str,
+        /// The name.
+        name: String,
+        /// Why.
+        detail: String,
+    },
+    /// The spinner thread cannot be started.
+    #[error("ROS 2: starting the node's spinner thread")]
+    Thread(#[source] std::io::Error),
+}
+
+fn create<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E) -> Ros2Error {
+    let what = what.into();
+    move |e| Ros2Error::Create { what, detail: format!("{e:?}") }
+}
+
+/// A topic name as ROS 2 writes it (`/joint_states`, `mobile_base_controller/odom`), parsed.
+///
+/// # Errors
+/// Not a valid ROS 2 topic name.
+pub fn topic_name(name: &str) -> Result<Name, Ros2Error> {
+    Name::parse(name).map_err(|e| Ros2Error::Name {
+        what: "topic",
+        name: name.to_string(),
+        detail: format!("{e:?}"),
+    })
+}
+
+/// What arrived on one topic since the last read.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Arrived<T> {
+    /// The last sample, if any.
+    pub last: Option<T>,
+    /// How many samples arrived (the last among them).
+    pub samples: u64,
+    /// Samples that could not be decoded (dropped).
+    pub undecodable: u64,
+}
+
+impl<T> Default for Arrived<T> {
+    fn default() -> Self {
+        Self { last: None, samples: 0, undecodable: 0 }
+    }
+}
+
+/// What arrived on every input since the last read.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Inputs {
+    /// Joint states.
+    pub joints: Arrived<JointSample>,
+    /// The base pose.
+    pub base: Arrived<StampedPose>,
+    /// The target's pose.
+    pub target_pose: Arrived<StampedPose>,
+    /// The target's twist.
+    pub target_twist: Arrived<StampedTwist>,
+}
+
+/// The node on the domain: its subscriptions and publishers.
+pub struct Ros2Endpoint {
+    joint_states: Subscription<JointSample>,
+    base_odometry: Option<Subscription<OdometryIn>>,
+    base_pose: Option<Subscription<PoseStampedIn>>,
+    target_pose: Option<Subscription<PoseStampedIn>>,
+    target_twist: Option<Subscription<TwistStampedIn>>,
+    base_stamped: Option<Publisher<TwistStampedOut>>,
+    base_unstamped: Option<Publisher<Twist>>,
+    joint_command: Publisher<JointVelocities>,
+    target_out: Option<Publisher<PoseStampedOut>>,
+    diagnostics: Option<Publisher<DiagnosticArray>>,
+    base_frame: Arc<str>,
+    world_frame: Arc<str>,
+    // Last: dropped after the entities above (the node ends its spinner when dropped).
+    node: Node,
+    _context: Context,
+}
+
+impl std::fmt::Debug for Ros2Endpoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Ros2Endpoint").field("domain_id", &self.node.domain_id()).finish_non_exhaustive()
+    }
+}
+
+fn type_of<T: Ros2Type>() -> MessageTypeName {
+    MessageTypeName::new(T::PACKAGE, T::NAME)
+}
+
+impl Ros2Endpoint {
+    /// Joins domain `cfg.domain_id` as node `cfg.node_name`, makes the topics, and starts the
+    /// node's spinner (ros2-client's graph and discovery tasks) on a thread of its own.
+    ///
+    /// # Errors
+    /// A name ROS 2 does not allow, or an entity RustDDS could not make.
+    pub fn open(cfg: &EndpointConfig) -> Result<Self, Ros2Error> {
+        let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
+            .map_err(create(format!("joining DDS domain {}", cfg.domain_id)))?;
+        let node_name = NodeName::new(&cfg.namespace, &cfg.node_name).map_err(|e| Ros2Error::Name {
+            what: "node",
+            name: format!("{}/{}", cfg.namespace, cfg.node_name),
+            detail: format!("{e:?}"),
+        })?;
+        let mut node = context
+            .new_node(node_name, NodeOptions::new().enable_rosout(false))
+            .map_err(create("creating the node"))?;
+        let qos = cfg.qos.profile();
+        macro_rules! topic {
+            ($name:expr, $t:ty) => {
+                node.create_topic(&topic_name($name)?, type_of::<$t>(), &qos)
+                    .map_err(create(format!("topic {}", $name)))?
+            };
+        }
+        macro_rules! sub {
+            ($name:expr, $t:ty, $m:ty) => {{
+                let t = topic!($name, $t);
+                node.create_subscription::<$m>(&t, Some(qos.clone()))
+                    .map_err(create(format!("subscription to {}", $name)))?
+            }};
+        }
+        macro_rules! publ {
+            ($name:expr, $t:ty, $m:ty) => {{
+                let t = topic!($name, $t);
+                node.create_publisher::<$m>(&t, Some(qos.clone()))
+                    .map_err(create(format!("publisher on {}", $name)))?
+            }};
+        }
+        let joint_states = sub!(&cfg.joint_states, msgs::JointState, JointSample);
+        let (base_odometry, base_pose) = match cfg.base_pose_kind {
+            BasePoseKind::Odometry => (Some(sub!(&cfg.base_pose, msgs::Odometry, OdometryIn)), None),
+            BasePoseKind::PoseStamped => (None, Some(sub!(&cfg.base_pose, msgs::PoseStamped, PoseStampedIn))),
+        };
+        let (target_pose, target_twist, target_out) = match cfg.target {
+            TargetTopics::Read => (
+                Some(sub!(&cfg.target_pose, msgs::PoseStamped, PoseStampedIn)),
+                Some(sub!(&cfg.target_twist, msgs::TwistStamped, TwistStampedIn)),
+                None,
+            ),
+            TargetTopics::Write => {
+                (None, None, Some(publ!(&cfg.target_pose, msgs::PoseStamped, PoseStampedOut)))
+            }
+        };
+        let (base_stamped, base_unstamped) = match cfg.twist {
+            TwistKind::Stamped => (Some(publ!(&cfg.base_command, msgs::TwistStamped, TwistStampedOut)), None),
+            TwistKind::Unstamped => (None, Some(publ!(&cfg.base_command, Twist, Twist))),
+        };
+        let joint_command = publ!(&cfg.joint_command, msgs::Float64MultiArray, JointVelocities);
+        let diagnostics = Some(publ!(&cfg.diagnostics, DiagnosticArray, DiagnosticArray));
+        let spinner = node.spinner().map_err(create("the node's spinner"))?;
+        std::thread::Builder::new()
+            .name("ros2-spinner".into())
+            .spawn(move || {
+                let _ = futures::executor::block_on(spinner.spin());
+            })
+            .map_err(Ros2Error::Thread)?;
+        Ok(Self {
+            joint_states,
+            base_odometry,
+            base_pose,
+            target_pose,
+            target_twist,
+            base_stamped,
+            base_unstamped,
+            joint_command,
+            target_out,
+            diagnostics,
+            base_frame: Arc::from(cfg.base_frame.as_str()),
+            world_frame: Arc::from(cfg.world_frame.as_str()),
+            node,
+            _context: context,
+        })
+    }
+
+    /// Every sample that arrived since the last call, the latest of each input kept; `names`
+    /// are the arm's joints (a joint state is read by them).
+    pub fn take_inputs(&self, names: &[String]) -> Inputs {
+        let seed = JointStateSeed { names };
+        let mut inputs = Inputs::default();
+        drain(&mut inputs.joints, || self.joint_states.take_seed(seed));
+        if let Some(s) = &self.base_odometry {
+            drain(&mut inputs.base, || s.take().map(|o| o.map(|(m, i)| (m.0, i))));
+        }
+        if let Some(s) = &self.base_pose {
+            drain(&mut inputs.base, || s.take().map(|o| o.map(|(m, i)| (m.0, i))));
+        }
+        if let Some(s) = &self.target_pose {
+            drain(&mut inputs.target_pose, || s.take().map(|o| o.map(|(m, i)| (m.0, i))));
+        }
+        if let Some(s) = &self.target_twist {
+            drain(&mut inputs.target_twist, || s.take().map(|o| o.map(|(m, i)| (m.0, i))));
+        }
+        inputs
+    }
+
+    /// Sends the base command (`TwistStamped` stamped `stamp` in the base frame, or `Twist`).
+    ///
+    /// # Errors
+    /// RustDDS refused the sample (its message).
+    pub fn send_base(&self, stamp: Time, twist: Twist) -> Result<(), String> {
+        if let Some(p) = &self.base_stamped {
+            let header = msgs::HeaderOut { stamp, frame_id: Arc::clone(&self.base_frame) };
+            p.publish(TwistStampedOut { header, twist }).map_err(|e| format!("{e:?}"))?;
+        }
+        if let Some(p) = &self.base_unstamped {
+            p.publish(twist).map_err(|e| format!("{e:?}"))?;
+        }
+        Ok(())
+    }
+
+    /// Sends the joint velocities.
+    ///
+    /// # Errors
+    /// RustDDS refused the sample.
+    pub fn send_joints(&self, v: JointVelocities) -> Result<(), String> {
+        self.joint_command.publish(v).map_err(|e| format!("{e:?}"))
+    }
+
+    /// Sends the generated target's pose (stamped `stamp` in the world frame), if the node
+    /// generates it.
+    ///
+    /// # Errors
+    /// RustDDS refused the sample.
+    pub fn send_target(&self, stamp: Time, pose: Pose) -> Result<(), String> {
+        if let Some(p) = &self.target_out {
+            let header = msgs::HeaderOut { stamp, frame_id: Arc::clone(&self.world_frame) };
+            p.publish(PoseStampedOut { header, pose }).map_err(|e| format!("{e:?}"))?;
+        }
+        Ok(())
+    }
+
+    /// The diagnostics publisher, to move to the thread that sends them (once).
+    pub fn take_diagnostics(&mut self) -> Option<Publisher<DiagnosticArray>> {
+        self.diagnostics.take()
+    }
+
+    /// The number of publishers matched on each input (joint states, base pose, target pose,
+    /// target twist), as the node's graph knows them.
+    pub fn publishers(&self) -> [usize; 4] {
+        let n = |s: Option<usize>| s.unwrap_or(0);
+        [
+            self.joint_states.get_publisher_count(&self.node),
+            n(self.base_odometry.as_ref().map(|s| s.get_publisher_count(&self.node)))
+                + n(self.base_pose.as_ref().map(|s| s.get_publisher_count(&self.node))),
+            n(self.target_pose.as_ref().map(|s| s.get_publisher_count(&self.node))),
+            n(self.target_twist.as_ref().map(|s| s.get_publisher_count(&self.node))),
+        ]
+    }
+}
+
+/// Takes every sample of one subscription into `into` (the last kept), counting the ones that
+/// cannot be decoded.
+fn drain<T, E>(
+    into: &mut Arrived<T>,
+    mut take: impl FnMut() -> Result<Option<(T, ros2_client::MessageInfo)>, E>,
+) {
+    loop {
+        match take() {
+            Ok(Some((m, _))) => {
+                into.last = Some(m);
+                into.samples += 1;
+            }
+            Ok(None) => return,
+            Err(_) => into.undecodable += 1,
+        }
+    }
+}

@@ -1,0 +1,35 @@
+//! example-robot-data's URDFs, which scripts/setup installs into target/py (the tests read
+//! them from there: data of another project, never copied into this one).
+
+use std::path::Path;
+
+/// example-robot-data's `robots/REL` in the test environment (target/py).
+pub fn robot(rel: &str) -> String {
+    let py = Path::new(env!("CARGO_MANIFEST_DIR")).join("../target/py/lib");
+    let found = std::fs::read_dir(&py).ok().into_iter().flatten().flatten().find_map(|e| {
+        let p = e.path().join("site-packages/cmeel.prefix/share/example-robot-data/robots").join(rel);
+        p.exists().then_some(p)
+    });
+    found
+        .unwrap_or_else(|| panic!("{rel}: example-robot-data is not in target/py: run scripts/setup"))
+        .display()
+        .to_string()
+}
+
+/// The TIAGo's arm with its torso, from `base_footprint` to `arm_tool_link`, at a
+/// well-conditioned home (the tool 0.64 m ahead and 0.54 m up; the smallest singular value of
+/// its Jacobian 0.22).
+pub fn tiago() -> Vec<String> {
+    [
+        "--arm",
+        &robot("tiago_description/robots/tiago_no_hand.urdf"),
+        "--base-link",
+        "base_footprint",
+        "--tip-link",
+        "arm_tool_link",
+        "--home",
+        "0.2,1.0,-0.5,-1.0,1.2,0.0,0.5,0.0",
+    ]
+    .map(String::from)
+    .to_vec()
+}
