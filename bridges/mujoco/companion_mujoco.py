@@ -295,6 +295,7 @@ class Physical:
         self._inv_limit = 1.0 / robot.act_limit
         self.substeps_total = 0
         self.slip = np.zeros(2)
+        self.traction = np.zeros(2)
         self.plant_ns = []
         self.clipped = False
         self.clipped_periods = 0
@@ -429,10 +430,11 @@ class Physical:
         p, phi, tool, target = self.error()
         t, base, q, _, truth = self.last_measured
         v, vl, w = rb.base_velocity()
-        slip = (0.0, 0.0)
+        slip = (0.0, 0.0, 0.0, 0.0)
         if rb.wheels:
             rb.wheel_slip(self.slip)
-            slip = (float(self.slip[0]), float(self.slip[1]))
+            rb.wheel_traction(self.traction)
+            slip = (float(self.slip[0]), float(self.slip[1]), float(self.traction[0]), float(self.traction[1]))
         status = {0: "ok", -1: "stopped" if outcome == "stopped" else "none"}.get(cmd[4], f"rejected:{cmd[4]:#x}")
         if outcome == "held":
             status = "held"
@@ -600,6 +602,7 @@ def percentiles(values):
 
 
 SLIP_SPEED = 0.01  # m/s: a wheel "slips" while its lowest point moves faster over the floor
+SLIDING = 0.95  # a wheel "slides" while it uses this much of its friction (tangential / μ normal)
 
 
 def write_run(a, phys, bridge, code, why):
@@ -620,7 +623,7 @@ def write_run(a, phys, bridge, code, why):
     header += ["ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "v", "v_lat", "omega", "v_xi"]
     header += [f"u_q{i}" for i in range(1, n + 1)] + ["joint_scale", "status"]
     extra = ["x_true", "y_true", "theta_true", "v_true", "v_lat_true", "omega_true", "ep_position", "ep_rotation",
-             "ep_norm_law", "slip_left", "slip_right"] + [f"load_{x}" for x in names]
+             "ep_norm_law", "slip_left", "slip_right", "traction_left", "traction_right"] + [f"load_{x}" for x in names]
     pos_err, rot_err, ep_norm = [], [], []
     with open(os.path.join(out, "timeseries.csv"), "w") as f:
         f.write(",".join(header + extra) + "\n")
@@ -772,13 +775,19 @@ def physical_figures(a, phys, t, pos_err, rot_err, ep_norm):
     }
     if rb.wheels:
         slip = np.array([r[11] for r in rows])
-        slipping = (slip > SLIP_SPEED).any(axis=1)
+        slipping = (slip[:, :2] > SLIP_SPEED).any(axis=1)
+        sliding = (slip[:, 2:] >= SLIDING).any(axis=1)
         fig["wheel_slip"] = {
+            # A wheel's lowest point moving over the floor faster than this (creep included).
             "threshold_m_per_s": SLIP_SPEED,
             "fraction_of_time": float(slipping.mean()),
             "time_s": float(slipping.sum() * a.dt),
             "distance_m": {"left": float(slip[:, 0].sum() * a.dt), "right": float(slip[:, 1].sum() * a.dt)},
-            "max_speed_m_per_s": float(slip.max()),
+            "max_speed_m_per_s": float(slip[:, :2].max()),
+            # A wheel using this much of its friction or more: sliding, not creeping.
+            "sliding_traction": SLIDING,
+            "sliding_fraction_of_time": float(sliding.mean()),
+            "sliding_time_s": float(sliding.sum() * a.dt),
         }
     if phys.odometry_error:
         e = np.array(phys.odometry_error)
@@ -798,7 +807,9 @@ def print_figures(s, lat):
     )
     if "wheel_slip" in s:
         w = s["wheel_slip"]
-        print(f"mujoco: wheels slip {100 * w['fraction_of_time']:.2f} % of the time, {w['distance_m']}", file=sys.stderr)
+        print(f"mujoco: wheels slip over {w['threshold_m_per_s']} m/s {100 * w['fraction_of_time']:.2f} % of the time "
+              f"({w['distance_m']} m), slide (traction at their friction's limit) "
+              f"{100 * w['sliding_fraction_of_time']:.2f} %", file=sys.stderr)
     sat = {k: round(v, 4) for k, v in s.get("saturation_fraction", {}).items() if v > 0}
     print(f"mujoco: saturated (fraction of physics steps): {sat or 'none'}", file=sys.stderr)
     ps = lat.get("plant_step_ns")
@@ -920,8 +931,8 @@ def draw_plots(a, out, t, pos_err, rot_err, rows, names):
     fig.savefig(os.path.join(out, "loads.png"), dpi=90)
     plt.close(fig)
     made.append("loads.png")
-    if rows[0][11] != (0.0, 0.0) or any(r[11] != (0.0, 0.0) for r in rows[:: max(1, len(rows) // 100)]):
-        slip = np.array([r[11] for r in rows])
+    if any(any(x != 0.0 for x in r[11]) for r in rows[:: max(1, len(rows) // 100)]):
+        slip = np.array([r[11][:2] for r in rows])
         fig, ax = plt.subplots(figsize=(8, 3))
         ax.plot(t, slip[:, 0], lw=0.7, label="left")
         ax.plot(t, slip[:, 1], lw=0.7, label="right")

@@ -9,7 +9,9 @@ the MuJoCo plant (lockstep) — computed the same way from each run's timeseries
 - the base's largest speeds and its accelerations (p99 and largest of the change of speed per
   period): the simulated base's own (MuJoCo), or the command's, which the kinematic plant
   follows exactly;
-- MuJoCo only: wheel slip (fraction of time and distance) and the drives at their limits
+- MuJoCo only: wheel slip (the fraction of time a wheel's lowest point moves over 1 cm/s, creep
+  included; the fraction of time a wheel uses 95 % of its friction or more — sliding; the
+  distance slipped) and the drives at their limits
   (fraction of physics steps, each actuator over 0.1 %).
 
 Usage: compare.py RUN_DIR [RUN_DIR …] (one markdown row each)."""
@@ -64,8 +66,8 @@ def figures(d):
 def row(d):
     f = figures(d)
     slip = "—" if not f["slip"] else (
-        f"{100 * f['slip']['fraction_of_time']:.1f} % ({f['slip']['distance_m']['left']:.2f} / "
-        f"{f['slip']['distance_m']['right']:.2f} m)"
+        f"{100 * f['slip']['fraction_of_time']:.1f} %, {100 * f['slip']['sliding_fraction_of_time']:.1f} % "
+        f"({f['slip']['distance_m']['left']:.2f} / {f['slip']['distance_m']['right']:.2f} m)"
     )
     sat = ", ".join(f"{k} {100 * x:.1f} %" for k, x in sorted(f["saturated"].items(), key=lambda kv: -kv[1])[:4])
     return (
@@ -77,8 +79,8 @@ def row(d):
 
 HEADER = (
     "| plant | final ‖p̃‖ m / ‖log R̃‖ rad | max after 20 s | tracked (1 cm) after 20 s | smallest joint margin "
-    "| max \\|v\\| m/s / \\|ω\\| rad/s | \\|dv/dt\\| p99 / max m/s² | \\|dω/dt\\| p99 / max rad/s² | wheel slip (time, "
-    "left / right) | at their limits |\n|---|---|---|---|---|---|---|---|---|---|"
+    "| max \\|v\\| m/s / \\|ω\\| rad/s | \\|dv/dt\\| p99 / max m/s² | \\|dω/dt\\| p99 / max rad/s² | wheels: time slipping > 1 cm/s, time "
+    "sliding (distance slipped left / right) | at their limits |\n|---|---|---|---|---|---|---|---|---|---|"
 )
 
 if __name__ == "__main__":

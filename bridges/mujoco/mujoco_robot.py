@@ -571,6 +571,7 @@ class Robot:
             self.wheel_qadr = [m.jnt_qposadr[m.joint(w[s]["joint"]).id] for s in ("left", "right")]
             self.wheel_dof = [m.jnt_dofadr[m.joint(w[s]["joint"]).id] for s in ("left", "right")]
             self.wheel_sign = np.array([w["left"]["sign"], w["right"]["sign"]])
+            self._contact_force = np.zeros(6)
             self.wheel_speed = min(w["left"]["speed_limit"], w["right"]["speed_limit"])
         else:
             self.base = m.body("platform").id
@@ -759,6 +760,31 @@ class Robot:
             rr = self.wheels["radius"]
             # The contact point below the wheel's centre: v + ω × (0, 0, −R).
             out[i] = math.hypot(v[0] - w[1] * rr, v[1] + w[0] * rr)
+
+    def wheel_traction(self, out):
+        """How much of its friction each drive wheel uses (left, right) into `out`: the net
+        tangential force of its contacts over μ times their net normal force. The cylinder
+        touches the floor at its two rims, whose forces also push against each other when the
+        wheel turns about the vertical (scrub, internal to the wheel): the net is the wheel's
+        traction on the floor. 1 means it is at its limit: the wheel slides. Below it the
+        wheel still creeps (MuJoCo's soft contacts, as a tyre does) — the slip speed counts
+        that too."""
+        m, d = self.model, self.data
+        f = self._contact_force
+        tangential = np.zeros((2, 3))
+        normal = np.zeros(2)
+        mu = np.zeros(2)
+        for i in range(d.ncon):
+            c = d.contact[i]
+            for side, body in enumerate(self.wheel_body):
+                if m.geom_bodyid[c.geom1] == body or m.geom_bodyid[c.geom2] == body:
+                    mujoco.mj_contactForce(m, d, i, f)
+                    frame = c.frame.reshape(3, 3)  # rows: the normal, two tangents
+                    tangential[side] += f[1] * frame[1] + f[2] * frame[2]
+                    normal[side] += f[0]
+                    mu[side] = c.friction[0]
+        for side in range(2):
+            out[side] = np.linalg.norm(tangential[side]) / (mu[side] * normal[side]) if normal[side] > 0 else 0.0
 
     def wheel_angles(self):
         return [float(self.data.qpos[a]) for a in self.wheel_qadr]
