@@ -288,7 +288,12 @@ def target_velocity(t):
 
 
 class Robot:
-    """Unicycle + RPR arm + target, integrated by RK4 under a held command."""
+    """Unicycle + RPR arm + target, integrated by RK4 under a held command.
+
+    What the session loops ask of a robot (another plant — bridges/mujoco — gives the same):
+    `measure()`, `advance(previous, command, delay)`, `tracking_error()`, `t`, `base`, `q`,
+    `limits`, `space`, `arm_hash`, and the commands it takes: `command_of(c)` (a checked
+    CommandMsg; its first two entries v and ω) and `zero_command()`."""
 
     space = PLANAR
     limits = RPR_LIMITS
@@ -304,6 +309,12 @@ class Robot:
     @property
     def t(self):
         return self.step * self.dt
+
+    def command_of(self, c):
+        return command_of(c, len(self.q))
+
+    def zero_command(self):
+        return zero_command(len(self.q))
 
     def measure(self):
         """Time, platform, joints and the target as the wire carries it."""
@@ -906,14 +917,17 @@ class Summary:
 
 
 class Bridge:
-    def __init__(self, a):
+    def __init__(self, a, robot=None):
+        """The session of `a` (the flags) with `robot` (default: the kinematic robot `a.arm`
+        names)."""
         self.a = a
         command = CommandWithoutJointScale if a.short_command else Command
-        if a.arm and a.arm.endswith(".urdf"):
+        if robot is None and a.arm and a.arm.endswith(".urdf"):
             chain = UrdfChain(a.arm, a.base_link, a.tip_link, a.home, a.srdf, a.home_state)
-            self.robot = SpatialRobot(a.dt, chain)
-        else:
-            self.robot = SpatialRobot(a.dt, Chain(a.arm)) if a.arm else Robot(a.dt)
+            robot = SpatialRobot(a.dt, chain)
+        elif robot is None:
+            robot = SpatialRobot(a.dt, Chain(a.arm)) if a.arm else Robot(a.dt)
+        self.robot = robot
         self.joints = len(self.robot.q)
         # What this bridge announces: its robot's, unless a test says otherwise.
         self.joint_count = self.joints if a.joint_count is None else a.joint_count
@@ -941,6 +955,12 @@ class Bridge:
         self.joint_scale_invalid = 0
         self.last_sent = None
         self.poll = not a.events  # sleep on the controller's event only while it notifies
+        # Real time: how long before each release the loop stops sleeping and spins; how often
+        # it fell more than a period behind its schedule (and restarted it), and by how much
+        # in all (the run then took that much longer than its simulated time).
+        self.spin_ns = 300_000
+        self.fell_behind = 0
+        self.behind_ns = 0
 
     # -- messages --
 
@@ -1083,7 +1103,7 @@ class Bridge:
             c, _ = got
             self.counts["fresh"] += 1
             self.note_diagnostics(c)
-            cmd = command_of(c, self.joints)
+            cmd = self.robot.command_of(c)
             self.summary.add(self.robot, cmd)
             if n < steps:
                 self.robot.advance(cmd, cmd, 0.0)
@@ -1094,7 +1114,7 @@ class Bridge:
         period = self.period_ns
         deadline_ns = int(a.deadline_us * 1000)
         start = time.monotonic_ns()
-        acting, last_fresh, delay = zero_command(self.joints), None, 0.0
+        acting, last_fresh, delay = self.robot.zero_command(), None, 0.0
         misses = 0
         stopped = False
         heard = start
@@ -1102,8 +1122,8 @@ class Bridge:
             self.maybe_fault(n)
             self.progress(n)
             release = start + n * period
-            while time.monotonic_ns() < release - 300_000:
-                time.sleep(0.0001)
+            while (ahead := release - self.spin_ns - time.monotonic_ns()) > 0:
+                time.sleep(ahead / 1e9)
             while time.monotonic_ns() < release:
                 pass
             late = time.monotonic_ns() - release
@@ -1114,6 +1134,8 @@ class Bridge:
                     print(f"bridge: period {n} released {late / 1e6:.0f} ms late", file=sys.stderr)
                 # This process was not running: not the controller's silence.
                 heard += late - period
+                self.fell_behind += 1
+                self.behind_ns += late
                 start = time.monotonic_ns() - n * period
                 release = start + n * period
             m = self.publish(n, (END_OF_RUN if n == steps else 0) | (STOPPED if stopped else 0), delay)
@@ -1136,7 +1158,7 @@ class Bridge:
                 heard = t_rx
                 self.counts["fresh"] += 1
                 self.note_diagnostics(c)
-                cmd = last_fresh = command_of(c, self.joints)
+                cmd = last_fresh = self.robot.command_of(c)
                 misses, stopped = 0, False
                 if n > 0:
                     switch_at = min((t_rx - t_pub) * a.dt / period, a.dt * (1 - 1e-9))
@@ -1149,7 +1171,7 @@ class Bridge:
                     cmd = last_fresh
                     self.counts["held"] += 1
                 else:
-                    cmd = zero_command(self.joints)
+                    cmd = self.robot.zero_command()
                     self.counts["stopped"] += 1
                     if not stopped and last_fresh is not None:
                         self.counts["stop_events"] += 1
@@ -1207,6 +1229,8 @@ class Bridge:
             "joint_scale_invalid": self.joint_scale_invalid,
             "counts": self.counts,
             "invalid": self.invalid,
+            "fell_behind": self.fell_behind,
+            "behind_s": self.behind_ns / 1e9,
             "delay_mean_s": sum(self.delays) / len(self.delays) if self.delays else 0.0,
             "delay_max_s": max(self.delays) if self.delays else 0.0,
         }
@@ -1279,8 +1303,9 @@ def _terminate(*_):
     raise KeyboardInterrupt
 
 
-def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def session_arguments(p):
+    """The flags of a plant session (the wire, time, the handshake's announcement and the
+    test faults): the reference bridge's and the MuJoCo plant's (bridges/mujoco)."""
     p.add_argument("--name", default="demo", help="the demo's name (services companion/NAME/v4/…)")
     p.add_argument("--duration", type=float, default=30.0, help="simulated seconds")
     p.add_argument("--dt", type=float, default=0.001, help="control period and hold (s)")
@@ -1293,17 +1318,6 @@ def main(argv=None):
     p.add_argument("--startup-timeout", type=float, default=20.0, help="s")
     p.add_argument("--scenario-json", help="a scenario.json whose controller object gives the scenario hash")
     p.add_argument("--scenario-hash", type=lambda s: int(s, 0), default=0, help="sent as is (0: not checked)")
-    p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
-    p.add_argument(
-        "--arm",
-        help="an arm file of 6 to 8 joints (examples/arms/ur5.toml) or a URDF (with --tip-link and --home): "
-        "its chain tracks trajectory 1 lifted (default: the paper's RPR arm on trajectory 1)",
-    )
-    p.add_argument("--base-link", help="URDF arm: the chain's first link (default: the root link)")
-    p.add_argument("--tip-link", help="URDF arm: the end effector's link")
-    p.add_argument("--srdf", help="URDF arm: an SRDF whose <group_state> --home-state gives the home")
-    p.add_argument("--home-state", help="URDF arm: the SRDF's <group_state> name")
-    p.add_argument("--home", help="URDF arm: q1,…,qN in the chain's order, or name=value,… over --home-state's")
     p.add_argument("--joint-count", type=int, help="(tests) the joint count sent (default: the arm's)")
     p.add_argument(
         "--arm-hash", type=lambda s: int(s, 0), help="sent as is (default: the arm's own; 0: not checked)"
@@ -1319,21 +1333,30 @@ def main(argv=None):
     p.add_argument("--pause-at", type=int, default=-1, help="(tests) pause before this period")
     p.add_argument("--pause-ms", type=float, default=100.0)
     p.add_argument("--stall-at", type=int, default=-1, help="(tests) stop publishing, stay alive")
-    p.add_argument("--out", help="write the run's figures as JSON here")
-    p.add_argument("--rows", help="(real time) write one CSV row per period here: t, |e_p|, fresh/held/stopped, delay")
     p.add_argument(
         "--progress", type=int, default=0, help="print 'bridge: period N' every N periods (0: never)"
     )
-    a = p.parse_args(argv)
+
+
+def finish_arguments(a):
+    """What session_arguments' flags need after parsing: the injections parsed, the scenario
+    hash read from --scenario-json."""
     a.inject = parse_inject(a.inject)
     if a.scenario_json:
         with open(a.scenario_json) as f:
             described = json.load(f)
         # A spatial run's scenario.json holds the planar run's scenario under `base`.
         a.scenario_hash = scenario_hash(described.get("controller") or described["base"]["controller"])
+    return a
+
+
+def serve(make_bridge):
+    """Runs the session `make_bridge()` builds to its end and reports it: the exit code
+    (0 completed, 2 an error or a refusal, 3 the controller died or left, 4 it is silent,
+    130 interrupted)."""
     signal.signal(signal.SIGTERM, _terminate)
     try:
-        bridge = Bridge(a)
+        bridge = make_bridge()
     except Fatal as e:
         print(f"error: {e}", file=sys.stderr)
         return EXIT_ERROR
@@ -1349,6 +1372,26 @@ def main(argv=None):
         code, why = EXIT_INTERRUPTED, "interrupted; robot stopped"
     bridge.report(code, why)
     return code
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    session_arguments(p)
+    p.add_argument("--platform", choices=sorted(PLATFORMS), default="unicycle")
+    p.add_argument(
+        "--arm",
+        help="an arm file of 6 to 8 joints (examples/arms/ur5.toml) or a URDF (with --tip-link and --home): "
+        "its chain tracks trajectory 1 lifted (default: the paper's RPR arm on trajectory 1)",
+    )
+    p.add_argument("--base-link", help="URDF arm: the chain's first link (default: the root link)")
+    p.add_argument("--tip-link", help="URDF arm: the end effector's link")
+    p.add_argument("--srdf", help="URDF arm: an SRDF whose <group_state> --home-state gives the home")
+    p.add_argument("--home-state", help="URDF arm: the SRDF's <group_state> name")
+    p.add_argument("--home", help="URDF arm: q1,…,qN in the chain's order, or name=value,… over --home-state's")
+    p.add_argument("--out", help="write the run's figures as JSON here")
+    p.add_argument("--rows", help="(real time) write one CSV row per period here: t, |e_p|, fresh/held/stopped, delay")
+    a = finish_arguments(p.parse_args(argv))
+    return serve(lambda: Bridge(a))
 
 
 if __name__ == "__main__":

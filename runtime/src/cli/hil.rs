@@ -35,6 +35,7 @@ use super::exit::{
     EXIT_CHAOS_MISMATCH, EXIT_DEADLINES, EXIT_ERROR, EXIT_INTERRUPTED, EXIT_NAME_IN_USE, EXIT_PEER_HUNG,
     EXIT_PEER_LOST, EXIT_REJECTED,
 };
+use super::mujoco::{plant_process, DemoFlags, PlantArg};
 use super::sim::print_table;
 use super::terminal::Terminal;
 
@@ -373,6 +374,21 @@ pub struct HilArgs {
     /// Set by `companion hil` on the plant it starts.
     #[arg(long, hide = true)]
     pub child: bool,
+    /// The plant hil starts: kinematic or mujoco.
+    ///
+    /// The plant `companion hil` starts: `kinematic` (`companion plant`: the kinematics
+    /// integrated exactly) or `mujoco` (the MuJoCo plant, bridges/mujoco: the robot's URDF with
+    /// wheels, drives, servos and gravity, in target/py's Python). The book's chapter "Physics
+    /// plant (MuJoCo)" (docs/book/src/mujoco.md) tells what it simulates and measures.
+    #[arg(long, value_enum, default_value = "kinematic", value_name = "PLANT", hide_possible_values = true)]
+    pub plant: PlantArg,
+    /// --plant mujoco: one more of its own flags.
+    ///
+    /// With --plant mujoco: one more argument for the MuJoCo plant (repeatable), e.g.
+    /// `--plant-arg=--set=arm.time_constant=0.002` or `--plant-arg=--filmstrip=0`
+    /// (`target/py/bin/python bridges/mujoco/companion_mujoco.py --help` lists them).
+    #[arg(long = "plant-arg", value_name = "ARG", allow_hyphen_values = true)]
+    pub plant_args: Vec<String>,
 }
 
 fn secs_to_ns(s: f64) -> u64 {
@@ -734,13 +750,29 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     }
     let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
     let mut plant = Process::new(&exe);
-    plant
-        .arg("plant")
-        .args(forwarded_args())
-        .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
-        .args(&plant_tls)
-        .arg("--child")
-        .stdin(Stdio::null());
+    if a.plant == PlantArg::Mujoco {
+        let unsupported = [
+            (a.transport != TransportArg::Iceoryx2, "--transport zenoh"),
+            (a.chaos.is_some(), "--chaos"),
+            (a.mcap.is_some(), "--mcap"),
+            (a.delay != 0.0, "--delay"),
+            (a.max_command_age != 0, "--max-command-age"),
+        ];
+        let unsupported = unsupported.iter().filter(|(given, _)| *given).map(|(_, f)| *f).collect();
+        let flags = DemoFlags { arm: &a.arm, scenario: &a.scenario, plant_args: &a.plant_args, unsupported };
+        plant = plant_process(&flags, &cfg, &s)?;
+    } else {
+        plant
+            .arg("plant")
+            .args(forwarded_args())
+            .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
+            .args(&plant_tls)
+            .arg("--child");
+    }
+    if a.plant == PlantArg::Kinematic && !a.plant_args.is_empty() {
+        bail!("--plant-arg is for --plant mujoco");
+    }
+    plant.stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {
         // The faults count from a second from now in both processes.
         c.epoch_ns = companion_runtime::sys::rt::monotonic_ns() + 1_000_000_000;
@@ -844,6 +876,12 @@ fn print_failures(who: &str, failures: &[Failure]) {
 /// A bad flag, a transport failure, or files that cannot be written.
 pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
     setup()?;
+    if a.plant == PlantArg::Mujoco || !a.plant_args.is_empty() {
+        bail!(
+            "--plant and --plant-arg are for `companion hil`; the MuJoCo plant alone is \
+             target/py/bin/python bridges/mujoco/companion_mujoco.py (docs/book/src/mujoco.md)"
+        );
+    }
     let (mut cfg, s) = a.resolve()?;
     match (cfg.chaos, a.chaos_epoch_ns) {
         (Some(_), None) => bail!("--chaos is for `companion hil` (it starts the plant with it)"),

@@ -10,6 +10,7 @@ mod explore;
 mod footer;
 mod hil;
 mod latency;
+mod mujoco;
 mod ros2;
 mod sim;
 mod terminal;
