@@ -13,7 +13,8 @@ installation. It is the kinematic robot `companion ros2` drives in the tests:
   `--target node` reads the target the node generates and checks it against the same closed
   form;
 - measures the tracking error with its own kinematics (the reference bridge's reading of the
-  arm file: bridges/python/companion_bridge.py), independently of the node;
+  arm file or of a URDF chain, `--arm robot.urdf --base-link B --tip-link T --home …`:
+  bridges/python/companion_bridge.py), independently of the node;
 - `--inject KIND@T` for `--inject-for` seconds from T seconds after the first command: `stale`
   (joint states stamped 1 s old), `nan` (a NaN joint position), `names` (the arm's last joint
   left out), `silent` (no joint states);
@@ -41,6 +42,7 @@ from companion_bridge import (  # noqa: E402
     LIFT_PERIOD,
     TARGET_DISTANCE,
     Chain,
+    UrdfChain,
     compose3,
     inverse3,
     planar_pose3,
@@ -164,9 +166,13 @@ def qos(args, depth=None):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--arm", required=True, help="arm file (TOML), or rpr (the paper's planar arm)")
-    p.add_argument("--joint-names", default=UR5_JOINTS)
-    p.add_argument("--extra-joint", action="append", default=["torso_lift_joint"], help="listed too, first")
+    p.add_argument("--arm", required=True, help="arm file (TOML), a URDF, or rpr (the paper's planar arm)")
+    p.add_argument("--base-link", default=None, help="URDF: the chain's first link")
+    p.add_argument("--tip-link", default=None, help="URDF: the chain's last link")
+    p.add_argument("--home", default=None, help="URDF: the home, q1,…,qN or name=value,…")
+    p.add_argument("--joint-names", default=None, help="default: a URDF's, else the UR5's")
+    p.add_argument("--extra-joint", action="append", default=None,
+                   help="listed too, first (default: torso_lift_joint, or head_1_joint if the arm has it)")
     p.add_argument("--rate", type=float, default=1000.0)
     p.add_argument("--domain-id", type=int, default=0)
     p.add_argument("--target", choices=["topics", "node"], default="node")
@@ -190,13 +196,20 @@ def main(argv=None):
 
     if args.arm == "rpr":
         # The paper's planar arm: its joints only (q(0) = (0, 0.35, 0)); no error measured here.
-        chain, names, n = None, args.joint_names.split(","), 3
+        chain, names, n = None, (args.joint_names or UR5_JOINTS).split(","), 3
         robot = PlanarRobot()
-    else:
-        chain = Chain(args.arm)
-        names = args.joint_names.split(",")
+    elif args.arm.endswith(".urdf"):
+        chain = UrdfChain(args.arm, args.base_link, args.tip_link, args.home)
+        names = args.joint_names.split(",") if args.joint_names else chain.joint_names
         n = len(chain.joints)
         robot = Robot(chain, n)
+    else:
+        chain = Chain(args.arm)
+        names = (args.joint_names or UR5_JOINTS).split(",")
+        n = len(chain.joints)
+        robot = Robot(chain, n)
+    if args.extra_joint is None:
+        args.extra_joint = ["head_1_joint" if "torso_lift_joint" in names else "torso_lift_joint"]
     if len(names) != n:
         raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
     traj = LiftedTrajectory1(robot.height)
