@@ -440,6 +440,52 @@ fn the_tiago_from_its_urdf_runs_in_the_demo_against_a_controller_reading_the_sam
     e_p_checks_independently(&out);
 }
 
+/// ‖p̃‖ (the position half of `e_p`) of each row of a run's `timeseries.csv`, with its time.
+fn position_errors(run: &Path) -> Vec<(f64, f64)> {
+    let text = std::fs::read_to_string(run.join("timeseries.csv")).unwrap();
+    let mut lines = text.lines();
+    let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = |name: &str| head.iter().position(|h| *h == name).unwrap_or_else(|| panic!("no column {name}"));
+    let (t, x, y, z) = (col("t"), col("ep_x"), col("ep_y"), col("ep_z"));
+    lines
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap_or(f64::NAN)).collect();
+            (v[t], (v[x] * v[x] + v[y] * v[y] + v[z] * v[z]).sqrt())
+        })
+        .collect()
+}
+
+/// The book's TIAGo command (the mid-reach home and transverse function of
+/// `examples/arms/tiago-unicycle.toml`), 20 s in lockstep: the TIAGo on its wheels converges
+/// from 2 m away to within 5 cm over the last 5 s (3.2 cm measured; issue 36's aim of 2 mm is
+/// not met, docs/book/src/mujoco.md says why), its wheels at their friction's limit less than
+/// 1 % of the time (0.3 % measured) and no joint at its limit.
+#[test]
+fn the_tiago_from_a_home_it_settles_from_converges_on_its_wheels_without_sliding() {
+    if !available() {
+        return;
+    }
+    let _g = one_at_a_time();
+    let out = out_dir("tiago-settles");
+    let mut c = Command::new(BIN);
+    c.args(["hil", "--plant", "mujoco", "--name", &demo("tiago-settles"), "--platform", "unicycle"])
+        .args(["--arm", &tiago_urdf(), "--config"])
+        .arg(workspace().join("examples/arms/tiago-unicycle.toml"))
+        .args(["--lockstep", "--duration", "20", "--plant-arg=--filmstrip=0", "--no-plots", "--out"])
+        .arg(&out);
+    let (st, text) = ended(started(c), "companion hil --plant mujoco (TIAGo, mid-reach home)");
+    assert!(st.success(), "{text}");
+    let e = position_errors(&out);
+    assert!(e[0].1 > 1.0, "the target starts {} m away", e[0].1);
+    let last = e.iter().filter(|(t, _)| *t >= 15.0).map(|(_, p)| *p).fold(0.0, f64::max);
+    assert!(last < 0.05, "max |p~| over 15-20 s: {last} m");
+    let s = json(&out.join("summary.json"));
+    let sliding = s["wheel_slip"]["sliding_fraction_of_time"].as_f64().unwrap();
+    assert!(sliding < 0.01, "the wheels slide {sliding} of the time");
+    assert_eq!(s["joint_limit_reached"], serde_json::Value::Bool(false), "{s}");
+    e_p_checks_independently(&out);
+}
+
 #[test]
 fn what_the_mujoco_plant_cannot_do_is_refused_by_name_before_anything_starts() {
     if !available() {
