@@ -56,14 +56,12 @@ use serde::Deserialize;
 
 use crate::domain::platform_config::{CarConfig, UnicycleConfig};
 
+mod size;
 pub mod urdf;
 
 pub use self::urdf::{HomeList, UrdfError, UrdfRequest};
 
-/// The most joints a spatial arm may have here (the record and the CSV carry this many).
-pub const MAX_JOINTS: usize = 8;
-/// The fewest joints a spatial arm needs (the task has six dimensions).
-pub const MIN_SPATIAL_JOINTS: usize = 6;
+pub use self::size::{MAX_JOINTS, MIN_SPATIAL_JOINTS};
 
 /// What `--arm` names.
 #[derive(Clone, Debug, PartialEq)]
@@ -207,7 +205,7 @@ impl SpatialArmSpec {
             ArmChoice::Ur5 => Some(Self::Ur5),
             ArmChoice::Panda => Some(Self::Panda),
             ArmChoice::File(p) => Some(Self::File(Box::new(ArmDescription::load(p)?))),
-            ArmChoice::Urdf(r) => Some(Self::File(Box::new(urdf::load(r)?))),
+            ArmChoice::Urdf(r) => Some(Self::File(Box::new(ArmDescription::from_urdf(r)?))),
         })
     }
 
@@ -402,6 +400,44 @@ impl ArmError {
 }
 
 impl ArmDescription {
+    /// The chain `request` cuts from a URDF, as an arm description, checked: a rule the
+    /// chain breaks is named by the URDF's joint.
+    ///
+    /// # Errors
+    /// [`UrdfError`], naming the file and the joint or link.
+    pub fn from_urdf(request: &UrdfRequest) -> Result<Self, UrdfError> {
+        let c = urdf::read(request)?;
+        let d = Self {
+            name: c.name,
+            mount: c.mount,
+            joints: c.joints,
+            tool: c.tool,
+            platform: PlatformDefaults::default(),
+            joint_names: c.joint_names,
+        };
+        let path = &request.path;
+        d.check().map_err(|e| match e {
+            ArmError::Invalid { field, rule } => {
+                // "joint 3: limits" → the joint's name.
+                let (joint, field) = match field.strip_prefix("joint ").and_then(|r| r.split_once(": ")) {
+                    Some((k, f)) => {
+                        let k: usize = k.parse().unwrap_or(1);
+                        (d.joint_names.get(k - 1).cloned().unwrap_or_default(), f.to_string())
+                    }
+                    None => (field.clone(), field),
+                };
+                UrdfError::Invalid { path: path.clone(), joint, field, rule }
+            }
+            other => UrdfError::Invalid {
+                path: path.clone(),
+                joint: String::new(),
+                field: other.to_string(),
+                rule: companion_core::Rule::Geometry,
+            },
+        })?;
+        Ok(d)
+    }
+
     /// Reads, parses and checks an arm file (its chain is built once in `f64` to check every
     /// rule).
     ///

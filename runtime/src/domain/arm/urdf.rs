@@ -45,7 +45,7 @@ use std::path::{Path, PathBuf};
 use companion_core::nalgebra::{Matrix3, Vector3};
 use companion_core::{so3, FrameData, JointData, JointKind, Pose3};
 
-use super::{ArmDescription, PlatformDefaults, MAX_JOINTS, MIN_SPATIAL_JOINTS};
+use super::size::{MAX_JOINTS, MIN_SPATIAL_JOINTS};
 
 /// The xacro namespace (ROS's macro language for URDFs).
 const XACRO_NS: &str = "http://www.ros.org/wiki/xacro";
@@ -491,11 +491,27 @@ pub fn is_urdf(path: &Path) -> bool {
     is_xacro(path) || path.extension().is_some_and(|e| e.eq_ignore_ascii_case("urdf"))
 }
 
+/// The chain a URDF gives between two links, with its home: what an arm description is
+/// made of (`ArmDescription::from_urdf` builds and checks it).
+#[derive(Clone, Debug, PartialEq)]
+pub struct UrdfChain {
+    /// The robot's name (`<robot name>`).
+    pub name: String,
+    /// The base link seen from the platform's frame (the request's mount, or the identity).
+    pub mount: FrameData<f64>,
+    /// The moving joints from the base link outwards, each with its home.
+    pub joints: Vec<JointData<f64>>,
+    /// The tip link in the last moving joint's frame (the fixed joints after it folded in).
+    pub tool: FrameData<f64>,
+    /// The moving joints' names, in the same order.
+    pub joint_names: Vec<String>,
+}
+
 /// Reads the chain `request` asks for.
 ///
 /// # Errors
 /// [`UrdfError`], naming the file and the joint or link.
-pub fn load(request: &UrdfRequest) -> Result<ArmDescription, UrdfError> {
+pub fn read(request: &UrdfRequest) -> Result<UrdfChain, UrdfError> {
     let path = &request.path;
     if is_xacro(path) {
         return Err(UrdfError::Xacro { path: path.clone() });
@@ -520,34 +536,13 @@ pub fn load(request: &UrdfRequest) -> Result<ArmDescription, UrdfError> {
     let joints: Vec<JointData<f64>> =
         cut.joints.iter().zip(&home).map(|((_, j), &h)| JointData { home: h, ..*j }).collect();
     let identity = FrameData { xyz: [0.0; 3], rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]] };
-    let d = ArmDescription {
+    Ok(UrdfChain {
         name: tree.name.clone(),
         mount: request.mount.unwrap_or(identity),
         joints,
         tool: cut.tool,
-        platform: PlatformDefaults::default(),
         joint_names: names,
-    };
-    d.check().map_err(|e| match e {
-        super::ArmError::Invalid { field, rule } => {
-            // "joint 3: limits" → the joint's name.
-            let (joint, field) = match field.strip_prefix("joint ").and_then(|r| r.split_once(": ")) {
-                Some((k, f)) => {
-                    let k: usize = k.parse().unwrap_or(1);
-                    (d.joint_names.get(k - 1).cloned().unwrap_or_default(), f.to_string())
-                }
-                None => (field.clone(), field),
-            };
-            UrdfError::Invalid { path: path.clone(), joint, field, rule }
-        }
-        other => UrdfError::Invalid {
-            path: path.clone(),
-            joint: String::new(),
-            field: other.to_string(),
-            rule: companion_core::Rule::Geometry,
-        },
-    })?;
-    Ok(d)
+    })
 }
 
 impl Tree {
@@ -1026,6 +1021,11 @@ pub fn srdf_state(path: &Path, state: &str) -> Result<Vec<(String, f64)>, UrdfEr
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The reader and the arm description's checks, as `--arm robot.urdf` runs them.
+    fn load(request: &UrdfRequest) -> Result<crate::domain::arm::ArmDescription, UrdfError> {
+        crate::domain::arm::ArmDescription::from_urdf(request)
+    }
 
     /// A small mobile manipulator: a fixed mount, a prismatic torso, six revolute joints of
     /// which the fifth is continuous, a fixed tool; and a wheel and a camera off the chain.

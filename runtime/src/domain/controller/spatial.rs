@@ -305,7 +305,12 @@ mod tests {
         let chain = Chain::<f64, 6>::ur5();
         let core = SpatialArm::new(&chain).unwrap();
         let arm = spatial_arm(&spec, &chain).unwrap();
-        assert_eq!((arm.damping(), arm.singular_below()), (core.damping(), core.singular_below()));
+        // Unset, the onset is the core's rule from the arm's home (the UR5's: ρ_home / 50, under
+        // the fixed 10⁻³), the depth and the singular bound the core's.
+        let p = spatial_params::<f64, 6>(&spec, &core).unwrap();
+        let onset = core.onset_from_home(&p.primary, &p.joint_limits);
+        assert!(onset > 0.0 && onset < 1e-3, "{onset}");
+        assert_eq!((arm.damping(), arm.singular_below()), ((onset, core.damping().1), core.singular_below()));
         spec.overrides.damping_below = Some(1e-2);
         spec.overrides.singular_below = Some(1e-12);
         let arm = spatial_arm(&spec, &chain).unwrap();
