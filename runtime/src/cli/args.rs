@@ -189,7 +189,7 @@ pub struct ScenarioArgs {
     /// Limits: none, realistic or tiago (accelerations too).
     ///
     /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs; it
-    /// also drops any acceleration limits of --config's [acceleration_limits]), unless the
+    /// also drops any acceleration limits of --config's `[acceleration_limits]`), unless the
     /// config file sets some; `realistic` (a realistic robot's limits, see
     /// `companion_plant::realistic_limits`); `tiago` (the TIAGo base as PAL configures it,
     /// with its acceleration limits, met by a second common factor on the change of the

@@ -166,7 +166,7 @@ pub enum UrdfError {
         line: u32,
         /// The element, e.g. "joint `arm_1_joint`".
         what: String,
-        /// What is missing, e.g. "`type` attribute" or "<parent link>".
+        /// What is missing, e.g. "`type` attribute" or "`<parent link>`".
         missing: String,
     },
     /// An attribute's value is not what it must be.
