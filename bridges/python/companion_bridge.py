@@ -1338,6 +1338,16 @@ def session_arguments(p):
     )
 
 
+def urdf_arguments(p):
+    """The flags that cut a chain from a URDF and give its home, as `companion` takes them (the
+    bridge, the MuJoCo plant and the ROS 2 stand-in share them; `UrdfChain` reads them)."""
+    p.add_argument("--base-link", help="URDF arm: the chain's first link (default: the root link)")
+    p.add_argument("--tip-link", help="URDF arm: the end effector's link")
+    p.add_argument("--srdf", help="URDF arm: an SRDF whose <group_state> --home-state gives the home")
+    p.add_argument("--home-state", help="URDF arm: the SRDF's <group_state> name")
+    p.add_argument("--home", help="URDF arm: q1,…,qN in the chain's order, or name=value,… over --home-state's")
+
+
 def finish_arguments(a):
     """What session_arguments' flags need after parsing: the injections parsed, the scenario
     hash read from --scenario-json."""
@@ -1383,11 +1393,7 @@ def main(argv=None):
         help="an arm file of 6 to 8 joints (examples/arms/ur5.toml) or a URDF (with --tip-link and --home): "
         "its chain tracks trajectory 1 lifted (default: the paper's RPR arm on trajectory 1)",
     )
-    p.add_argument("--base-link", help="URDF arm: the chain's first link (default: the root link)")
-    p.add_argument("--tip-link", help="URDF arm: the end effector's link")
-    p.add_argument("--srdf", help="URDF arm: an SRDF whose <group_state> --home-state gives the home")
-    p.add_argument("--home-state", help="URDF arm: the SRDF's <group_state> name")
-    p.add_argument("--home", help="URDF arm: q1,…,qN in the chain's order, or name=value,… over --home-state's")
+    urdf_arguments(p)
     p.add_argument("--out", help="write the run's figures as JSON here")
     p.add_argument("--rows", help="(real time) write one CSV row per period here: t, |e_p|, fresh/held/stopped, delay")
     a = finish_arguments(p.parse_args(argv))

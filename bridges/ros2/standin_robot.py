@@ -43,6 +43,7 @@ from companion_bridge import (  # noqa: E402
     TARGET_DISTANCE,
     Chain,
     UrdfChain,
+    urdf_arguments,
     compose3,
     inverse3,
     planar_pose3,
@@ -167,9 +168,7 @@ def qos(args, depth=None):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--arm", required=True, help="arm file (TOML), a URDF, or rpr (the paper's planar arm)")
-    p.add_argument("--base-link", default=None, help="URDF: the chain's first link")
-    p.add_argument("--tip-link", default=None, help="URDF: the chain's last link")
-    p.add_argument("--home", default=None, help="URDF: the home, q1,…,qN or name=value,…")
+    urdf_arguments(p)
     p.add_argument("--joint-names", default=None, help="default: a URDF's, else the UR5's")
     p.add_argument("--extra-joint", action="append", default=None,
                    help="listed too, first (default: torso_lift_joint, or head_1_joint if the arm has it)")
@@ -199,7 +198,7 @@ def main(argv=None):
         chain, names, n = None, (args.joint_names or UR5_JOINTS).split(","), 3
         robot = PlanarRobot()
     elif args.arm.endswith(".urdf"):
-        chain = UrdfChain(args.arm, args.base_link, args.tip_link, args.home)
+        chain = UrdfChain(args.arm, args.base_link, args.tip_link, args.home, args.srdf, args.home_state)
         names = args.joint_names.split(",") if args.joint_names else chain.joint_names
         n = len(chain.joints)
         robot = Robot(chain, n)
