@@ -8,6 +8,9 @@
 //! start (exit 2, one sentence, nothing written). The same rogues, against a node that is not
 //! secured, are heard: the check can fail.
 //!
+//! Encrypted, too: a capture of the machine's frames finds the robot's joint states in clear
+//! in the plain run and in none of the secured run's.
+//!
 //! The robots and rogues are ros2-client participants in this process (RustDDS, the node's
 //! own DDS: the wheels of ROS 2's Fast DDS on PyPI are built without its security plugins,
 //! docs/book/src/ros2.md). Each test runs on a domain of its own; one at a time (a lock).
@@ -33,8 +36,75 @@ use serde::Serialize;
 const BIN: &str = env!("CARGO_BIN_EXE_companion");
 const SCRIPT: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../scripts/sros2-keystore");
 
-/// The paper's planar arm's joints, as the node names them (`--arm rpr`).
-const JOINTS: [&str; 3] = ["rpr_joint_1", "rpr_joint_2", "rpr_joint_3"];
+/// The planar arm's joint names in these tests (`--joint-names`): unique to this process, so
+/// that a packet capture finds them in nobody else's traffic.
+fn joints() -> [String; 3] {
+    [1, 2, 3].map(|i| format!("sros2probe{}_{i}", std::process::id()))
+}
+
+/// The frame of the robot's joint states in these tests, unique to this process.
+fn robot_frame() -> String {
+    format!("sros2probe{}_robot", std::process::id())
+}
+
+/// A capture of every frame on the machine's interfaces (a raw `AF_PACKET` socket, Python's
+/// standard library: an instrument independent of RustDDS), counting those that carry `needle`
+/// in clear: the robot's joint states' frame, which DDS-Security's encryption must hide.
+struct Capture(std::process::Child);
+
+const CAPTURE: &str = r#"
+import select, socket, sys
+needle = sys.argv[1].encode()
+s = socket.socket(socket.AF_PACKET, socket.SOCK_RAW, socket.ntohs(3))
+print("ready", flush=True)
+hits = frames = 0
+while True:
+    r, _, _ = select.select([s, sys.stdin], [], [], 0.5)
+    if sys.stdin in r and not sys.stdin.readline():
+        break
+    while s in r:
+        try:
+            f = s.recv(65535, socket.MSG_DONTWAIT)
+        except BlockingIOError:
+            break
+        frames += 1
+        hits += needle in f
+print(hits, frames, flush=True)
+"#;
+
+impl Capture {
+    /// Starts capturing (`None` when not root: raw sockets need it).
+    fn start(needle: &str) -> Option<Self> {
+        // The effective user, from /proc.
+        let root = std::fs::read_to_string("/proc/self/status").is_ok_and(|s| {
+            s.lines().any(|l| l.starts_with("Uid:") && l.split_whitespace().nth(2) == Some("0"))
+        });
+        if !root {
+            eprintln!("not root: no packet capture (raw sockets need root)");
+            return None;
+        }
+        let mut c = Command::new("python3")
+            .args(["-c", CAPTURE, needle])
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        std::io::BufRead::read_line(&mut std::io::BufReader::new(c.stdout.as_mut().unwrap()), &mut line)
+            .unwrap();
+        assert_eq!(line.trim(), "ready");
+        Some(Self(c))
+    }
+
+    /// Stops it: (frames carrying the needle, frames seen).
+    fn finish(mut self) -> (u64, u64) {
+        drop(self.0.stdin.take());
+        let o = self.0.wait_with_output().unwrap();
+        let t = String::from_utf8_lossy(&o.stdout);
+        let v: Vec<u64> = t.split_whitespace().map(|x| x.parse().unwrap()).collect();
+        (v[0], v[1])
+    }
+}
 
 static SERIAL: Mutex<()> = Mutex::new(());
 
@@ -208,7 +278,7 @@ fn peer_loop(
             NodeOptions::new().enable_rosout(false),
         )
         .expect("the peer's node");
-    let joints = publisher::<JointState>(&mut node, "/joint_states", refused);
+    let joint_states = publisher::<JointState>(&mut node, "/joint_states", refused);
     let odom = publisher::<Odometry>(&mut node, "/mobile_base_controller/odom", refused);
     let joint_cmd =
         subscription::<Float64MultiArray>(&mut node, "/arm_velocity_controller/commands", refused);
@@ -218,6 +288,7 @@ fn peer_loop(
     let mut qdot = [0.0; 3];
     let (mut x, mut y, mut th, mut v, mut w) = (0.0f64, 0.0f64, 0.0f64, 0.0, 0.0);
     let dt = if rogue { 0.001 } else { 0.01 };
+    let robot_frame = robot_frame();
     while !stop.load(Ordering::Relaxed) {
         if let Some(s) = &joint_cmd {
             while let Ok(Some((m, _))) = s.take() {
@@ -241,11 +312,13 @@ fn peer_loop(
         th += dt * w;
         let stamp = now();
         let header = |frame: &str| Header { stamp, frame_id: frame.into() };
-        if let Some(p) = &joints {
+        if let Some(p) = &joint_states {
             let position = if rogue { vec![f64::NAN; 3] } else { q.to_vec() };
+            // The robot's frame, unique to it, is the capture's needle (a rogue's joint
+            // names, the same, may go out in clear: it is not secured).
             let m = JointState {
-                header: header(""),
-                name: JOINTS.iter().map(|s| (*s).to_string()).collect(),
+                header: header(if rogue { "" } else { &robot_frame }),
+                name: joints().to_vec(),
                 position,
                 velocity: vec![],
                 effort: vec![],
@@ -282,6 +355,7 @@ fn node(
 ) -> (Output, Option<serde_json::Value>) {
     let mut c = Command::new(BIN);
     c.args(["ros2", "--domain-id", &domain.to_string(), "--dt", "0.01", "--duration", &seconds.to_string()])
+        .args(["--joint-names", &joints().join(",")])
         .args(["--startup-timeout", "60", "--max-miss-fraction", "1", "--out", out.to_str().unwrap()])
         .env_remove("ROS_SECURITY_ENABLE")
         .env_remove("ROS_SECURITY_ENCLAVE_OVERRIDE")
@@ -354,7 +428,9 @@ fn a_secured_node_hears_only_its_certified_robot_and_no_rogue_reads_its_commands
     let other_ca = Peer::start(dom, Some(&b.join("enclaves/robot")), true);
     let forger = Peer::start(dom, Some(&f), true);
     let intruder = Peer::start(dom, Some(&a.join("enclaves/intruder")), true);
+    let capture = Capture::start(&robot_frame());
     let (o, summary) = node(dom, Some(&a), &d.join("node"), 4.0);
+    let captured = capture.map(Capture::finish);
     let (robot, robot_refused) = robot.finish();
     let rogues = [("plain", plain.finish()), ("other CA", other_ca.finish()), ("forger", forger.finish())];
     let (intruder, intruder_refused) = intruder.finish();
@@ -399,6 +475,13 @@ fn a_secured_node_hears_only_its_certified_robot_and_no_rogue_reads_its_commands
         );
     }
     assert!(intruder_refused.iter().all(|r| r.contains("security")), "{intruder_refused:?}");
+    // The robot's joint states went over the wire encrypted: not one frame carried them in
+    // clear (the plain run below finds them).
+    if let Some((hits, frames)) = captured {
+        println!("capture: {hits} of {frames} frames carry the robot's joint states in clear");
+        assert!(frames > 1000, "{frames} frames captured");
+        assert_eq!(hits, 0, "{hits} frames carry the robot's joint states in clear");
+    }
     assert!(o.status.success(), "{log}");
 }
 
@@ -411,7 +494,9 @@ fn without_security_the_same_rogue_is_heard_and_reads_the_commands() {
     let dom = domain(1);
     let robot = Peer::start(dom, None, false);
     let rogue = Peer::start(dom, None, true);
+    let capture = Capture::start(&robot_frame());
     let (o, summary) = node(dom, None, &d.join("node"), 4.0);
+    let captured = capture.map(Capture::finish);
     let (_, _) = robot.finish();
     let (rogue, _) = rogue.finish();
     let log = text(&o);
@@ -420,6 +505,10 @@ fn without_security_the_same_rogue_is_heard_and_reads_the_commands() {
     assert!(s["input_faults"]["non_finite"]["joint_states"].as_u64().unwrap() > 0, "{s}");
     let (_, joint, base) = count(&rogue);
     assert!(joint > 0 && base > 0, "the rogue read {joint} and {base} commands");
+    if let Some((hits, frames)) = captured {
+        println!("capture: {hits} of {frames} frames carry the robot's joint states in clear");
+        assert!(hits > 100, "{hits} of {frames} frames carry the robot's joint states in clear");
+    }
 }
 
 /// `ROS_SECURITY_STRATEGY=Enforce` and material that is missing or not the keystore's: exit
