@@ -45,6 +45,7 @@
 //! allocates a buffer per sample it reads or writes (its own threads, and `write`).
 
 pub mod inputs;
+pub mod security;
 pub mod target;
 
 use std::path::PathBuf;
@@ -102,6 +103,8 @@ pub struct NodeConfig {
     pub out: PathBuf,
     /// What the summary names the run by (arm, platform, run (a)–(d), target).
     pub describe: RunDescription,
+    /// SROS 2, as decided ([`security::decide`]; the enclave itself is the endpoint's).
+    pub security: security::SecuritySummary,
 }
 
 /// What the summary says the run is.
@@ -139,14 +142,17 @@ pub enum NodeError {
     /// Not every input arrived in time.
     #[error(
         "the robot's inputs did not all come within --startup-timeout ({:.1} s): {}; is the robot publishing on this ROS_DOMAIN_ID, with these topic \
-         names and a compatible QoS (a best-effort publisher does not match a reliable subscription)?",
-        .timeout_s, .missing
+         names and a compatible QoS (a best-effort publisher does not match a reliable subscription){}?",
+        .timeout_s, .missing,
+        if *.secured { ", and, the node being secured (SROS 2), certified by the keystore's identity CA and granted these topics" } else { "" }
     )]
     NoInputs {
         /// What was missing (or refused) when the time ran out.
         missing: String,
         /// The timeout (s).
         timeout_s: f64,
+        /// Whether the node ran under SROS 2 (only certified, permitted robots are heard).
+        secured: bool,
     },
     /// The generated target could not be advanced.
     #[error("the generated target: {0:?}")]
@@ -192,6 +198,8 @@ pub struct NodeSummary {
     pub topics: std::collections::BTreeMap<&'static str, String>,
     /// Every topic's QoS.
     pub qos: String,
+    /// SROS 2: whether the participant ran under DDS-Security, its enclave and strategy.
+    pub security: security::SecuritySummary,
     /// The period (s).
     pub period_s: f64,
     /// `--max-age` (s).
@@ -414,6 +422,13 @@ where
         )?),
         _ => None,
     };
+    if let Some(enc) = &cfg.endpoint.security {
+        observer.note(&format!(
+            "ros2: secured by SROS 2 (DDS-Security: authenticated, access-controlled, encrypted) with enclave {} ({})",
+            enc.name,
+            enc.dir.display()
+        ));
+    }
     observer.note(&format!(
         "ros2: node {} on ROS_DOMAIN_ID {} at {:.0} Hz, {}; waiting for {} and {}{}",
         cfg.endpoint.node_name,
@@ -580,6 +595,7 @@ where
                         return Err(NodeError::NoInputs {
                             missing: fault_text(f),
                             timeout_s: cfg.startup_timeout_ns as f64 * 1e-9,
+                            secured: cfg.endpoint.security.is_some(),
                         });
                     }
                     k += 1;
@@ -772,6 +788,7 @@ fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummar
         domain_id: e.domain_id,
         topics,
         qos: e.qos.describe(),
+        security: cfg.security.clone(),
         period_s: cfg.period_ns as f64 * 1e-9,
         max_age_s: cfg.ages.max_age_ns as f64 * 1e-9,
         silence_s: cfg.ages.silence_ns as f64 * 1e-9,

@@ -18,6 +18,7 @@ pub mod msgs;
 
 pub use self::msgs::{StampedPose, StampedTwist};
 
+use std::path::PathBuf;
 use std::sync::Arc;
 
 use self::msgs::{
@@ -99,6 +100,8 @@ pub enum TargetTopics {
 pub struct EndpointConfig {
     /// `ROS_DOMAIN_ID` (0–232).
     pub domain_id: u16,
+    /// DDS-Security (SROS 2) with this enclave's files, or none: a plain participant.
+    pub security: Option<Enclave>,
     /// The node's name (`companion`).
     pub node_name: String,
     /// The node's namespace (`/`).
@@ -131,9 +134,148 @@ pub struct EndpointConfig {
     pub world_frame: String,
 }
 
+/// An SROS 2 enclave: the folder of one participant's security files, in the layout of
+/// ROS 2's keystores (`KEYSTORE/enclaves/NAME/`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Enclave {
+    /// Its name (`/companion`).
+    pub name: String,
+    /// Its folder.
+    pub dir: PathBuf,
+}
+
+impl Enclave {
+    /// The files DDS-Security's builtin plugins read, by the names ROS 2 gives them
+    /// (rmw_dds_common's): the identity CA's certificate, the participant's certificate and
+    /// private key (PKCS#8, unencrypted), the permissions CA's certificate, and the governance
+    /// and permissions documents signed (S/MIME) by the permissions CA.
+    pub const FILES: [&'static str; 6] = [
+        "identity_ca.cert.pem",
+        "cert.pem",
+        "key.pem",
+        "permissions_ca.cert.pem",
+        "governance.p7s",
+        "permissions.p7s",
+    ];
+
+    /// The files of [`Self::FILES`] that are not in the folder (or cannot be read).
+    pub fn missing(&self) -> Vec<&'static str> {
+        Self::FILES.into_iter().filter(|f| std::fs::File::open(self.dir.join(f)).is_err()).collect()
+    }
+}
+
+/// Which way a topic goes, for the enclave's permissions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Access {
+    /// The node writes it.
+    Publish,
+    /// The node reads it.
+    Subscribe,
+}
+
+impl Access {
+    /// `publish` or `subscribe` (the words of a DDS permissions document).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Self::Publish => "publish",
+            Self::Subscribe => "subscribe",
+        }
+    }
+}
+
+/// A ROS 2 topic's DDS name: `/joint_states` → `rt/joint_states`, a relative name under the
+/// node's namespace.
+fn dds_name(namespace: &str, topic: &str) -> String {
+    match topic.strip_prefix('/') {
+        Some(abs) => format!("rt/{abs}"),
+        None => {
+            let ns = namespace.trim_matches('/');
+            if ns.is_empty() {
+                format!("rt/{topic}")
+            } else {
+                format!("rt/{ns}/{topic}")
+            }
+        }
+    }
+}
+
+/// Every DDS topic the node with `cfg` writes and reads — its own (the same list
+/// [`Ros2Endpoint::open`] makes them from) and those of ros2-client under them: the ROS graph
+/// (`ros_discovery_info`), `rt/parameter_events`, `rt/rosout`, the parameter services
+/// (`rq/NODE/…Request`, `rr/NODE/…Reply`) and the `/clock` reader of its spinner — each once,
+/// sorted: an SROS 2 enclave's permissions for exactly this node.
+pub fn dds_topics(cfg: &EndpointConfig) -> Vec<(Access, String)> {
+    use Access::{Publish, Subscribe};
+    let mut v = own_topics(cfg);
+    v.push((Publish, "ros_discovery_info".into()));
+    v.push((Subscribe, "ros_discovery_info".into()));
+    v.push((Publish, "rt/parameter_events".into()));
+    // ros2-client's context makes the `/rosout` topic whether or not the node logs to it, and
+    // DDS-Security grants making a topic only to a participant that may publish or read it.
+    v.push((Publish, "rt/rosout".into()));
+    v.push((Subscribe, "rt/clock".into()));
+    let ns = cfg.namespace.trim_matches('/');
+    let node = if ns.is_empty() { cfg.node_name.clone() } else { format!("{ns}/{}", cfg.node_name) };
+    for service in PARAMETER_SERVICES {
+        v.push((Subscribe, format!("rq/{node}/{service}Request")));
+        v.push((Publish, format!("rr/{node}/{service}Reply")));
+    }
+    v.sort();
+    v.dedup();
+    v
+}
+
+/// The parameter services ros2-client's spinner serves for every node.
+const PARAMETER_SERVICES: [&str; 6] = [
+    "describe_parameters",
+    "get_parameter_types",
+    "get_parameters",
+    "list_parameters",
+    "set_parameters",
+    "set_parameters_atomically",
+];
+
+/// The node's own topics (those [`Ros2Endpoint::open`] makes), by their DDS names.
+fn own_topics(cfg: &EndpointConfig) -> Vec<(Access, String)> {
+    use Access::{Publish, Subscribe};
+    let n = |t: &str| dds_name(&cfg.namespace, t);
+    let mut v = vec![
+        (Subscribe, n(&cfg.joint_states)),
+        (Subscribe, n(&cfg.base_pose)),
+        (Publish, n(&cfg.base_command)),
+        (Publish, n(&cfg.joint_command)),
+        (Publish, n(&cfg.diagnostics)),
+    ];
+    match cfg.target {
+        TargetTopics::Read => {
+            v.push((Subscribe, n(&cfg.target_pose)));
+            v.push((Subscribe, n(&cfg.target_twist)));
+        }
+        TargetTopics::Write => v.push((Publish, n(&cfg.target_pose))),
+    }
+    v
+}
+
 /// Why the node could not join the domain.
 #[derive(Debug, thiserror::Error)]
 pub enum Ros2Error {
+    /// DDS-Security refused the enclave's files (a certificate not signed by the identity CA,
+    /// a document not signed by the permissions CA, a grant that does not name the
+    /// certificate's subject or has expired) or a topic the permissions do not grant.
+    #[error(
+        "SROS 2: {what} refused by DDS-Security with enclave {enclave} ({dir}): {detail}",
+        dir = .dir.display()
+    )]
+    Security {
+        /// What was being made.
+        what: String,
+        /// The enclave.
+        enclave: String,
+        /// Its folder.
+        dir: PathBuf,
+        /// RustDDS's reason.
+        detail: String,
+    },
     /// The DDS participant or an entity of the node could not be made.
     #[error("ROS 2: {what}: {detail}")]
     Create {
@@ -157,9 +299,31 @@ pub enum Ros2Error {
     Thread(#[source] std::io::Error),
 }
 
-fn create<E: std::fmt::Debug>(what: impl Into<String>) -> impl FnOnce(E) -> Ros2Error {
+/// The error of making `what`: a refusal of DDS-Security said as one (naming the enclave).
+fn create_in<E: std::fmt::Debug>(
+    security: Option<&Enclave>,
+    what: impl Into<String>,
+) -> impl FnOnce(E) -> Ros2Error + '_ {
     let what = what.into();
-    move |e| Ros2Error::Create { what, detail: format!("{e:?}") }
+    move |e| {
+        let detail = format!("{e:?}");
+        match security {
+            Some(enc) if detail.contains("security") || detail.contains("Security") => Ros2Error::Security {
+                what,
+                enclave: enc.name.clone(),
+                dir: enc.dir.clone(),
+                detail: security_reason(&detail),
+            },
+            _ => Ros2Error::Create { what, detail },
+        }
+    }
+}
+
+/// RustDDS's reason out of the `Debug` of its error (`Middleware { reason: "not allowed by
+/// security: …" }`).
+fn security_reason(debug: &str) -> String {
+    let text = debug.split_once("reason: \"").map_or(debug, |(_, r)| r.trim_end_matches(['"', '}', ' ']));
+    text.trim_start_matches("not allowed by security: ").replace("\\\"", "\"")
 }
 
 /// A topic name as ROS 2 writes it (`/joint_states`, `mobile_base_controller/odom`), parsed.
@@ -240,8 +404,14 @@ impl Ros2Endpoint {
     /// # Errors
     /// A name ROS 2 does not allow, or an entity RustDDS could not make.
     pub fn open(cfg: &EndpointConfig) -> Result<Self, Ros2Error> {
-        let context = Context::with_options(ContextOptions::new().domain_id(cfg.domain_id))
-            .map_err(create(format!("joining DDS domain {}", cfg.domain_id)))?;
+        let sec = cfg.security.as_ref();
+        let mut options = ContextOptions::new().domain_id(cfg.domain_id);
+        if let Some(enc) = sec {
+            // The private key is unencrypted (RustDDS 0.15 reads no other, nor does sros2 write one).
+            options = options.enable_security(&enc.dir, String::new());
+        }
+        let context = Context::with_options(options)
+            .map_err(create_in(sec, format!("joining DDS domain {}", cfg.domain_id)))?;
         let node_name = NodeName::new(&cfg.namespace, &cfg.node_name).map_err(|e| Ros2Error::Name {
             what: "node",
             name: format!("{}/{}", cfg.namespace, cfg.node_name),
@@ -249,26 +419,26 @@ impl Ros2Endpoint {
         })?;
         let mut node = context
             .new_node(node_name, NodeOptions::new().enable_rosout(false))
-            .map_err(create("creating the node"))?;
+            .map_err(create_in(sec, "creating the node"))?;
         let qos = cfg.qos.profile();
         macro_rules! topic {
             ($name:expr, $t:ty) => {
                 node.create_topic(&topic_name($name)?, type_of::<$t>(), &qos)
-                    .map_err(create(format!("topic {}", $name)))?
+                    .map_err(create_in(sec, format!("topic {}", $name)))?
             };
         }
         macro_rules! sub {
             ($name:expr, $t:ty, $m:ty) => {{
                 let t = topic!($name, $t);
                 node.create_subscription::<$m>(&t, Some(qos.clone()))
-                    .map_err(create(format!("subscription to {}", $name)))?
+                    .map_err(create_in(sec, format!("subscription to {}", $name)))?
             }};
         }
         macro_rules! publ {
             ($name:expr, $t:ty, $m:ty) => {{
                 let t = topic!($name, $t);
                 node.create_publisher::<$m>(&t, Some(qos.clone()))
-                    .map_err(create(format!("publisher on {}", $name)))?
+                    .map_err(create_in(sec, format!("publisher on {}", $name)))?
             }};
         }
         let joint_states = sub!(&cfg.joint_states, msgs::JointState, JointSample);
@@ -292,7 +462,8 @@ impl Ros2Endpoint {
         };
         let joint_command = publ!(&cfg.joint_command, msgs::Float64MultiArray, JointVelocities);
         let diagnostics = Some(publ!(&cfg.diagnostics, DiagnosticArray, DiagnosticArray));
-        let spinner = node.spinner().map_err(create("the node's spinner"))?;
+        let spinner =
+            node.spinner().map_err(create_in(sec, "the node's spinner (parameter services, /clock)"))?;
         std::thread::Builder::new()
             .name("ros2-spinner".into())
             .spawn(move || {
