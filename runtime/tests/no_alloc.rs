@@ -754,7 +754,7 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
     use companion_runtime::run::ros2::inputs::{Ages, FaultCounts, Latest};
     use companion_runtime::run::ros2::target::{planar_pose, Generator};
     use companion_runtime::transport::ros2::msgs::{self, JointSample, Time};
-    use companion_runtime::transport::ros2::{Arrived, Inputs, StampedPose};
+    use companion_runtime::transport::ros2::{Arrived, Inputs, StampedPose, WriterId};
 
     let ss = ur5_scenario(5.0);
     let chain = ss.arm.chain::<f64, 6>().unwrap();
@@ -767,6 +767,7 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
     let ages = Ages { max_age_ns: 5_000_000, silence_ns: 20_000_000 };
     let home = chain.home();
     let base0 = Pose::new(0.5, -0.2, 0.3);
+    let robot = WriterId([7; 16]);
     let (n, finite) = allocations_in(|| {
         let mut finite = true;
         for k in 0..2000u64 {
@@ -775,15 +776,11 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
             joints[..6].copy_from_slice(home.as_slice());
             let sample = JointSample { stamp, joints, found: 0b11_1111, malformed: false };
             let inputs = Inputs {
-                joints: Arrived { last: Some(sample), samples: 1, undecodable: 0 },
-                base: Arrived {
-                    last: Some(StampedPose { stamp, pose: msgs::Pose::default() }),
-                    samples: 1,
-                    undecodable: 0,
-                },
+                joints: Arrived::one(robot, sample),
+                base: Arrived::one(robot, StampedPose { stamp, pose: msgs::Pose::default() }),
                 ..Inputs::default()
             };
-            latest.update(&inputs, k * 1_000_000, &mut counts);
+            latest.update(&inputs, k * 1_000_000, [1, 1, 0, 0], ages.silence_ns, &mut counts);
             let s = latest.check(k * 1_000_000, k as i64 * 1_000_000 + 200_000, ages).unwrap();
             let t = k as f64 * 1e-3;
             let (pose, twist) = target.at(t, &base0).unwrap();

@@ -13,7 +13,7 @@ use serde::Deserialize;
 
 use super::args::ScenarioArgs;
 #[cfg(feature = "ros2")]
-use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
+use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED, EXIT_SECOND_WRITER};
 #[cfg(feature = "ros2")]
 use super::terminal::Terminal;
 #[cfg(feature = "ros2")]
@@ -569,6 +569,7 @@ fn run_node(a: &Ros2Args) -> Result<ExitCode> {
     }
     Ok(ExitCode::from(match s.end {
         NodeEnd::Interrupted => EXIT_INTERRUPTED,
+        NodeEnd::Completed if outcome.second_writer() => EXIT_SECOND_WRITER,
         NodeEnd::Completed if outcome.rejected() => EXIT_REJECTED,
         NodeEnd::Completed if !s.failures.is_empty() => EXIT_DEADLINES,
         NodeEnd::Completed => 0,
