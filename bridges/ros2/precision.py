@@ -32,6 +32,12 @@ def load():
         return float(f.read().split()[0])
 
 
+def fmt(x):
+    if isinstance(x, dict):
+        x = x.get("p50")
+    return "—" if x is None else f"{x:.2f}"
+
+
 def one(args, k, tmp):
     domain = str(200 + (os.getpid() + k) % 30)
     out = os.path.join(tmp, f"robot-{k}.json")
@@ -57,6 +63,8 @@ def one(args, k, tmp):
         "final_position_error": f.get("final_position_error"),
         "max_position_error_last_2_s": f.get("max_position_error_last_2_s"),
         "command_latency_ms": f["command_latency_ms"],
+        "joint_command_latency_ms": f["joint_command_latency_ms"] if "joint_command_latency_ms" in f else None,
+        "node_command_delay_ms": s["command_delay"]["latency_s"] * 1e3 if s.get("command_delay") else None,
         "late": s["late"],
         "zero_commands": s["zero_commands"],
         "measurement_age_ms_p50": s["measurement_age_ns"]["p50"] / 1e6,
@@ -83,7 +91,9 @@ def main(argv=None):
             runs.append(r)
             lat = r["command_latency_ms"]
             print(f"run {k + 1}: final {r['final_position_error']:.2e} m, max last 2 s {r['max_position_error_last_2_s']:.2e} m, "
-                  f"commands' latency p50 {lat['p50']:.2f} ms p99 {lat['p99']:.2f} ms, late {r['late']}, "
+                  f"commands' latency p50 {lat['p50']:.2f} ms p99 {lat['p99']:.2f} ms "
+                  f"(joints' {fmt(r['joint_command_latency_ms'])} ms; the node's estimate {fmt(r['node_command_delay_ms'])} ms), "
+                  f"late {r['late']}, "
                   f"exit {r['exit']}, load {r['load_before']:.1f}→{r['load_after']:.1f}", flush=True)  # fmt: skip
     finals = [r["final_position_error"] for r in runs]
     lat50 = [r["command_latency_ms"]["p50"] for r in runs]
@@ -92,12 +102,14 @@ def main(argv=None):
         "runs": runs, "final_median": statistics.median(finals), "final_min": min(finals), "final_max": max(finals),
         "within_aim": sum(1 for x in finals if x <= args.aim), "aim": args.aim,
         "command_latency_p50_ms_median": statistics.median(lat50),
+        "node_command_delay_ms_median": statistics.median([r["node_command_delay_ms"] or float("nan") for r in runs]),
         "load_median": statistics.median([r["load_before"] for r in runs]),
     }  # fmt: skip
     print(f"{args.robot} robot, {args.rate:.0f} Hz, --command-latency {args.command_latency}: final error median "
           f"{summary['final_median']:.2e} m (min {summary['final_min']:.2e}, max {summary['final_max']:.2e}); "
           f"{summary['within_aim']} of {len(runs)} within {args.aim:g} m; commands' latency p50 (median of runs) "
-          f"{summary['command_latency_p50_ms_median']:.2f} ms; load median {summary['load_median']:.1f}")  # fmt: skip
+          f"{summary['command_latency_p50_ms_median']:.2f} ms, the node's estimate of the delay (median) "
+          f"{summary['node_command_delay_ms_median']:.2f} ms; load median {summary['load_median']:.1f}")  # fmt: skip
     if args.out:
         os.makedirs(os.path.dirname(os.path.abspath(args.out)), exist_ok=True)
         with open(args.out, "w") as fh:

@@ -174,8 +174,8 @@ def main(argv=None):
         "target_max_deviation": 0.0, "diagnostics": 0, "diagnostic_levels": {}, "diagnostic_messages": [],
         "rosout": [], "max_joint_command": 0.0, "max_base_command": 0.0,
     }  # fmt: skip
-    errs, latencies, gaps, commands = [], [], [], []
-    st = {"first_cmd": None, "s0_ns": None, "last_mono": t0_mono, "graph": None}
+    errs, latencies, joint_latencies, gaps, commands = [], [], [], [], []
+    st = {"first_cmd": None, "s0_ns": None, "last_mono": t0_mono, "graph": None, "base_stamp": None}
 
     def advance():
         now = time.monotonic()
@@ -199,7 +199,8 @@ def main(argv=None):
         robot.v = (tw.linear.x, tw.linear.y, tw.angular.z)
         res["base_commands"] += 1
         res["max_base_command"] = max(res["max_base_command"], abs(tw.linear.x), abs(tw.linear.y), abs(tw.angular.z))
-        latencies.append((time.time_ns() - ns_of(msg.header.stamp)) * 1e-6)
+        st["base_stamp"] = ns_of(msg.header.stamp)
+        latencies.append((time.time_ns() - st["base_stamp"]) * 1e-6)
         del now
 
     def on_joints(msg):
@@ -210,6 +211,10 @@ def main(argv=None):
             return
         robot.qdot = data
         res["joint_commands"] += 1
+        # The joint command carries no stamp: the node sends it right after the base's of the
+        # same period, whose stamp is the period's.
+        if st["base_stamp"] is not None:
+            joint_latencies.append((time.time_ns() - st["base_stamp"]) * 1e-6)
         is_zero = all(x == 0.0 for x in data) and robot.v == (0.0, 0.0, 0.0)
         biggest = max((abs(x) for x in data), default=0.0)
         res["max_joint_command"] = max(res["max_joint_command"], biggest)
@@ -344,6 +349,7 @@ def main(argv=None):
         executor.spin_once(timeout_sec=0.02)
     res["publish_gap_ms"] = percentiles(gaps)
     res["command_latency_ms"] = percentiles(latencies)
+    res["joint_command_latency_ms"] = percentiles(joint_latencies)
     res["first_command_s"] = None if st["first_cmd"] is None else st["first_cmd"] - t0_mono
     res["first_command_mono"] = st["first_cmd"]
     final_errors(res, errs, args.final_at)

@@ -742,8 +742,9 @@ fn the_simulation_loop_of_either_arm_allocates_nothing() {
 }
 
 /// `companion ros2`'s own work in a period allocates nothing: the inputs taken and checked
-/// (the HIL's safety rules), the generated target, the law's step on the measurement made of
-/// them — 2 000 periods of the UR5 at 1 kHz. (The messages' decoding and encoding are RustDDS's
+/// (the HIL's safety rules and the one-writer rule), the generated target, the law's step on the
+/// measurement made of them, the command delay's record — 5 000 periods of the UR5 at 1 kHz
+/// (more than the delay probe's capacity, so its rings wrap). (The messages' decoding and encoding are RustDDS's
 /// and serde's, inside the transport's calls.)
 #[cfg(feature = "ros2")]
 #[test]
@@ -768,9 +769,10 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
     let home = chain.home();
     let base0 = Pose::new(0.5, -0.2, 0.3);
     let robot = WriterId([7; 16]);
+    let mut probe = companion_runtime::run::ros2::delay::DelayProbe::<6>::new();
     let (n, finite) = allocations_in(|| {
         let mut finite = true;
-        for k in 0..2000u64 {
+        for k in 0..5000u64 {
             let stamp = Time::from_ns(k as i64 * 1_000_000);
             let mut joints = [f64::NAN; 8];
             joints[..6].copy_from_slice(home.as_slice());
@@ -793,10 +795,14 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
                 target_velocity: twist,
             };
             let r = law.step(&meas, 1e-3, 2e-4);
+            probe.joints(s.joints_stamp.as_ns(), &s.joints[..6]);
+            let mut sent = [0.0; 6];
+            sent.copy_from_slice(r.command.joints.as_slice());
+            probe.command(k as i64 * 1_000_000, &sent);
             finite &= r.command.joints.iter().all(|x| x.is_finite()) && r.command.platform.v.is_finite();
         }
         finite
     });
     assert!(finite);
-    assert_eq!(n, 0, "the node's period allocated {n} times in 2000 periods");
+    assert_eq!(n, 0, "the node's period allocated {n} times in 5000 periods");
 }

@@ -149,6 +149,11 @@ def test_the_node_tracks_lifted_trajectory_1_against_the_rclpy_robot(node_bin, t
     # A bound only a broken loop misses (the precision, ~1e-4 m, is precision.py's figure): the
     # robot, by its own kinematics, within 1 cm of the target at the end and in the last 2 s.
     assert f["final_position_error"] < 1e-2 and f["max_position_error_last_2_s"] < 1e-2, f
+    # The node's estimate of the robot's command delay (fitted to the joint states' response)
+    # against the robot's own clock: its joint commands arrive this long after the period's stamp.
+    est, robot_p50 = s["command_delay"]["latency_s"] * 1e3, f["joint_command_latency_ms"]["p50"]
+    print(f"command delay: the node's estimate {est:.2f} ms, the robot's joint commands p50 {robot_p50:.2f} ms")
+    assert 0 < est and abs(est - robot_p50) < 1.0, (s["command_delay"], f["joint_command_latency_ms"])
     assert code == 0, log
 
 

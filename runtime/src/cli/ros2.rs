@@ -563,6 +563,14 @@ fn run_node(a: &Ros2Args) -> Result<ExitCode> {
         s.measurement_age_ns.max as f64 / 1e6,
         s.final_ep_norm
     );
+    if let Some(d) = &s.command_delay {
+        println!(
+            "the robot's joints followed the commands {:.2} ms after their stamps (fitted to its joint states; residual {:.1e} of motion {:.1e})",
+            d.latency_s * 1e3,
+            d.residual_rms,
+            d.motion_rms
+        );
+    }
     println!("wrote {}", a.out.join("summary.json").display());
     for f in &s.failures {
         eprintln!("warning: ros2: RUN FAILED: {f}");

@@ -44,6 +44,7 @@
 //! handed to their thread through a wait-free ring ([`rtrb`]) and formatted there. RustDDS
 //! allocates a buffer per sample it reads or writes (its own threads, and `write`).
 
+pub mod delay;
 pub mod inputs;
 pub mod target;
 
@@ -226,6 +227,10 @@ pub struct NodeSummary {
     pub measurement_age_ns: Percentiles,
     /// The period's work, from the release to the command sent (ns).
     pub work_ns: Percentiles,
+    /// The robot's command delay, estimated from its joint states' response to the commands
+    /// ([`delay`]): what `--command-latency` should be, given the measurement's age the node
+    /// counts (none: too little motion).
+    pub command_delay: Option<delay::DelayEstimate>,
     /// `‖e_p‖` of the last step the law made (NaN if none).
     pub final_ep_norm: f64,
     /// The largest `‖e_p‖` in the last 5 s of steps.
@@ -657,6 +662,7 @@ where
     // The command the robot is executing (what the node sent last): the older of the joint
     // state and the base pose is moved by it to the newer one's stamp.
     let mut last_sent = Command::<f64, N>::zero();
+    let mut probe = delay::DelayProbe::<N>::new();
     let end = loop {
         let release = t0 + k * period_ns;
         rt::sleep_until_ns(release);
@@ -721,6 +727,7 @@ where
                 StepReport::zero(None)
             }
             Ok(s) => {
+                probe.joints(s.joints_stamp.as_ns(), &s.joints[..N]);
                 let stamp = s.joints_stamp.as_ns().max(s.base_stamp.as_ns());
                 let age_ns = (now_real - stamp).max(0) as u64;
                 let t = (stamp - epoch_stamp) as f64 * 1e-9;
@@ -759,6 +766,11 @@ where
             Command::zero()
         };
         last_sent = cmd;
+        let mut sent = [0.0; N];
+        for (x, v) in sent.iter_mut().zip(cmd.joints.iter()) {
+            *x = *v;
+        }
+        probe.command(now_real, &sent);
         let p = &cmd.platform;
         let twist = Twist {
             linear: Vector3 { x: p.v, y: p.v_lat, z: 0.0 },
@@ -796,7 +808,9 @@ where
         k += 1;
     };
     let t_end = epoch.map_or(0.0, |(_, _, r)| (rt::monotonic_ns() - r) as f64 * 1e-9);
-    Ok(summary(cfg, &c, end, t_end, &writers_summary(cfg, ep, &latest, t0)))
+    let mut out = summary(cfg, &c, end, t_end, &writers_summary(cfg, ep, &latest, t0));
+    out.command_delay = probe.estimate(period_ns);
+    Ok(out)
 }
 
 /// The other writer behind a [`Fault::SecondWriter`] (none: another fault, or only discovery
@@ -1015,6 +1029,7 @@ fn summary(
         send_failures: c.send_failures,
         measurement_age_ns: c.age.percentiles(),
         work_ns: c.work.percentiles(),
+        command_delay: None,
         final_ep_norm: c.final_ep,
         max_ep_norm_last_5_s: c.max_ep_last_5_s(t_end),
         failures,
