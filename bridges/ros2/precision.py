@@ -16,6 +16,7 @@ Prints one line per run and the summary: median, min, max and how many runs ende
 import argparse
 import json
 import os
+import random
 import signal
 import statistics
 import subprocess
@@ -39,7 +40,9 @@ def fmt(x):
 
 
 def one(args, k, tmp):
-    domain = str(200 + (os.getpid() + k) % 30)
+    # A domain drawn at random: another run on this machine (another user's tests) on the same
+    # domain would be a second writer on the node's inputs.
+    domain = str(random.SystemRandom().randrange(1, 233))
     out = os.path.join(tmp, f"robot-{k}.json")
     rt = ["chrt", "-f", "50"] if os.geteuid() == 0 else []
     robot = subprocess.Popen(rt + [sys.executable, ROBOTS[args.robot], "--arm", os.path.join(ROOT, "examples", "arms", "ur5.toml"),
@@ -66,6 +69,8 @@ def one(args, k, tmp):
         "joint_command_latency_ms": f["joint_command_latency_ms"] if "joint_command_latency_ms" in f else None,
         "node_command_delay_ms": s["command_delay"]["latency_s"] * 1e3 if s.get("command_delay") else None,
         "late": s["late"],
+        "domain": int(domain),
+        "failures": s["failures"],
         "zero_commands": s["zero_commands"],
         "measurement_age_ms_p50": s["measurement_age_ns"]["p50"] / 1e6,
         "load_before": before,
@@ -89,11 +94,13 @@ def main(argv=None):
         for k in range(args.runs):
             r = one(args, k, tmp)
             runs.append(r)
+            for x in r["failures"]:
+                print(f"  domain {r['domain']}: {x}", flush=True)
             lat = r["command_latency_ms"]
             print(f"run {k + 1}: final {r['final_position_error']:.2e} m, max last 2 s {r['max_position_error_last_2_s']:.2e} m, "
                   f"commands' latency p50 {lat['p50']:.2f} ms p99 {lat['p99']:.2f} ms "
                   f"(joints' {fmt(r['joint_command_latency_ms'])} ms; the node's estimate {fmt(r['node_command_delay_ms'])} ms), "
-                  f"late {r['late']}, "
+                  f"late {r['late']}, zero commands {r['zero_commands']}, "
                   f"exit {r['exit']}, load {r['load_before']:.1f}→{r['load_after']:.1f}", flush=True)  # fmt: skip
     finals = [r["final_position_error"] for r in runs]
     lat50 = [r["command_latency_ms"]["p50"] for r in runs]

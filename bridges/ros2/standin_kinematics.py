@@ -13,6 +13,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 from companion_bridge import (  # noqa: E402
+    urdf_arguments,
     LIFT_AMPLITUDE,
     LIFT_PERIOD,
     TARGET_DISTANCE,
@@ -151,3 +152,41 @@ def final_errors(res, errs, final_at):
         res["final_ep_norm"] = before[-1][2] if before else None
         res["max_position_error_last_2_s"] = max(e[1] for e in last2) if last2 else None
     res["error_samples"] = len(errs)
+
+
+def robot_arguments(p, rate):
+    """The flags both stand-ins take: the arm, the topics, the faults to inject, the figures."""
+    p.add_argument("--arm", required=True, help="arm file (TOML), a URDF, or rpr (the paper's planar arm)")
+    urdf_arguments(p)
+    p.add_argument("--joint-names", default=None, help="default: a URDF's, else the UR5's")
+    p.add_argument("--extra-joint", action="append", default=None,
+                   help="listed too, first (default: torso_lift_joint, or head_1_joint if the arm has it)")
+    p.add_argument("--rate", type=float, default=rate)
+    p.add_argument("--domain-id", type=int, default=0)
+    p.add_argument("--target", choices=["topics", "node"], default="node")
+    p.add_argument("--joint-states", default="/joint_states")
+    p.add_argument("--odom", default="/mobile_base_controller/odom")
+    p.add_argument("--base-command", default="/mobile_base_controller/cmd_vel")
+    p.add_argument("--joint-command", default="/arm_velocity_controller/commands")
+    p.add_argument("--target-pose", default="/companion/target_pose")
+    p.add_argument("--target-twist", default="/companion/target_twist")
+    p.add_argument("--diagnostics", default="/diagnostics")
+    p.add_argument("--inject", default=None, help="stale@T, nan@T, names@T or silent@T (s after the first command)")
+    p.add_argument("--inject-for", type=float, default=0.5)
+    p.add_argument("--final-at", type=float, default=None,
+                   help="the node's --duration: the final error is taken this long after the first command")
+    p.add_argument("--out", required=True)
+
+
+def set_up(args):
+    """(robot, chain, names, n, trajectory, injected fault, its start) of the parsed flags."""
+    robot, chain, names, n = make_robot(args)
+    if args.extra_joint is None:
+        args.extra_joint = ["head_1_joint" if "torso_lift_joint" in names else "torso_lift_joint"]
+    if len(names) != n:
+        raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
+    inject, inject_at = None, None
+    if args.inject:
+        inject, at = args.inject.split("@")
+        inject_at = float(at)
+    return robot, chain, names, n, LiftedTrajectory1(robot.height), inject, inject_at

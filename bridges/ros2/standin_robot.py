@@ -37,14 +37,13 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import ros2_msgs as m  # noqa: E402
-from companion_bridge import urdf_arguments  # noqa: E402
 from standin_kinematics import (  # noqa: E402
-    LiftedTrajectory1,
     final_errors,
-    make_robot,
     percentiles,
     quaternion_z,
+    robot_arguments,
     rotation_of,
+    set_up,
 )
 from cyclonedds.core import Policy, Qos, ReadCondition, SampleState, ViewState, InstanceState, WaitSet  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
@@ -73,42 +72,14 @@ def qos(args, depth=None):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--arm", required=True, help="arm file (TOML), a URDF, or rpr (the paper's planar arm)")
-    urdf_arguments(p)
-    p.add_argument("--joint-names", default=None, help="default: a URDF's, else the UR5's")
-    p.add_argument("--extra-joint", action="append", default=None,
-                   help="listed too, first (default: torso_lift_joint, or head_1_joint if the arm has it)")
-    p.add_argument("--rate", type=float, default=1000.0)
-    p.add_argument("--domain-id", type=int, default=0)
-    p.add_argument("--target", choices=["topics", "node"], default="node")
-    p.add_argument("--joint-states", default="/joint_states")
-    p.add_argument("--odom", default="/mobile_base_controller/odom")
-    p.add_argument("--base-command", default="/mobile_base_controller/cmd_vel")
-    p.add_argument("--joint-command", default="/arm_velocity_controller/commands")
-    p.add_argument("--target-pose", default="/companion/target_pose")
-    p.add_argument("--target-twist", default="/companion/target_twist")
-    p.add_argument("--diagnostics", default="/diagnostics")
+    robot_arguments(p, 1000.0)
     p.add_argument("--best-effort", dest="reliable", action="store_false")
-    p.add_argument("--inject", default=None, help="stale@T, nan@T, names@T or silent@T (s after the first command)")
-    p.add_argument("--inject-for", type=float, default=0.5)
-    p.add_argument("--final-at", type=float, default=None,
-                   help="the node's --duration: the final error is taken this long after the first command")
     p.add_argument("--trace", action="store_true", help="every error sample (t, ‖p̃‖, ‖e_p‖) in --out")
-    p.add_argument("--out", required=True)
     args = p.parse_args(argv)
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
 
-    robot, chain, names, n = make_robot(args)
-    if args.extra_joint is None:
-        args.extra_joint = ["head_1_joint" if "torso_lift_joint" in names else "torso_lift_joint"]
-    if len(names) != n:
-        raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
-    traj = LiftedTrajectory1(robot.height)
-    inject, inject_at = None, None
-    if args.inject:
-        inject, at = args.inject.split("@")
-        inject_at = float(at)
+    robot, chain, names, n, traj, inject, inject_at = set_up(args)
 
     dp = DomainParticipant(args.domain_id)
     q = qos(args)

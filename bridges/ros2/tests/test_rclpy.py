@@ -20,6 +20,7 @@ bridges/ros2/precision.py (docs/book/src/ros2.md).
 
 import json
 import os
+import random
 import signal
 import subprocess
 import sys
@@ -32,12 +33,10 @@ ROBOT = os.path.join(HERE, "..", "rclpy_robot.py")
 ROGUE = os.path.join(HERE, "..", "rclpy_rogue.py")
 UR5 = os.path.join(ROOT, "examples", "arms", "ur5.toml")
 
-_domain = [140 + os.getpid() % 80]
-
-
 def next_domain():
-    _domain[0] += 1
-    return str(_domain[0])
+    """A ROS_DOMAIN_ID drawn at random: another run of these tests on the machine on the same domain
+    would be a second writer on the node's inputs (and the node would say so)."""
+    return str(random.SystemRandom().randrange(1, 233))
 
 
 @pytest.fixture(scope="module", autouse=True)

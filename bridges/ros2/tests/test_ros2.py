@@ -18,6 +18,7 @@ COMPANION_ROS2_BIN names another).
 
 import json
 import os
+import random
 import re
 import signal
 import struct
@@ -209,12 +210,9 @@ def test_cyclone_bytes_are_the_msg_definitions_cdr(pkg_type):
 # ----- the node against the stand-in ----------------------------------------------------------
 
 
-_domain = [40 + os.getpid() % 100]
-
-
 def next_domain():
-    _domain[0] += 1
-    return str(_domain[0])
+    """A ROS_DOMAIN_ID drawn at random (as test_rclpy.py's)."""
+    return str(random.SystemRandom().randrange(1, 233))
 
 
 def closed_loop(node_bin, tmp_path, rate, duration, target="node", inject=None, node_extra=(), rt=True,
