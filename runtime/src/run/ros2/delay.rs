@@ -125,7 +125,7 @@ impl<const N: usize> DelayProbe<N> {
             pairs.iter().map(|w| (0..N).map(|i| (w[1].1[i] - w[0].1[i]).powi(2)).sum::<f64>()).sum();
         let count = (pairs.len() * N) as f64;
         let motion_rms = (motion / count).sqrt();
-        if !(motion_rms > 1e-9) {
+        if motion_rms.is_nan() || motion_rms <= 1e-9 {
             return None;
         }
         let residual = |l: i64| -> f64 {
@@ -140,14 +140,14 @@ impl<const N: usize> DelayProbe<N> {
                     let to = cmds.get(j + 1).map_or(sb, |c| c.0 + l).min(sb);
                     if to > from {
                         let dt = (to - from) as f64 * 1e-9;
-                        for i in 0..N {
-                            predicted[i] += cmds[j].1[i] * dt;
+                        for (p, c) in predicted.iter_mut().zip(&cmds[j].1) {
+                            *p += c * dt;
                         }
                     }
                     j += 1;
                 }
-                for i in 0..N {
-                    sum += (w[1].1[i] - w[0].1[i] - predicted[i]).powi(2);
+                for ((b, a), p) in w[1].1.iter().zip(&w[0].1).zip(&predicted) {
+                    sum += (b - a - p).powi(2);
                 }
             }
             sum
