@@ -147,6 +147,7 @@ def main(argv=None):
         "rosout": [], "max_joint_command": 0.0, "max_base_command": 0.0,
     }  # fmt: skip
     errs, latencies, joint_latencies, gaps, commands, base_commands = [], [], [], [], [], []
+    stamps = []  # the last stamps published
     st = {"first_cmd": None, "s0_ns": None, "last_mono": t0_mono, "graph": None, "base_stamp": None}
 
     def advance():
@@ -218,7 +219,7 @@ def main(argv=None):
         stamp = ns_of(msg.header.stamp)
         pp = msg.pose.position
         if st["s0_ns"] is None:
-            st["s0_ns"] = epoch(traj, stamp, (pp.x, pp.y, pp.z), period)
+            st["s0_ns"] = epoch(traj, stamp, (pp.x, pp.y, pp.z), stamps)
         res["target_messages"] += 1
         if res["target_messages"] % every or chain is None:
             return
@@ -255,6 +256,8 @@ def main(argv=None):
         next_pub += period
         now = advance()
         now_ns = time.time_ns()
+        stamps.append(now_ns)
+        del stamps[:-50]
         fault = window(now) == "in" and inject
         js = JointState()
         js.header.stamp = stamp_of(now_ns - (1_000_000_000 if fault == "stale" else 0))

@@ -192,14 +192,16 @@ def set_up(args):
     return robot, chain, names, n, LiftedTrajectory1(robot.height), inject, inject_at
 
 
-def epoch(traj, stamp_ns, position, period):
+def epoch(traj, stamp_ns, position, stamps):
     """The node's run's epoch (ns) from its first generated target, stamped `stamp_ns` at
     `position`: the node starts its run at the older of its first measurement's two stamps
-    (joint state, odometry) and stamps the target with the newer, up to a few of the robot's
-    periods apart when the two messages reach it in different periods — the epoch is the one
-    of them that puts the first target on the closed form."""
+    (joint state, odometry) and stamps the target with the newer — one of this robot's own
+    stamps, `stamps` (those it published, newest last), up to a few of its periods apart when the
+    two messages reach the node in different periods. The epoch is the one of them that puts the
+    first target on the closed form."""
+    candidates = [s for s in stamps if s <= stamp_ns][-4:] or [stamp_ns]
 
     def off(s0):
         return math.dist(position, traj.pose((stamp_ns - s0) * 1e-9)[1])
 
-    return min((stamp_ns - j * int(round(period * 1e9)) for j in range(4)), key=off)
+    return min(candidates, key=off)

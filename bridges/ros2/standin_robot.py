@@ -123,6 +123,7 @@ def main(argv=None):
     first_cmd = None
     latencies = []  # a base command's stamp to its application here (ms)
     s0_ns = None  # the node's run's epoch, from its first target
+    stamps = []  # the last stamps published
     last_pub_mono = None
 
     def target_at_real(ns):
@@ -192,7 +193,7 @@ def main(argv=None):
                 stamp = s.header.stamp.ns()
                 if s0_ns is None:
                     pp = s.pose.position
-                    s0_ns = epoch(traj, stamp, (pp.x, pp.y, pp.z), period)
+                    s0_ns = epoch(traj, stamp, (pp.x, pp.y, pp.z), stamps)
                 res["target_messages"] += 1
                 if res["target_messages"] % every or chain is None:
                     continue
@@ -208,6 +209,8 @@ def main(argv=None):
             next_pub = now
         next_pub += period
         stamp_ns = now_ns
+        stamps.append(stamp_ns)
+        del stamps[:-50]
         fault = window(now) == "in" and inject
         js = m.JointState(header=m.Header(stamp=m.Time.of_ns(stamp_ns - (1_000_000_000 if fault == "stale" else 0)), frame_id=""))
         js.name = list(args.extra_joint) + names
