@@ -13,7 +13,7 @@ use serde::Deserialize;
 
 use super::args::ScenarioArgs;
 #[cfg(feature = "ros2")]
-use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
+use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED, EXIT_SECOND_WRITER};
 #[cfg(feature = "ros2")]
 use super::terminal::Terminal;
 #[cfg(feature = "ros2")]
@@ -613,12 +613,21 @@ fn run_node(a: &Ros2Args) -> Result<ExitCode> {
         s.measurement_age_ns.max as f64 / 1e6,
         s.final_ep_norm
     );
+    if let Some(d) = &s.command_delay {
+        println!(
+            "the robot's joints followed the commands {:.2} ms after their stamps (fitted to its joint states; residual {:.1e} of motion {:.1e})",
+            d.latency_s * 1e3,
+            d.residual_rms,
+            d.motion_rms
+        );
+    }
     println!("wrote {}", a.out.join("summary.json").display());
     for f in &s.failures {
         eprintln!("warning: ros2: RUN FAILED: {f}");
     }
     Ok(ExitCode::from(match s.end {
         NodeEnd::Interrupted => EXIT_INTERRUPTED,
+        NodeEnd::Completed if outcome.second_writer() => EXIT_SECOND_WRITER,
         NodeEnd::Completed if outcome.rejected() => EXIT_REJECTED,
         NodeEnd::Completed if !s.failures.is_empty() => EXIT_DEADLINES,
         NodeEnd::Completed => 0,

@@ -14,17 +14,22 @@
 //! messages are decoded into fixed storage (no allocation of this crate's code on the node's
 //! period); RustDDS allocates each sample's buffer on its own threads and on `write`.
 
+pub mod graph;
 pub mod msgs;
 
+pub use self::graph::{GraphNames, WriterId};
 pub use self::msgs::{StampedPose, StampedTwist};
 
 use std::path::PathBuf;
 use std::sync::Arc;
 
+use self::graph::Graph;
 use self::msgs::{
     DiagnosticArray, JointSample, JointStateSeed, JointVelocities, OdometryIn, Pose, PoseStampedIn,
     PoseStampedOut, Ros2Type, Time, Twist, TwistStampedIn, TwistStampedOut,
 };
+use ros2_client::dds::rustdds::TopicDescription as _;
+use ros2_client::dds::{NodeLoggingHandle, RosoutRaw};
 use ros2_client::{
     Context, ContextOptions, MessageTypeName, Name, Node, NodeName, NodeOptions, Publisher, QosProfile,
     Subscription,
@@ -338,20 +343,65 @@ pub fn topic_name(name: &str) -> Result<Name, Ros2Error> {
     })
 }
 
-/// What arrived on one topic since the last read.
+/// The most writers of one input whose samples one read tells apart.
+pub const MAX_WRITERS: usize = 4;
+
+/// What arrived on one topic since the last read, writer by writer.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Arrived<T> {
-    /// The last sample, if any.
-    pub last: Option<T>,
-    /// How many samples arrived (the last among them).
-    pub samples: u64,
+    /// The last sample of each writer that sent any, with the writer (DDS GUID), in the order
+    /// the writers first came in this read.
+    pub by_writer: [Option<(WriterId, T)>; MAX_WRITERS],
+    /// How many samples each of them sent.
+    pub samples: [u64; MAX_WRITERS],
+    /// Samples of writers past the first [`MAX_WRITERS`] (not told apart).
+    pub overflow: u64,
     /// Samples that could not be decoded (dropped).
     pub undecodable: u64,
 }
 
 impl<T> Default for Arrived<T> {
     fn default() -> Self {
-        Self { last: None, samples: 0, undecodable: 0 }
+        Self {
+            by_writer: std::array::from_fn(|_| None),
+            samples: [0; MAX_WRITERS],
+            overflow: 0,
+            undecodable: 0,
+        }
+    }
+}
+
+impl<T> Arrived<T> {
+    /// One sample of `writer`.
+    pub fn one(writer: WriterId, v: T) -> Self {
+        let mut a = Self::default();
+        a.push(writer, v);
+        a
+    }
+
+    /// A sample of `writer`: the last of its writer's.
+    pub fn push(&mut self, writer: WriterId, v: T) {
+        for (slot, n) in self.by_writer.iter_mut().zip(self.samples.iter_mut()) {
+            match slot {
+                Some((w, last)) if *w == writer => {
+                    *last = v;
+                    *n += 1;
+                    return;
+                }
+                None => {
+                    *slot = Some((writer, v));
+                    *n = 1;
+                    return;
+                }
+                Some(_) => {}
+            }
+        }
+        self.overflow += 1;
+    }
+
+    /// The writers that sent samples in this read.
+    pub fn writers(&self) -> usize {
+        self.by_writer.iter().filter(|s| s.is_some()).count()
     }
 }
 
@@ -382,7 +432,8 @@ pub struct Ros2Endpoint {
     diagnostics: Option<Publisher<DiagnosticArray>>,
     base_frame: Arc<str>,
     world_frame: Arc<str>,
-    // Last: dropped after the entities above (the node ends its spinner when dropped).
+    graph: Graph,
+    // Last: dropped after the entities above.
     node: Node,
     _context: Context,
 }
@@ -417,8 +468,9 @@ impl Ros2Endpoint {
             name: format!("{}/{}", cfg.namespace, cfg.node_name),
             detail: format!("{e:?}"),
         })?;
+        // `/rosout` carries the node's log lines ([`Rosout`]); no parameter services.
         let mut node = context
-            .new_node(node_name, NodeOptions::new().enable_rosout(false))
+            .new_node(node_name, NodeOptions::new().enable_rosout(true).start_parameter_services(false))
             .map_err(create_in(sec, "creating the node"))?;
         let qos = cfg.qos.profile();
         macro_rules! topic {
@@ -427,9 +479,12 @@ impl Ros2Endpoint {
                     .map_err(create_in(sec, format!("topic {}", $name)))?
             };
         }
+        // Each input's DDS topic and type, for the graph ([`graph`]).
+        let mut watched: graph::Watched = Default::default();
         macro_rules! sub {
-            ($name:expr, $t:ty, $m:ty) => {{
+            ($i:expr, $name:expr, $t:ty, $m:ty) => {{
                 let t = topic!($name, $t);
+                watched[$i] = Some((t.name(), t.get_type().name().to_string()));
                 node.create_subscription::<$m>(&t, Some(qos.clone()))
                     .map_err(create_in(sec, format!("subscription to {}", $name)))?
             }};
@@ -441,15 +496,17 @@ impl Ros2Endpoint {
                     .map_err(create_in(sec, format!("publisher on {}", $name)))?
             }};
         }
-        let joint_states = sub!(&cfg.joint_states, msgs::JointState, JointSample);
+        let joint_states = sub!(0, &cfg.joint_states, msgs::JointState, JointSample);
         let (base_odometry, base_pose) = match cfg.base_pose_kind {
-            BasePoseKind::Odometry => (Some(sub!(&cfg.base_pose, msgs::Odometry, OdometryIn)), None),
-            BasePoseKind::PoseStamped => (None, Some(sub!(&cfg.base_pose, msgs::PoseStamped, PoseStampedIn))),
+            BasePoseKind::Odometry => (Some(sub!(1, &cfg.base_pose, msgs::Odometry, OdometryIn)), None),
+            BasePoseKind::PoseStamped => {
+                (None, Some(sub!(1, &cfg.base_pose, msgs::PoseStamped, PoseStampedIn)))
+            }
         };
         let (target_pose, target_twist, target_out) = match cfg.target {
             TargetTopics::Read => (
-                Some(sub!(&cfg.target_pose, msgs::PoseStamped, PoseStampedIn)),
-                Some(sub!(&cfg.target_twist, msgs::TwistStamped, TwistStampedIn)),
+                Some(sub!(2, &cfg.target_pose, msgs::PoseStamped, PoseStampedIn)),
+                Some(sub!(3, &cfg.target_twist, msgs::TwistStamped, TwistStampedIn)),
                 None,
             ),
             TargetTopics::Write => {
@@ -462,14 +519,11 @@ impl Ros2Endpoint {
         };
         let joint_command = publ!(&cfg.joint_command, msgs::Float64MultiArray, JointVelocities);
         let diagnostics = Some(publ!(&cfg.diagnostics, DiagnosticArray, DiagnosticArray));
-        let spinner =
-            node.spinner().map_err(create_in(sec, "the node's spinner (parameter services, /clock)"))?;
-        std::thread::Builder::new()
-            .name("ros2-spinner".into())
-            .spawn(move || {
-                let _ = futures::executor::block_on(spinner.spin());
-            })
-            .map_err(Ros2Error::Thread)?;
+        // No ros2-client spinner: its tasks would add a `/clock` reader typed
+        // `builtin_interfaces/msg/Time` (ROS's is `rosgraph_msgs/msg/Clock`) and parameter
+        // services the node does not use; the node's graph is its own thread ([`graph`]).
+        let graph = Graph::spawn(&context.domain_participant(), watched)
+            .map_err(|detail| Ros2Error::Create { what: "the node's graph thread".into(), detail })?;
         Ok(Self {
             joint_states,
             base_odometry,
@@ -483,13 +537,14 @@ impl Ros2Endpoint {
             diagnostics,
             base_frame: Arc::from(cfg.base_frame.as_str()),
             world_frame: Arc::from(cfg.world_frame.as_str()),
+            graph,
             node,
             _context: context,
         })
     }
 
-    /// Every sample that arrived since the last call, the latest of each input kept; `names`
-    /// are the arm's joints (a joint state is read by them).
+    /// Every sample that arrived since the last call, the latest of each writer of each input
+    /// kept; `names` are the arm's joints (a joint state is read by them).
     pub fn take_inputs(&self, names: &[String]) -> Inputs {
         let seed = JointStateSeed { names };
         let mut inputs = Inputs::default();
@@ -507,6 +562,33 @@ impl Ros2Endpoint {
             drain(&mut inputs.target_twist, || s.take().map(|o| o.map(|(m, i)| (m.0, i))));
         }
         inputs
+    }
+
+    /// The number of remote writers of each input's topic and type (joint states, base pose,
+    /// target pose, target twist), as DDS discovery last said (no lock, no allocation).
+    pub fn writer_counts(&self) -> [u32; 4] {
+        self.graph.counts()
+    }
+
+    /// The remote writers of input `i` (in [`Self::writer_counts`]'s order), as discovery last
+    /// said.
+    pub fn writers(&self, i: usize) -> Vec<WriterId> {
+        self.graph.writers(i)
+    }
+
+    /// Every remote writer discovery listed on input `i` while the node ran.
+    pub fn writers_ever(&self, i: usize) -> Vec<WriterId> {
+        self.graph.ever(i)
+    }
+
+    /// Names writers' ROS nodes, from any thread.
+    pub fn graph_names(&self) -> GraphNames {
+        self.graph.names()
+    }
+
+    /// A handle that writes the node's log lines to `/rosout`, from any thread.
+    pub fn rosout(&self) -> Rosout {
+        Rosout { handle: self.node.logging_handle() }
     }
 
     /// Sends the base command (`TwistStamped` stamped `stamp` in the base frame, or `Twist`).
@@ -549,35 +631,63 @@ impl Ros2Endpoint {
     pub fn take_diagnostics(&mut self) -> Option<Publisher<DiagnosticArray>> {
         self.diagnostics.take()
     }
-
-    /// The number of publishers matched on each input (joint states, base pose, target pose,
-    /// target twist), as the node's graph knows them.
-    pub fn publishers(&self) -> [usize; 4] {
-        let n = |s: Option<usize>| s.unwrap_or(0);
-        [
-            self.joint_states.get_publisher_count(&self.node),
-            n(self.base_odometry.as_ref().map(|s| s.get_publisher_count(&self.node)))
-                + n(self.base_pose.as_ref().map(|s| s.get_publisher_count(&self.node))),
-            n(self.target_pose.as_ref().map(|s| s.get_publisher_count(&self.node))),
-            n(self.target_twist.as_ref().map(|s| s.get_publisher_count(&self.node))),
-        ]
-    }
 }
 
-/// Takes every sample of one subscription into `into` (the last kept), counting the ones that
-/// cannot be decoded.
+/// Takes every sample of one subscription into `into` (the last of each writer kept), counting
+/// the ones that cannot be decoded.
 fn drain<T, E>(
     into: &mut Arrived<T>,
     mut take: impl FnMut() -> Result<Option<(T, ros2_client::MessageInfo)>, E>,
 ) {
     loop {
         match take() {
-            Ok(Some((m, _))) => {
-                into.last = Some(m);
-                into.samples += 1;
-            }
+            Ok(Some((m, info))) => into.push(WriterId::from(info.publisher_gid()), m),
             Ok(None) => return,
             Err(_) => into.undecodable += 1,
         }
+    }
+}
+
+/// The level of a `/rosout` line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LogLevel {
+    /// INFO.
+    Info,
+    /// WARN.
+    Warn,
+    /// ERROR.
+    Error,
+}
+
+/// Writes the node's log lines to `/rosout` (`rcl_interfaces/msg/Log`, logger name the node's
+/// name), as every ROS 2 node does. Not for the node's period: each line allocates.
+pub struct Rosout {
+    handle: NodeLoggingHandle,
+}
+
+impl std::fmt::Debug for Rosout {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Rosout").finish_non_exhaustive()
+    }
+}
+
+impl Rosout {
+    /// Logs `msg` at `level`, stamped now on the system clock.
+    pub fn log(&self, level: LogLevel, msg: &str) {
+        let lv = match level {
+            LogLevel::Info => ros2_client::log::LogLevel::Info,
+            LogLevel::Warn => ros2_client::log::LogLevel::Warn,
+            LogLevel::Error => ros2_client::log::LogLevel::Error,
+        };
+        let name = self.handle.base_name().to_string();
+        self.handle.rosout_raw(
+            ros2_client::builtin_interfaces::Time::now(),
+            lv,
+            &name,
+            msg,
+            file!(),
+            "companion ros2",
+            line!(),
+        );
     }
 }
