@@ -3,6 +3,7 @@ runs (its summary.json digests, the repository's golden digests), never from the
 
 import json
 import math
+import pathlib
 import struct
 import subprocess
 
@@ -10,7 +11,10 @@ import numpy as np
 import pytest
 
 import companion
-from conftest import ROOT
+
+# Not `from conftest import ROOT`: pytest runs this file beside bridges/*/tests, whose conftest
+# modules share the name, and the first one imported wins.
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 # FNV-1a 64 over the IEEE-754 bits, as runtime/src/domain/record/digest.rs defines the trajectory digest.
 OFFSET, PRIME, MASK = 0xCBF29CE484222325, 0x100000001B3, (1 << 64) - 1
