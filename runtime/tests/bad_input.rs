@@ -310,6 +310,8 @@ fn no_config_value_makes_the_program_panic() {
         ("controller", "max_delay", false),
         ("controller", "max_turn_per_step", false),
         ("controller", "rest_reach", false),
+        ("controller", "heading_rate", false),
+        ("controller", "heading_xi", false),
         // A spatial arm's law's: a planar run refuses them by name, whatever the value.
         ("controller", "damping_below", false),
         ("controller", "damping_depth", false),

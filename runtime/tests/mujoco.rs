@@ -455,10 +455,10 @@ fn position_errors(run: &Path) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// The book's TIAGo command (the mid-reach home and transverse function of
-/// `examples/arms/tiago-unicycle.toml`), 20 s in lockstep: the TIAGo on its wheels converges
-/// from 2 m away to within 5 cm over the last 5 s (3.2 cm measured; issue 36's aim of 2 mm is
-/// not met, docs/book/src/mujoco.md says why), its wheels at their friction's limit less than
+/// The book's TIAGo command (`examples/arms/tiago-unicycle.toml`: the mid-reach home, the
+/// base's own limits, the heading filter), 20 s in lockstep: the TIAGo on its wheels converges
+/// from 2 m away to within 5 cm over the last 5 s (1.4 cm measured; the 1 mm aim is not met,
+/// docs/book/src/mujoco.md says why), its wheels at their friction's limit less than
 /// 1 % of the time (0.3 % measured) and no joint at its limit.
 #[test]
 fn the_tiago_from_a_home_it_settles_from_converges_on_its_wheels_without_sliding() {
