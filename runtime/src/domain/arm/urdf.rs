@@ -60,9 +60,10 @@
 //! ```
 //!
 //! Why: the law's joint-limit penalty (eq. 21) has the curvature `2δ²/b³` at a distance `b`
-//! from a limit inside its band `δ` (a fifth of the range for a spatial arm, `Params::for_arm`),
-//! so the law's weight on a joint grows as `1/b³` towards its limit: at 1 % of the range it is
-//! 8 000 times its value at the band's edge (`(0.2/0.01)³`), a home the law still works from;
+//! from a limit inside its band `δ` (a fifth of the range for 7 or 8 joints, a twentieth for
+//! 6: `Params::for_arm`), so the law's weight on a joint grows as `1/b³` towards its limit: at
+//! 1 % of the range it is `(δ/b)³` = 8 000 (125) times its value at the band's edge, a home the
+//! law still works from;
 //! at `1e−320` from the limit it is not a number, and every step fails (issue 45 found 1 001 of
 //! 1 001). The rule leaves the home's choice to the user everywhere else.
 //!
@@ -191,13 +192,13 @@ pub fn excerpt(s: &str) -> String {
     format!("{cut}… ({} characters)", s.chars().count())
 }
 
-/// A number for a message: as Rust writes it if short, else in scientific notation.
+/// A number for a message: as Rust writes it (as the file does), in scientific notation if it
+/// is tiny or huge (Rust would write 1e-320 with 320 digits).
 fn num(x: f64) -> String {
-    let s = format!("{x}");
-    if s.len() > 12 {
-        format!("{x:e}")
+    if x == 0.0 || !x.is_finite() || (1e-4..1e9).contains(&x.abs()) {
+        format!("{x}")
     } else {
-        s
+        format!("{x:e}")
     }
 }
 
@@ -571,7 +572,7 @@ pub enum UrdfError {
     /// A home inside the limits but within [`HOME_MARGIN`] of one.
     #[error(
         "home of joint `{joint}`: {} lies within 1 % of the range [{}, {}] of its {} limit, where the law's \
-         joint-limit penalty is too steep to step from (module docs): give a value in [{}, {}]",
+         joint-limit penalty is too steep to step from (docs/book/src/your-robot.md): give a value in [{}, {}]",
         num(*value),
         num(*lower),
         num(*upper),
@@ -1978,7 +1979,7 @@ mod tests {
         assert_eq!(
             e,
             "home of joint `torso`: 1e-320 lies within 1 % of the range [0, 0.35] of its lower limit, where the law's \
-             joint-limit penalty is too steep to step from (module docs): give a value in [0.0035, 0.3465]"
+             joint-limit penalty is too steep to step from (docs/book/src/your-robot.md): give a value in [0.0035, 0.3465]"
         );
         assert_eq!(e.matches(". ").count(), 0, "one sentence");
         r.home = Some(HomeList::Values(vec![0.0035, 0.2, 0.3, 0.4, 0.5, 7.0, 1.96]));
