@@ -216,6 +216,9 @@ fn check_plant_args(p: &Process, plant_args: &[String]) -> Result<()> {
             );
         }
         let why = match flag {
+            "--lockstep" | "--noise" | "--seed" => {
+                Some("a flag of the run that `companion hil` takes itself and hands to both processes: give it to hil")
+            }
             "--open-loop" => Some("the plant would drive the robot without the controller"),
             "--check" => Some("hil checks the plant's flags itself before it starts the run"),
             "--scenario-json" | "--joint-count" | "--arm-hash" | "--space" | "--protocol-version"
