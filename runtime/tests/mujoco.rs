@@ -624,6 +624,9 @@ fn hil_in_group(
     c.args(["hil", "--plant", "mujoco", "--name", name, "--arm", &ur5_file(), "--platform", "omni"])
         .args(if extra.contains(&"--duration") { &[][..] } else { &["--duration", "30"][..] })
         .args(["--max-miss-fraction", "1", "--hold-periods", "100000", "--quiet", "--no-plots"])
+        // A loaded machine starts Python, MuJoCo and the model slowly (over 20 s was seen with
+        // load 18 on two CPUs): the start is waited for as long as the process watchdog.
+        .args(["--startup-timeout", "120"])
         .args(["--plant-arg=--progress=300", "--plant-arg=--filmstrip=0", "--out"])
         .arg(out)
         .args(extra)
