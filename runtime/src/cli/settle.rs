@@ -124,9 +124,10 @@ fn print(r: &SettleReport) {
     row(&format!("max ‖e_p‖ from {} s", r.settle.after), r.max_ep_after.as_ref(), false);
     row(&format!("tracked from {} s", r.settle.after), r.tracked.as_ref(), true);
     row("limits acted ≥ 20 s", r.limits_fraction.as_ref(), true);
+    row("accel./guard ≥ 20 s", r.beyond_saturation_fraction.as_ref(), true);
     println!("  tracked from {} s, mean over the starts: {:.1} %", r.settle.after, 100.0 * r.tracked_mean);
     for u in r.runs.iter().filter(|u| !u.settled) {
-        let home: Vec<String> = u.home.iter().map(|q| format!("{q:.6}")).collect();
+        let home: Vec<String> = u.home.iter().map(|q| format!("{q}")).collect();
         let why = match (&u.error, u.diverged_at, u.rejected_steps) {
             (Some(e), _, _) => format!("could not run: {e}"),
             (None, Some(t), _) => format!("diverged at {t:.2} s"),

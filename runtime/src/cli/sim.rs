@@ -293,18 +293,19 @@ pub fn print_table(summaries: &[&Summary]) {
     }
 }
 
-/// When the limits changed the law's command on more than [`LIMITS_ACTED_BEYOND`] of the steps
-/// after 20 s: a line saying so (the run after 20 s is the limits' as much as the law's).
+/// When the acceleration limits or the joint guard changed the law's command on more than
+/// [`LIMITS_ACTED_BEYOND`] of the steps after 20 s: a line saying so (the run after 20 s is the
+/// limits' as much as the law's).
 fn print_limits_acted(s: &Summary) {
     let l = &s.limits_after_20s;
     if l.beyond {
         println!(
-            "  the limits acted on {} of {} steps after 20 s ({:.1} %: {}), more than {:.0} %: what the run does \
-             after 20 s is the limits' as much as the law's; if it settled, the law does not guarantee it will again",
-            l.steps,
-            s.steps_after_20s,
+            "  the limits acted on {:.1} % of the steps after 20 s ({}): the acceleration limits or the joint \
+             guard on {:.1} %, more than {:.0} %: what the run does after 20 s is theirs as much as the law's; if \
+             it settled, the law does not guarantee it would again",
             100.0 * l.fraction,
             l.describe(s.steps_after_20s),
+            100.0 * l.beyond_saturation_fraction,
             100.0 * LIMITS_ACTED_BEYOND
         );
     }

@@ -218,6 +218,9 @@ pub struct StartRun {
     /// The fraction of the steps after 20 s at which the limits acted (`summary.json`'s
     /// `limits_after_20s.fraction`).
     pub limits_fraction: f64,
+    /// … at which the acceleration limits or the joint guard acted
+    /// (`limits_after_20s.beyond_saturation_fraction`).
+    pub beyond_saturation_fraction: f64,
     /// The commanded forward speed's rms (m/s).
     pub rms_v: f64,
     /// The platform's reversals.
@@ -244,6 +247,7 @@ impl StartRun {
             rejected_steps: s.rejected_steps,
             diverged_at: t.diverged_at,
             limits_fraction: s.limits_after_20s.fraction,
+            beyond_saturation_fraction: s.limits_after_20s.beyond_saturation_fraction,
             rms_v: s.rms_v,
             maneuvers: s.maneuvers,
             min_joint_margin: s.min_joint_margin.iter().copied().fold(f64::INFINITY, f64::min),
@@ -264,6 +268,7 @@ impl StartRun {
             rejected_steps: 0,
             diverged_at: None,
             limits_fraction: f64::NAN,
+            beyond_saturation_fraction: f64::NAN,
             rms_v: f64::NAN,
             maneuvers: 0,
             min_joint_margin: f64::NAN,
@@ -314,6 +319,8 @@ pub struct SettleReport {
     pub tracked_mean: f64,
     /// The fraction of the steps after 20 s at which the limits acted, over the starts.
     pub limits_fraction: Option<Spread>,
+    /// … the acceleration limits or the joint guard, over the starts.
+    pub beyond_saturation_fraction: Option<Spread>,
     /// Each start.
     pub runs: Vec<StartRun>,
 }
@@ -334,6 +341,7 @@ impl SettleReport {
             tracked: col(|r| r.tracked),
             tracked_mean: runs.iter().map(|r| r.tracked).sum::<f64>() / n,
             limits_fraction: col(|r| r.limits_fraction),
+            beyond_saturation_fraction: col(|r| r.beyond_saturation_fraction),
             runs,
         }
     }

@@ -191,20 +191,23 @@ pub struct LinkRecord {
     pub insecure: bool,
 }
 
-/// The fraction of the steps after 20 s above which a run's limits are said to have shaped it
-/// ([`LimitsActed::beyond`]): 5 %. The law's convergence (Proposition 1, and the practical
-/// stability of its transverse-function feedback) holds for the commands it computes; a
-/// limit that rescales them now and then (a transient, a manoeuvre's peak) leaves the
-/// tracking to the law, but once they are rescaled on more than one step in twenty after the
-/// run should have converged, what the run does after 20 s is the limits' doing as much as
-/// the law's, and a run that settles so has no guarantee that it would again (another start,
-/// another target speed). The paper's runs and the presets' unlimited runs are at 0 %; the
-/// runs that do not settle under a real base's limits at 39–98 %.
+/// The fraction of the steps after 20 s above which a run is said to have been shaped by the
+/// limits the law's analysis does not cover ([`LimitsActed::beyond`]): 5 %. The paper's own
+/// saturation (end of §3.4.2) divides the whole platform command by one common factor and keeps
+/// its direction, so `h_s` still decreases, only more slowly; the acceleration limits (a second
+/// factor on the *change* of the command, `companion_core::acceleration`) and the joint guard
+/// (the arm's published joint speeds) do not keep it — the command sent is then not the law's.
+/// A transient or a manoeuvre's peak cut now and then leaves the tracking to the law; once
+/// they act on more than one step in twenty after the run should have converged, what the run
+/// does after 20 s is theirs as much as the law's, and a run that settles so has no guarantee
+/// that it would again (from another start, at another target speed). The paper's runs and the
+/// presets' runs without limits are at 0–0.4 %, the runs under a real base's limits that do
+/// not settle at 20–100 % (the book's chapter "The law", "A robot's own limits").
 pub const LIMITS_ACTED_BEYOND: f64 = 0.05;
 
 /// How often the limits changed the law's command on the steps with `t ≥ 20 s`: the
-/// velocity limits' common factor, the platform's and the joints' acceleration factors, and
-/// the joint guard (the arm's published joint speeds).
+/// velocity limits' common factor (the paper's saturation), the platform's and the joints'
+/// acceleration factors and the joint guard (the arm's published joint speeds).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct LimitsActed {
     /// Steps where the velocity limits' common factor was above 1.
@@ -219,8 +222,14 @@ pub struct LimitsActed {
     pub steps: u64,
     /// `steps` over the steps after 20 s (NaN, `null` in JSON, when there are none).
     pub fraction: f64,
-    /// Whether `fraction` is above [`LIMITS_ACTED_BEYOND`]: the run after 20 s is shaped by
-    /// its limits, not by the law alone (a run that settles so may have settled by luck).
+    /// Steps where an acceleration limit or the joint guard acted: the limits beyond the
+    /// paper's saturation, which change the direction of the law's command.
+    pub beyond_saturation_steps: u64,
+    /// `beyond_saturation_steps` over the steps after 20 s (NaN when there are none).
+    pub beyond_saturation_fraction: f64,
+    /// Whether `beyond_saturation_fraction` is above [`LIMITS_ACTED_BEYOND`]: the run after
+    /// 20 s is shaped by its limits, not by the law alone (a run that settles so may have
+    /// settled by luck).
     pub beyond: bool,
 }
 
@@ -232,20 +241,24 @@ impl LimitsActed {
         self.platform_acceleration_steps += u64::from(platform_acceleration);
         self.joint_acceleration_steps += u64::from(joint_acceleration);
         self.joint_guard_steps += u64::from(guard);
-        self.steps += u64::from(velocity || platform_acceleration || joint_acceleration || guard);
+        let beyond = platform_acceleration || joint_acceleration || guard;
+        self.beyond_saturation_steps += u64::from(beyond);
+        self.steps += u64::from(velocity || beyond);
     }
 
-    /// The fraction and the verdict over `after` steps after 20 s.
+    /// The fractions and the verdict over `after` steps after 20 s.
     fn finish(&mut self, after: u64) {
-        self.fraction = if after > 0 { self.steps as f64 / after as f64 } else { f64::NAN };
-        self.beyond = self.fraction > LIMITS_ACTED_BEYOND;
+        let of = |n: u64| if after > 0 { n as f64 / after as f64 } else { f64::NAN };
+        self.fraction = of(self.steps);
+        self.beyond_saturation_fraction = of(self.beyond_saturation_steps);
+        self.beyond = self.beyond_saturation_fraction > LIMITS_ACTED_BEYOND;
     }
 
     /// `velocity 40.6 %, platform acceleration 12.0 %` (the kinds that acted, of `after` steps).
     pub fn describe(&self, after: u64) -> String {
         let pct = |n: u64| 100.0 * n as f64 / after.max(1) as f64;
         let kinds: Vec<String> = [
-            ("velocity", self.velocity_steps),
+            ("velocity (saturation)", self.velocity_steps),
             ("platform acceleration", self.platform_acceleration_steps),
             ("joint acceleration", self.joint_acceleration_steps),
             ("joint guard", self.joint_guard_steps),
