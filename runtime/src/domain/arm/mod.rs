@@ -150,6 +150,10 @@ pub enum SpatialArmSpec {
     /// Another arm made faster or larger, for a study of what limits it
     /// (`companion explore --arm`'s `joint_speed` and `reach`): [`ArmScale`].
     Scaled(Box<SpatialArmSpec>, ArmScale),
+    /// Another arm with another home (rad or m per joint, in the chain's order): the
+    /// perturbed starts of `companion settle` and `companion tune --starts`. The home is the
+    /// law's `q*` and where the run starts (`companion_runtime::study::starts`).
+    Rehomed(Box<SpatialArmSpec>, Vec<f64>),
 }
 
 /// Factors on an arm's published figures ([`SpatialArmSpec::Scaled`]); `1` changes nothing,
@@ -217,7 +221,7 @@ impl SpatialArmSpec {
             Self::Ur5 => UR5_JOINTS.iter().map(|s| s.to_string()).collect(),
             Self::Panda => (1..=7).map(|i| format!("panda_joint{i}")).collect(),
             Self::File(d) => d.joint_names.clone(),
-            Self::Scaled(a, _) => a.joint_names(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.joint_names(),
         }
     }
 
@@ -227,7 +231,7 @@ impl SpatialArmSpec {
             Self::Ur5 => "ur5",
             Self::Panda => "panda",
             Self::File(d) => &d.name,
-            Self::Scaled(a, _) => a.name(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.name(),
         }
     }
 
@@ -239,7 +243,7 @@ impl SpatialArmSpec {
             Self::Ur5 => PlatformDefaults::default(),
             Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: Some(PANDA_CAR) },
             Self::File(d) => d.platform,
-            Self::Scaled(a, _) => a.platform_defaults(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.platform_defaults(),
         }
     }
 
@@ -249,7 +253,7 @@ impl SpatialArmSpec {
             Self::Ur5 => 6,
             Self::Panda => 7,
             Self::File(d) => d.joints.len(),
-            Self::Scaled(a, _) => a.joints(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.joints(),
         }
     }
 
@@ -264,6 +268,42 @@ impl SpatialArmSpec {
             Self::Panda => resize(Chain::<T, 7>::panda()).ok_or_else(wrong),
             Self::File(d) => d.chain(),
             Self::Scaled(a, scale) => scale.apply(&a.chain::<T, N>()?),
+            Self::Rehomed(a, home) => {
+                if home.len() != N {
+                    return Err(wrong());
+                }
+                let mut c = a.chain::<T, N>()?;
+                for (j, h) in c.joints.iter_mut().zip(home) {
+                    j.home = T::of(*h);
+                }
+                c.validate().map_err(ArmError::from_param)?;
+                Ok(c)
+            }
+        }
+    }
+
+    /// The home, in the chain's order (rad or m).
+    ///
+    /// # Errors
+    /// The chain cannot be built.
+    pub fn home(&self) -> Result<Vec<f64>, ArmError> {
+        fn of<const N: usize>(a: &SpatialArmSpec) -> Result<Vec<f64>, ArmError> {
+            Ok(a.chain::<f64, N>()?.home().iter().copied().collect())
+        }
+        match self.joints() {
+            6 => of::<6>(self),
+            7 => of::<7>(self),
+            8 => of::<8>(self),
+            n => Err(ArmError::JointCount { found: n }),
+        }
+    }
+
+    /// This arm with its home at `home` (rad or m per joint, in the chain's order; checked
+    /// strictly inside the limits when the law is built).
+    pub fn rehomed(self, home: Vec<f64>) -> Self {
+        match self {
+            Self::Rehomed(a, _) => Self::Rehomed(a, home),
+            a => Self::Rehomed(Box::new(a), home),
         }
     }
 
