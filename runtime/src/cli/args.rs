@@ -187,7 +187,7 @@ pub struct ScenarioArgs {
     /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
     #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Limits: none, realistic or tiago (accelerations too), merged with --config's.
+    /// Limits: none, realistic or tiago, merged with --config's.
     ///
     /// Named platform limits, merged with the --config file's `[velocity_limits]` and
     /// `[acceleration_limits]` key by key, the stricter value winning (a key only one of them

@@ -54,7 +54,7 @@ pub struct TuneArgs {
     /// Output folder: preset.toml, report.json, candidates.csv, pareto.svg.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Each run from N perturbed homes (a spatial --arm) [default: 1, the home].
+    /// Each run from N perturbed homes (a spatial --arm; 1: the home).
     ///
     /// Score each candidate from N starts per run: homes of the spatial --arm perturbed by up
     /// to --perturb, seeded by --seed (as `companion settle` draws them); the means are over

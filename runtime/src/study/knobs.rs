@@ -7,7 +7,8 @@
 //! `stroke` in `[arm]`, and in `[controller]` one entry of `k_bar` (`k_bar_1..3`, eq. 36), all
 //! of `d` (eq. 37) or `gain` (eq. 30), `lambda` (eq. 53), and a spatial arm's damping onset
 //! `damping_below`, and in `[velocity_limits]` the cap on the transverse function's phase rate
-//! `alpha_rate` (`|α̇ᵢ|`, rad/s; unicycle and car). Two more scale a spatial arm (`--arm`, [`ArmScale`]) rather than set a
+//! `alpha_rate` (`|α̇ᵢ|`, rad/s; unicycle and car), and the heading filter's `heading_rate` and
+//! `heading_xi` in `[controller]` (`companion_core::HeadingFilter`). Two more scale a spatial arm (`--arm`, [`ArmScale`]) rather than set a
 //! config key: `joint_speed` (every joint's published speed times it) and `reach` (every
 //! length of the arm times it).
 
@@ -62,6 +63,12 @@ pub enum Knob {
     /// alpha_rate`, rad/s; unicycle and car): with the velocity limits' common factor, it
     /// slows the platform's manoeuvres (their frequency goes with `α̇`, the paper's §2).
     AlphaRate,
+    /// The heading filter's `σ` (`[controller] heading_rate`, rad/s): the fastest the
+    /// platform's reference heading turns towards the target's (infinite: no filter).
+    HeadingRate,
+    /// The heading filter's `ξ` (`[controller] heading_xi`, rad): the lag below which it is
+    /// linear, with gain `σ/ξ`.
+    HeadingXi,
 }
 
 /// Which arm a knob belongs to.
@@ -75,7 +82,7 @@ pub enum ArmKind {
 
 /// Every knob, in the order columns and draws use (new knobs go at the end, so that the
 /// draws of the others stay where they were).
-pub const ALL: [Knob; 18] = [
+pub const ALL: [Knob; 20] = [
     Knob::Epsilon,
     Knob::Eta1,
     Knob::Eta2,
@@ -94,6 +101,8 @@ pub const ALL: [Knob; 18] = [
     Knob::Reach,
     Knob::DampingBelow,
     Knob::AlphaRate,
+    Knob::HeadingRate,
+    Knob::HeadingXi,
 ];
 
 impl Knob {
@@ -118,6 +127,8 @@ impl Knob {
             Self::Reach => "reach",
             Self::DampingBelow => "damping_below",
             Self::AlphaRate => "alpha_rate",
+            Self::HeadingRate => "heading_rate",
+            Self::HeadingXi => "heading_xi",
         }
     }
 
@@ -226,6 +237,8 @@ impl Knob {
             Self::JointSpeed | Self::Reach => 1.0,
             Self::DampingBelow => c.overrides.damping_below.unwrap_or(companion_core::DAMPING_BELOW),
             Self::AlphaRate => p.velocity_limits.alpha_rate,
+            Self::HeadingRate => p.secondary.heading_filter.map_or(f64::INFINITY, |h| h.rate),
+            Self::HeadingXi => p.secondary.heading_filter.map_or(f64::NAN, |h| h.xi),
         }
     }
 }
@@ -282,6 +295,9 @@ pub fn apply(builder: &ScenarioBuilder, base: &Scenario, values: &[(Knob, f64)])
                 file.velocity_limits.get_or_insert(c.limits.unwrap_or_default()).alpha_rate =
                     v.is_finite().then_some(v);
             }
+            // An infinite rate is no filter (with no `heading_xi` set either).
+            Knob::HeadingRate => file.controller.heading_rate = v.is_finite().then_some(v),
+            Knob::HeadingXi => file.controller.heading_xi = Some(v),
             Knob::JointSpeed | Knob::Reach => {}
         }
     }
@@ -293,6 +309,26 @@ mod tests {
     use super::*;
     use companion_core::PaperRun;
     use companion_plant::PaperTrajectory;
+
+    /// `heading_rate` and `heading_xi` set the heading filter (`[controller]`); an infinite
+    /// rate is no filter, as the default scenario has.
+    #[test]
+    fn heading_knobs_set_the_filter_and_an_infinite_rate_none() {
+        let b = Scenario::builder(PaperTrajectory::Two, PaperRun::A, PlatformKind::Unicycle);
+        let base = b.clone().build().unwrap();
+        assert_eq!(Knob::HeadingRate.value(&base), f64::INFINITY);
+        assert!(Knob::HeadingXi.value(&base).is_nan());
+        let s = apply(&b, &base, &[(Knob::HeadingRate, 0.03), (Knob::HeadingXi, 0.1)]).build().unwrap();
+        let h = s.controller.params::<f64>().secondary.heading_filter.expect("a filter");
+        assert_eq!((h.rate, h.xi), (0.03, 0.1));
+        assert_eq!((Knob::HeadingRate.value(&s), Knob::HeadingXi.value(&s)), (0.03, 0.1));
+        let none = apply(&b, &base, &[(Knob::HeadingRate, f64::INFINITY)]).build().unwrap();
+        assert_eq!(none.controller.params::<f64>().secondary.heading_filter, None);
+        assert_eq!(
+            Knob::parse_for("heading_rate", PlatformKind::Omni, ArmKind::Planar),
+            Ok(Knob::HeadingRate)
+        );
+    }
 
     #[test]
     fn names_round_trip_and_apply_sets_what_value_reads() {

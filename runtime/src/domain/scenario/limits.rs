@@ -18,8 +18,24 @@
 use companion_core::PlatformKind;
 use serde::Serialize;
 
-use super::LimitsChoice;
 use crate::domain::controller::{AccelerationConfig, LimitsConfig};
+
+/// A named set of velocity (and acceleration) limits for a scenario (`--limits NAME`): merged
+/// with the config file's, the stricter value winning per key (this module), except
+/// [`Unlimited`](Self::Unlimited).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LimitsChoice {
+    /// None (the paper's runs): no velocity and no acceleration limits, the config file's
+    /// dropped.
+    Unlimited,
+    /// A realistic robot's velocity limits (`companion_plant::realistic_limits`).
+    Realistic,
+    /// The TIAGo's base, velocity and acceleration, as PAL configures it
+    /// ([`LimitsConfig::tiago`], `AccelerationConfig::tiago`); no joint acceleration limits.
+    Tiago,
+    /// These velocity limits.
+    Custom(LimitsConfig),
+}
 
 /// One limit that ran: its key, value and source.
 #[derive(Clone, Debug, PartialEq, Serialize)]

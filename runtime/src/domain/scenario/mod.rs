@@ -33,10 +33,10 @@ use serde::{Serialize, Serializer};
 pub use self::config::{
     ConfigError, ConfigFile, HomeConfig, MountConfig, NoiseConfig, PlantFileConfig, RobotConfig,
 };
-pub use self::limits::{LimitSource, LimitsRecord};
+pub use self::limits::{LimitSource, LimitsChoice, LimitsRecord};
 use crate::domain::controller::{
     platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
-    LimitsConfig, RestFilterConfig, Scalar, JOINTS,
+    RestFilterConfig, Scalar, JOINTS,
 };
 
 /// The target's motion.
@@ -70,23 +70,6 @@ impl Serialize for Target {
             Self::File(p) => s.serialize_newtype_variant("Target", 1, "file", p),
         }
     }
-}
-
-/// A named set of velocity (and acceleration) limits for a scenario (`--limits NAME`): merged
-/// with the config file's, the stricter value winning per key ([`limits`]), except
-/// [`Unlimited`](Self::Unlimited).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LimitsChoice {
-    /// None (the paper's runs): no velocity and no acceleration limits, the config file's
-    /// dropped.
-    Unlimited,
-    /// A realistic robot's velocity limits (`companion_plant::realistic_limits`).
-    Realistic,
-    /// The TIAGo's base, velocity and acceleration, as PAL configures it
-    /// ([`LimitsConfig::tiago`], `AccelerationConfig::tiago`); no joint acceleration limits.
-    Tiago,
-    /// These velocity limits.
-    Custom(LimitsConfig),
 }
 
 /// A scenario that cannot be run: which parameter, and why.

@@ -178,12 +178,15 @@ pub struct ObjectiveFile {
 pub const EFFORT_WEIGHT: f64 = 0.01;
 
 /// The default space of a platform; for a unicycle or a car whose run has platform
-/// acceleration limits (a real base's, `--limits tiago`), also `K̄₁₁`, `D` and the phase-rate
-/// cap `alpha_rate`, which shape the manoeuvres such a base can give (the study).
+/// acceleration limits (a real base's, `--limits tiago`), also `K̄₁₁`, `D`, the phase-rate
+/// cap `alpha_rate`, which shape the manoeuvres such a base can give, and the heading filter
+/// (`heading_rate`, `heading_xi`), which spares it the swings of a target turning in place
+/// (the book's chapter "The law", "What a nonholonomic base can follow").
 pub fn default_space_for(platform: PlatformKind, accelerations: bool) -> Vec<(Knob, [f64; 2])> {
     let mut v = default_space(platform);
     if accelerations && platform != PlatformKind::Omni {
         v.extend([(Knob::KBar1, [0.1, 10.0]), (Knob::D, [0.1, 10.0]), (Knob::AlphaRate, [0.3, 10.0])]);
+        v.extend([(Knob::HeadingRate, [0.005, 0.5]), (Knob::HeadingXi, [0.02, 1.0])]);
         v.sort_by_key(|(k, _)| *k);
     }
     v
