@@ -36,13 +36,13 @@ pub struct SettleArgs {
     /// whatever --starts.
     #[arg(long, default_value_t = 0.1, value_name = "A", allow_hyphen_values = true)]
     pub perturb: f64,
-    /// A run has settled when ‖e_p‖ stays below this from --settle-by on.
+    /// Settled: ‖e_p‖ below this from --settle-by on.
     #[arg(long, default_value_t = 1e-3, value_name = "TOL", allow_hyphen_values = true)]
     pub tolerance: f64,
-    /// The time from which a settled run stays within --tolerance, in s.
+    /// From when a settled run stays within --tolerance (s).
     #[arg(long, default_value_t = 20.0, value_name = "SECONDS", allow_hyphen_values = true)]
     pub settle_by: f64,
-    /// Also write settle.json (every start and the spreads) into this folder.
+    /// Also write settle.json (every start, the spreads) here.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
     /// Worker threads [default: one per core].

@@ -54,7 +54,7 @@ pub struct TuneArgs {
     /// Output folder: preset.toml, report.json, candidates.csv, pareto.svg.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
-    /// Each run from N perturbed homes (a spatial --arm; 1: the home).
+    /// Each run from N homes near the arm's (1: its home).
     ///
     /// Score each candidate from N starts per run: homes of the spatial --arm perturbed by up
     /// to --perturb, seeded by --seed (as `companion settle` draws them); the means are over
@@ -62,7 +62,7 @@ pub struct TuneArgs {
     /// arm's home itself.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub starts: usize,
-    /// With --starts N > 1: each joint's home moved by up to ± this (rad or m).
+    /// Each joint's home moved by up to ± this (rad or m).
     #[arg(long, default_value_t = 0.1, value_name = "A", allow_hyphen_values = true)]
     pub perturb: f64,
     /// No progress bar.
