@@ -24,6 +24,8 @@ Platform = Literal["unicycle", "car", "omni"]
 Choice = Literal["a", "b", "c", "d"]
 ScalarType = Literal["f64", "f32"]
 Discretisation = Literal["midpoint", "sampled"]
+# `limits`: a named set merged with the config file's limits, the stricter value winning per key
+# ("none": no limit at all, the file's dropped); scenario.json records each limit's source.
 Limits = Literal["none", "realistic", "tiago"]
 Path = Union[str, PathLike]
 FloatArray = npt.NDArray[np.float64]

@@ -20,17 +20,28 @@ filmstrip rendered off-screen and index.html.
 robot without a controller (commands from the flag), for trying a base or a table.
 """
 
-import argparse
-import gc
-import json
-import math
-import os
-import platform as host
-import random
-import statistics
+import signal
 import sys
-import time
-import zlib
+
+# SIGINT and SIGTERM are recorded from the first line on (the imports below take most of a
+# second): the session acts on them between periods (companion_bridge.serve).
+EARLY_SIGNALS = []
+for _sig in (signal.SIGINT, signal.SIGTERM):
+    signal.signal(_sig, lambda signum, _frame: EARLY_SIGNALS.append(signum))
+
+import argparse  # noqa: E402
+import atexit  # noqa: E402
+import gc  # noqa: E402
+import json  # noqa: E402
+import math  # noqa: E402
+import os  # noqa: E402
+import platform as host  # noqa: E402
+import random  # noqa: E402
+import shutil  # noqa: E402
+import statistics  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import zlib  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
@@ -50,6 +61,37 @@ import companion_bridge as wire  # noqa: E402
 import mujoco  # noqa: E402
 import mujoco_robot  # noqa: E402
 from companion_bridge import compose3, inverse3, so3_log, transpose  # noqa: E402
+
+wire.install_signal_handlers()
+for _sig in EARLY_SIGNALS:
+    wire.on_signal(_sig)
+
+# ----- MuJoCo's own log (MUJOCO_LOG.TXT): in the run's folder, never in the working directory --
+# Until the run's folder exists (its first row), MuJoCo logs into a private temporary folder;
+# the folder's MUJOCO_LOG.TXT then gets what it holds, and every later message. MuJoCo prints
+# each message on stderr too.
+_LOG_TMP = tempfile.mkdtemp(prefix="companion-mujoco-log-")
+atexit.register(shutil.rmtree, _LOG_TMP, True)
+
+
+def mujoco_log_to(path):
+    c = mujoco.MjLogConfig.get()
+    c.logfile = path
+    c.set()
+
+
+mujoco_log_to(os.path.join(_LOG_TMP, "MUJOCO_LOG.TXT"))
+
+
+def mujoco_log_into(folder):
+    """MuJoCo's log into `folder` (the run's), with what it logged before the folder existed."""
+    early = os.path.join(_LOG_TMP, "MUJOCO_LOG.TXT")
+    target = os.path.join(folder, "MUJOCO_LOG.TXT")
+    if os.path.exists(early):
+        with open(early, "rb") as src, open(target, "ab") as dst:
+            dst.write(src.read())
+        os.remove(early)
+    mujoco_log_to(target)
 
 # ----- the target: the paper's trajectories lifted (docs/book/src/bridge.md §8) -------------------
 
@@ -216,6 +258,10 @@ def build_robot(a, table):
             return robot, chain, wire.arm_hash(chain.description())
     except mujoco_robot.ModelError as e:
         raise wire.Fatal(str(e))
+    except (ValueError, KeyError, TypeError, np.linalg.LinAlgError) as e:
+        # What MuJoCo or the file's numbers refused that no check above names: the reason, as
+        # one line (exit 2, as every refusal of a robot before the run).
+        raise wire.Fatal(f"--arm {a.arm}: the MuJoCo plant cannot build this robot: {mujoco_robot.one_line(e)}")
     raise wire.Fatal(f"--arm {a.arm}: ur5, an arm file (.toml) or a URDF (.urdf)")
 
 
@@ -302,6 +348,8 @@ class Physical:
         self.last_measured = None
         self.odometry_error = []
         self.joints = n
+        # timeseries.csv, written as the run goes (a killed plant leaves its rows on disk).
+        self.stream = RowStream(a.out_dir, n, robot.act_names)
 
     # -- the interface --
 
@@ -438,12 +486,76 @@ class Physical:
         status = {0: "ok", -1: "stopped" if outcome == "stopped" else "none"}.get(cmd[4], f"rejected:{cmd[4]:#x}")
         if outcome == "held":
             status = "held"
-        self.rows.append(
-            (t, base, q, tool, target, p, phi, cmd, status, truth, (v, vl, w), slip, self.sat_period.copy())
-        )
+        row = (t, base, q, tool, target, p, phi, cmd, status, truth, (v, vl, w), slip, self.sat_period.copy())
+        self.rows.append(row)
+        self.stream.write(row)
         if self.step in self.film_at:
             self.film.append((self.step, self.robot.data.qpos.copy(), target))
         self.cpu_end, self.wall_end = time.process_time_ns(), time.perf_counter_ns()
+
+
+def csv_header(n, names):
+    """timeseries.csv's columns: a spatial `companion sim` run's, then the physics'."""
+    header = ["t", "x_b", "y_b", "theta_b", "xi"] + [f"q{i}" for i in range(1, n + 1)]
+    for p in ("e", "d"):
+        header += [f"{c}_{p}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
+    header += ["ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "psi", "v", "v_lat", "omega",
+               "v_xi"]
+    header += [f"u_q{i}" for i in range(1, n + 1)] + ["joint_scale", "status"]
+    extra = ["x_true", "y_true", "theta_true", "v_true", "v_lat_true", "omega_true", "ep_position", "ep_rotation",
+             "ep_norm_law", "slip_left", "slip_right", "traction_left", "traction_right"] + [f"load_{x}" for x in names]
+    return ",".join(header + extra) + "\n"
+
+
+def csv_line(row):
+    """One row of timeseries.csv, and its position, orientation and whole errors."""
+    (t, base, q, tool, target, p, phi, cmd, status, truth, vel, slip, sat) = row
+    pe = math.sqrt(sum(x * x for x in p))
+    re = math.sqrt(sum(x * x for x in phi))
+    en = math.sqrt(pe * pe + re * re)
+    vals = [t, base[0], base[1], base[2], 0.0, *q]
+    for (rot, pos) in (tool, target):
+        vals += [*pos, *quat_xyzw(rot)]
+    vals += [*p, *phi, en, float("nan"), float("nan"), cmd[0], cmd[3], cmd[1], 0.0, *cmd[2], cmd[6]]
+    line = ",".join(repr(float(x)) for x in vals) + "," + status + ","
+    tail = [*truth, *vel, pe, re, cmd[5], *slip, *sat.tolist()]
+    return line + ",".join(repr(float(x)) for x in tail) + "\n", pe, re, en
+
+
+class RowStream:
+    """timeseries.csv as the run goes, as `companion plant` writes it: the run's folder made at
+    the first row (MuJoCo's log moved into it), each row written at once and the file flushed
+    every FLUSH_S — a SIGKILLed plant leaves the rows up to its last flush (the controller trims
+    a cut last line and counts them in fault.json)."""
+
+    FLUSH_S = 0.05
+
+    def __init__(self, out, joints, names):
+        self.out, self.header = out, csv_header(joints, names)
+        self.file = None
+        self.last_flush = 0.0
+        self.pos_err, self.rot_err, self.ep_norm = [], [], []
+
+    def write(self, row):
+        if self.file is None:
+            os.makedirs(self.out, exist_ok=True)
+            mujoco_log_into(self.out)
+            self.file = open(os.path.join(self.out, "timeseries.csv"), "w", buffering=1 << 16)
+            self.file.write(self.header)
+            self.last_flush = time.monotonic()
+        line, pe, re, en = csv_line(row)
+        self.file.write(line)
+        self.pos_err.append(pe)
+        self.rot_err.append(re)
+        self.ep_norm.append(en)
+        now = time.monotonic()
+        if now - self.last_flush >= self.FLUSH_S:
+            self.file.flush()
+            self.last_flush = now
+
+    def close(self):
+        if self.file is not None:
+            self.file.close()
 
 
 class PhysicsSummary(wire.Summary):
@@ -565,6 +677,8 @@ class OpenLoop:
             ends.append((acc, c))
         zero = self.robot.zero_command()
         for n in range(steps + 1):
+            if wire.stop_requested():
+                raise wire.Interrupted(f"interrupted at period {n}")
             self.robot.measure()
             t = n * self.a.dt
             cmd = next((c for end, c in ends if t < end - 1e-12), zero)
@@ -612,36 +726,11 @@ def write_run(a, phys, bridge, code, why):
     if not phys.rows:
         print(f"mujoco: no period ran: nothing written to {out}", file=sys.stderr)
         return
-    os.makedirs(out, exist_ok=True)
+    phys.stream.close()
     rb = phys.robot
-    n = phys.joints
     rows = phys.rows
     names = rb.act_names
-    header = ["t", "x_b", "y_b", "theta_b", "xi"] + [f"q{i}" for i in range(1, n + 1)]
-    for p in ("e", "d"):
-        header += [f"{c}_{p}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
-    header += ["ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "psi", "v", "v_lat", "omega",
-               "v_xi"]
-    header += [f"u_q{i}" for i in range(1, n + 1)] + ["joint_scale", "status"]
-    extra = ["x_true", "y_true", "theta_true", "v_true", "v_lat_true", "omega_true", "ep_position", "ep_rotation",
-             "ep_norm_law", "slip_left", "slip_right", "traction_left", "traction_right"] + [f"load_{x}" for x in names]
-    pos_err, rot_err, ep_norm = [], [], []
-    with open(os.path.join(out, "timeseries.csv"), "w") as f:
-        f.write(",".join(header + extra) + "\n")
-        for (t, base, q, tool, target, p, phi, cmd, status, truth, vel, slip, sat) in rows:
-            pe = math.sqrt(sum(x * x for x in p))
-            re = math.sqrt(sum(x * x for x in phi))
-            en = math.sqrt(pe * pe + re * re)
-            pos_err.append(pe)
-            rot_err.append(re)
-            ep_norm.append(en)
-            vals = [t, base[0], base[1], base[2], 0.0, *q]
-            for (rot, pos) in (tool, target):
-                vals += [*pos, *quat_xyzw(rot)]
-            vals += [*p, *phi, en, float("nan"), float("nan"), cmd[0], cmd[3], cmd[1], 0.0, *cmd[2], cmd[6]]
-            line = ",".join(repr(float(x)) for x in vals) + "," + status + ","
-            tail = [*truth, *vel, pe, re, cmd[5], *slip, *sat.tolist()]
-            f.write(line + ",".join(repr(float(x)) for x in tail) + "\n")
+    pos_err, rot_err, ep_norm = phys.stream.pos_err, phys.stream.rot_err, phys.stream.ep_norm
     t = np.array([r[0] for r in rows])
     figures = physical_figures(a, phys, t, np.array(pos_err), np.array(rot_err), np.array(ep_norm))
     session = {}
@@ -687,6 +776,9 @@ def write_run(a, phys, bridge, code, why):
         "seed": a.seed,
         "actuators": rb.table,
         "mujoco": mujoco.__version__,
+        # What the plant or MuJoCo changed of the URDF to simulate it, by link (mujoco_robot).
+        "physics_fixes": rb.fixes,
+        "mesh_fixes": rb.mesh_fixes,
         **figures,
         "session": session,
     }
@@ -843,6 +935,8 @@ def film(a, phys, out):
     rendering would cost real time). Returns (files, why there are none)."""
     if a.filmstrip <= 0:
         return [], "no filmstrip asked for (--filmstrip 0)"
+    if wire.stop_requested():
+        return [], "the run was interrupted (SIGINT/SIGTERM): no pictures rendered, the run's files first"
     if not phys.film:
         return [], "the run ended before its first frame"
     rb = phys.robot
@@ -988,8 +1082,16 @@ def write_index(a, out, summary, latency, pictures, plots):
 # ----- the command line ------------------------------------------------------------------------
 
 
+class Parser(argparse.ArgumentParser):
+    """The plant's flags: a bad one is one line (exit 2), no abbreviations (`companion hil`
+    checks the flags it forwards by their names)."""
+
+    def error(self, message):
+        self.exit(wire.EXIT_ERROR, f"error: {message} (companion_mujoco.py --help lists the flags)\n")
+
+
 def parse(argv):
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = Parser(description=__doc__.split("\n\n")[0], allow_abbrev=False)
     wire.session_arguments(p)
     p.set_defaults(events=True)
     p.add_argument("--no-events", dest="events", action="store_false", help="poll instead of notifying")
@@ -1019,6 +1121,9 @@ def parse(argv):
     p.add_argument("--actuator-delay", type=float, default=0.0,
                    help="s added to the delay announced in every measurement (the drives' lag)")
     p.add_argument("--open-loop", help="no controller: base commands SECONDS:V,OMEGA[,V_LAT];… (joints still)")
+    p.add_argument("--check", action="store_true",
+                   help="check the flags, the actuator table and the robot (MuJoCo loads it), print CHECKED and exit "
+                   "0, or the reason and exit 2; nothing is written (`companion hil --plant mujoco` does this first)")
     a = wire.finish_arguments(p.parse_args(argv))
     a.out = None  # set at the end (MujocoPlant.report)
     a.rows = None
@@ -1058,7 +1163,18 @@ def main(argv=None):
                      (not (a.duration > 0 and math.isfinite(a.duration)), "--duration must be positive"),
                      (a.filmstrip < 0 or a.filmstrip > 100, "--filmstrip: 0 to 100 frames"),
                      (not 1 <= a.rt_priority <= 99, "--rt-priority: 1 to 99"),
-                     (a.cpu is not None and not 0 <= a.cpu < (os.cpu_count() or 1), "--cpu: not a CPU of this machine")):
+                     (a.cpu is not None and not 0 <= a.cpu < (os.cpu_count() or 1), "--cpu: not a CPU of this machine"),
+                     (not (math.isfinite(a.actuator_delay) and 0.0 <= a.actuator_delay <= 8 * a.dt),
+                      "--actuator-delay: seconds in [0, 8 periods]"),
+                     (not (math.isfinite(a.spin_us) and 0.0 <= a.spin_us <= 1e6), "--spin-us: 0 to 1000000 µs"),
+                     (not (math.isfinite(a.deadline_us) and a.deadline_us > 0), "--deadline-us must be positive"),
+                     (a.hold_periods < 0, "--hold-periods must be 0 or more"),
+                     (not (math.isfinite(a.silence_ms) and a.silence_ms > 0), "--silence-ms must be positive"),
+                     (not (math.isfinite(a.peer_timeout) and a.peer_timeout > 0), "--peer-timeout must be positive"),
+                     (not (math.isfinite(a.startup_timeout) and a.startup_timeout >= 0),
+                      "--startup-timeout must be 0 or more"),
+                     (not 0.0 <= a.max_miss_fraction <= 1.0, "--max-miss-fraction: a fraction in [0, 1]"),
+                     (a.progress < 0, "--progress must be 0 or more")):
         if bad:
             print(f"error: {why}", file=sys.stderr)
             return wire.EXIT_ERROR
@@ -1074,12 +1190,46 @@ def main(argv=None):
             raise wire.Fatal(str(e))
         robot, _chain, arm_hash = build_robot(a, table)
         phys = Physical(a, robot, _chain, arm_hash, steps)
+        if a.open_loop:
+            parse_open_loop(a.open_loop, phys.joints)
+        if a.check:
+            raise Checked()
+        if robot.fixes:
+            by_link = {}
+            for f in robot.fixes:
+                by_link.setdefault(f["link"] or "other links", []).append(f["fix"])
+            print(f"mujoco: {len(robot.fixes)} physics fixes to simulate the URDF (summary.json physics_fixes):",
+                  file=sys.stderr)
+            for link, fixes in by_link.items():
+                print(f"mujoco:   {link}: {'; '.join(fixes)}", file=sys.stderr)
+        if robot.mesh_fixes:
+            print(f"mujoco: {len(robot.mesh_fixes)} visual meshes replaced or dropped (pictures only; summary.json "
+                  "mesh_fixes)", file=sys.stderr)
         phys.rt = real_time_setup(a)
         if a.open_loop:
             return OpenLoop(a, phys)
         return MujocoPlant(a, phys)
 
+    if a.check:
+        try:
+            make()
+        except Checked:
+            print("CHECKED", flush=True)
+            return wire.EXIT_OK
+        except wire.Fatal as e:
+            print(f"error: {e}", file=sys.stderr)
+            return wire.EXIT_ERROR
+        except Exception:  # noqa: BLE001 - a bug, said as one
+            import traceback
+
+            traceback.print_exc()
+            print("error: an unexpected exception checking the plant (a bug: please report it)", file=sys.stderr)
+            return wire.EXIT_BUG
     return wire.serve(make)
+
+
+class Checked(Exception):
+    """--check: the robot was built; nothing more is done."""
 
 
 if __name__ == "__main__":

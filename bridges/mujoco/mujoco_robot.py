@@ -40,6 +40,12 @@ class ModelError(Exception):
     """A robot the MuJoCo plant cannot build (a bad file, link or table entry), named."""
 
 
+def one_line(e):
+    """MuJoCo's message as one line ("Error: …\nElement name …, line 3" → "…; element …")."""
+    text = " ".join(str(e).split())
+    return text[:400] + ("…" if len(text) > 400 else "")
+
+
 def robots_dir():
     """example-robot-data's robots folder (PyPI `example-robot-data`, installed by
     scripts/setup into target/py), or $COMPANION_ROBOTS."""
@@ -68,7 +74,12 @@ def merge(base, over, where=""):
     for k, v in over.items():
         here = f"{where}.{k}" if where else k
         if k not in base and where != "joint" and k != "joint":
-            raise ModelError(f"actuator table: unknown key {here}")
+            keys = ", ".join(sorted(base)) if where else ", ".join(sorted(x for x in base if x != "joint"))
+            within = f"{where} has" if where else "the sections are"
+            raise ModelError(
+                f"actuator table: unknown key {here} ({within} {keys}; one joint's own: joint.NAME.kv, .effort, "
+                f".speed, .armature)"
+            )
         if isinstance(v, dict) and isinstance(base.get(k), dict):
             out[k] = merge(base[k], v, here)
         else:
@@ -91,7 +102,7 @@ def load_table(files=(), sets=()):
     for item in sets:
         key, eq, value = item.partition("=")
         if not eq or "." not in key:
-            raise ModelError(f"--set {item!r}: SECTION.KEY=VALUE, e.g. wheels.kv=40")
+            raise ModelError(f"--set {item!r}: SECTION.KEY=VALUE, e.g. arm.time_constant=0.002 or joint.arm_1_joint.kv=200")
         *sections, last = key.strip().split(".")
         try:
             parsed = tomllib.loads(f"x = {value.strip()}")["x"]
@@ -120,14 +131,14 @@ def rpy_matrix(r, p, y):
 
 
 def numbers(text, n, what):
-    try:
-        v = [float(x) for x in (text or "").split()]
-    except ValueError:
-        v = []
     if text is None:
         return [0.0] * n
-    if len(v) != n:
-        raise ModelError(f"{what}: {n} numbers expected, got {text!r}")
+    try:
+        v = [float(x) for x in text.split()[: n + 1]]
+    except ValueError:
+        v = []
+    if len(v) != n or not all(math.isfinite(x) for x in v):
+        raise ModelError(f"{what}: {n} finite numbers expected, got {text[:80]!r}")
     return v
 
 
@@ -148,14 +159,25 @@ class Urdf:
         self.parent_joint = {}
         for j in self.root.findall("joint"):
             name, kind = j.get("name"), j.get("type")
-            parent, child = j.find("parent").get("link"), j.find("child").get("link")
+            what = f"URDF {path}: joint {str(name)[:80]!r}"
+            parent, child = j.find("parent"), j.find("child")
+            if parent is None or child is None or parent.get("link") is None or child.get("link") is None:
+                raise ModelError(f"{what} has no <parent link> or <child link>")
+            parent, child = parent.get("link"), child.get("link")
             o = j.find("origin")
-            xyz = numbers(o.get("xyz") if o is not None else None, 3, f"joint {name} origin xyz")
-            rpy = numbers(o.get("rpy") if o is not None else None, 3, f"joint {name} origin rpy")
+            xyz = numbers(o.get("xyz") if o is not None else None, 3, f"{what}: origin xyz")
+            rpy = numbers(o.get("rpy") if o is not None else None, 3, f"{what}: origin rpy")
             a = j.find("axis")
-            axis = numbers(a.get("xyz") if a is not None else "1 0 0", 3, f"joint {name} axis")
+            axis = numbers(a.get("xyz") if a is not None else "1 0 0", 3, f"{what}: axis")
             lim = j.find("limit")
-            get = (lambda k, d: float(lim.get(k, d))) if lim is not None else (lambda k, d: float(d))
+
+            def get(k, d, lim=lim, what=what):
+                text = lim.get(k, d) if lim is not None else d
+                try:
+                    return float(text)
+                except ValueError:
+                    raise ModelError(f"{what}: <limit {k}>={str(text)[:80]!r} is not a number")
+
             self.joints[name] = {
                 "name": name,
                 "type": kind,
@@ -173,6 +195,9 @@ class Urdf:
         children = set(self.parent_joint)
         roots = [l for l in self.links if l not in children]
         self.root_link = roots[0] if len(roots) == 1 else None
+        # What the plant changed of the file for MuJoCo (mujoco_xml), by link.
+        self.fixes = []
+        self.mesh_fixes = []
 
     def path_joints(self, base, tip):
         """The joints from link `base` down to link `tip` (base first)."""
@@ -181,7 +206,8 @@ class Urdf:
                 raise ModelError(f"URDF {self.path}: no link named {link!r}")
         out, link = [], tip
         while link != base:
-            if link not in self.parent_joint:
+            # At most one step per joint: a loop in the file ends the walk, refused.
+            if link not in self.parent_joint or len(out) > len(self.joints):
                 raise ModelError(f"URDF {self.path}: link {tip!r} is not below link {base!r}")
             j = self.joints[self.parent_joint[link]]
             out.append(j)
@@ -200,7 +226,9 @@ class Urdf:
         are not positive definite made diagonal (MuJoCo refuses them: the TIAGo's antennas),
         and a compiler element."""
         root = ET.fromstring(ET.tostring(self.root))
+        self.fixes, self.mesh_fixes = [], []
         for link in root.findall("link"):
+            name = link.get("name")
             stl_collision = None
             for c in list(link.findall("collision")):
                 mesh = c.find("geometry/mesh")
@@ -215,9 +243,13 @@ class Urdf:
                     if not keep_visuals:
                         link.remove(v)
                     continue
+                given = str(mesh.get("filename"))
                 f = self._mesh_file(mesh.get("filename"))
-                if not keep_visuals or f is None:
+                if not keep_visuals:
                     link.remove(v)
+                elif f is None:
+                    link.remove(v)
+                    self.mesh_fixes.append({"link": name, "fix": f"visual mesh {given[:120]} not found: dropped"})
                 elif f.lower().endswith(".stl"):
                     mesh.set("filename", f)
                 elif stl_collision is not None:
@@ -233,17 +265,41 @@ class Urdf:
                         v.remove(vo)
                     if o is not None:
                         v.insert(0, o)
+                    self.mesh_fixes.append({"link": name, "fix": f"visual mesh {os.path.basename(f)} (MuJoCo reads no "
+                                            f"{os.path.splitext(f)[1]}) replaced by its collision mesh "
+                                            f"{os.path.basename(stl_collision[1])}"})
                 else:
                     link.remove(v)
+                    self.mesh_fixes.append({"link": name, "fix": f"visual mesh {os.path.basename(f)} (MuJoCo reads no "
+                                            f"{os.path.splitext(f)[1]}, and the link has no .stl collision mesh): dropped"})
+            # MuJoCo loads a NaN or an infinity in an <inertial> with a warning only ("XML contains a
+            # 'NaN'"), and its physics is then not a number: refused here, by link and attribute.
+            for el, attrs in ((link.find("inertial/mass"), ("value",)),
+                              (link.find("inertial/inertia"), ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")),
+                              (link.find("inertial/origin"), ("xyz", "rpy"))):
+                for k in attrs if el is not None else ():
+                    text = el.get(k)
+                    if text is None:
+                        continue
+                    try:
+                        ok = all(math.isfinite(float(x)) for x in text.split()[:4])
+                    except ValueError:
+                        ok = False
+                    if not ok:
+                        raise ModelError(f"URDF {self.path}: link {str(name)[:80]!r}: <{el.tag} {k}>={text[:80]!r} "
+                                         "is not finite numbers: MuJoCo would simulate it as NaN")
             inertia = link.find("inertial/inertia")
             if inertia is not None:
                 a = {k: float(inertia.get(k, "0")) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
                 m = np.array(
                     [[a["ixx"], a["ixy"], a["ixz"]], [a["ixy"], a["iyy"], a["iyz"]], [a["ixz"], a["iyz"], a["izz"]]]
                 )
-                if np.linalg.eigvalsh(m).min() <= 0.0 and any(a[k] != 0.0 for k in ("ixy", "ixz", "iyz")):
+                low = np.linalg.eigvalsh(m).min()
+                if low <= 0.0 and any(a[k] != 0.0 for k in ("ixy", "ixz", "iyz")):
                     for k in ("ixy", "ixz", "iyz"):
                         inertia.set(k, "0")
+                    self.fixes.append({"link": name, "fix": f"inertia not positive definite (smallest principal "
+                                       f"moment {low:.3g} kg m^2) made diagonal"})
         for old in root.findall("mujoco"):
             root.remove(old)
         mj = ET.SubElement(root, "mujoco")
@@ -325,7 +381,10 @@ class Robot:
         for j, q in zip(self.chain_joints, home):
             if j["type"] != "continuous" and not (j["lower"] < q < j["upper"]):
                 raise ModelError(f"--home: joint {j['name']} at {q} is outside its limits [{j['lower']}, {j['upper']}]")
-        spec = mujoco.MjSpec.from_string(self.urdf.mujoco_xml(visuals))
+        try:
+            spec = mujoco.MjSpec.from_string(self.urdf.mujoco_xml(visuals))
+        except ValueError as e:
+            raise ModelError(f"MuJoCo cannot load {self.urdf.path}: {one_line(e)}")
         self.base_link, self.tip_link = base_link, tip_link
         names = set(j["name"] for j in self.chain_joints)
         if platform == "unicycle":
@@ -372,9 +431,51 @@ class Robot:
         try:
             self.model = spec.compile()
         except ValueError as e:
-            raise ModelError(f"MuJoCo refused the model of {self.urdf.path}: {e}")
+            raise ModelError(f"MuJoCo cannot load {self.urdf.path}: {one_line(e)}")
         self.data = mujoco.MjData(self.model)
         self._index(home)
+        self.fixes = self.urdf.fixes + self._bounded()
+        self.mesh_fixes = self.urdf.mesh_fixes
+
+    def _bounded(self):
+        """What MuJoCo's compiler changed of the URDF's masses and inertias (its boundmass,
+        boundinertia and balanceinertia, mujoco_xml's compiler element): each link whose
+        <inertial> the model does not keep, by name, and how many links without one got a
+        mass of their own."""
+        m, out, massless = self.model, [], []
+        for link in self.urdf.root.findall("link"):
+            name = link.get("name")
+            try:
+                b = m.body(self.prefix + name).id
+            except KeyError:
+                continue
+            inertial = link.find("inertial")
+            mass_el = inertial.find("mass") if inertial is not None else None
+            if mass_el is None:
+                if m.body_mass[b] > 0.0:
+                    massless.append(name)
+                continue
+            given = float(mass_el.get("value", "0"))
+            if abs(m.body_mass[b] - given) > 1e-12 * max(1.0, abs(given)):
+                out.append({"link": name, "fix": f"mass {given:g} -> {m.body_mass[b]:g} kg (MuJoCo's boundmass)"})
+            el = inertial.find("inertia")
+            if el is not None:
+                a = {k: float(el.get(k, "0")) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+                if any(f["link"] == name and "made diagonal" in f["fix"] for f in self.urdf.fixes):
+                    a.update(ixy=0.0, ixz=0.0, iyz=0.0)
+                mat = np.array([[a["ixx"], a["ixy"], a["ixz"]], [a["ixy"], a["iyy"], a["iyz"]],
+                                [a["ixz"], a["iyz"], a["izz"]]])
+                was = np.sort(np.linalg.eigvalsh(mat))
+                now = np.sort(np.array(m.body_inertia[b]))
+                if np.abs(was - now).max() > 1e-9 * max(1.0, np.abs(was).max()):
+                    out.append({"link": name, "fix": "principal inertia "
+                                f"({', '.join(f'{x:.3g}' for x in was)}) -> ({', '.join(f'{x:.3g}' for x in now)}) "
+                                "kg m^2 (MuJoCo's boundinertia, balanceinertia)"})
+        if massless:
+            out.append({"link": None, "fix": f"{len(massless)} links without <inertial> (frames: "
+                        f"{', '.join(massless[:6])}{', …' if len(massless) > 6 else ''}) carry MuJoCo's smallest mass, "
+                        "0.001 kg"})
+        return out
 
     # -- building --
 
@@ -382,7 +483,10 @@ class Robot:
         """The two drive wheels: movable joints off the chain whose child link has a
         cylinder collision and whose axis lies along the base's y."""
         spec_tmp = spec.copy()
-        m = spec_tmp.compile()
+        try:
+            m = spec_tmp.compile()
+        except ValueError as e:
+            raise ModelError(f"MuJoCo cannot load {self.urdf.path}: {one_line(e)}")
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
         base = m.body(self.base_link).id
@@ -428,7 +532,10 @@ class Robot:
         for k, g in enumerate(colliding):
             if not g.name:
                 g.name = f"collision/{g.parent.name}/{k}"
-        m = spec.copy().compile()
+        try:
+            m = spec.copy().compile()
+        except ValueError as e:
+            raise ModelError(f"MuJoCo cannot load {self.urdf.path}: {one_line(e)}")
         d = mujoco.MjData(m)
         mujoco.mj_forward(m, d)
         self.casters = []

@@ -18,7 +18,11 @@ reports the measured delay.
 
 It also injects faults for the tests (`--help`). Exit codes as `companion plant`: 0 the run
 completed, 2 an error or the controller refused this plant, 3 the controller died or left,
-4 the controller is alive but silent, 130 interrupted.
+4 the controller is alive but silent, 101 a bug (an unexpected exception: its traceback is
+printed, the files are written), 130 interrupted. SIGINT and SIGTERM — one or many, at any
+moment, also while the files are written — end the run as `companion plant` ends it: the next
+period is the last (END_OF_RUN), its answer awaited a second at most, then the files are
+written and the bridge exits 130.
 """
 
 import argparse
@@ -57,6 +61,46 @@ REFUSALS = {
 }
 
 EXIT_OK, EXIT_ERROR, EXIT_PEER_LOST, EXIT_PEER_HUNG, EXIT_INTERRUPTED = 0, 2, 3, 4, 130
+# An unexpected exception: a bug (companion's code for a panic, docs/book/src/hil.md).
+EXIT_BUG = 101
+# How long an interrupted run waits for the answer to its last measurement (s), as `companion
+# control` keeps answering for a second after its own signal.
+INTERRUPT_GRACE_S = 1.0
+
+# ----- SIGINT and SIGTERM: recorded, acted on between periods -------------------------------
+# The handler only records the signal: the loops look at it once a period and end the run there,
+# so a second signal (a terminal's Ctrl-C reaches the plant and the controller, which forwards a
+# SIGTERM) never lands in the middle of writing the files.
+
+SIGNALS = {"first": None, "count": 0, "at": None}
+
+
+def on_signal(signum, _frame=None):
+    """Records SIGINT or SIGTERM (the first one's number and time, and how many came)."""
+    SIGNALS["count"] += 1
+    if SIGNALS["first"] is None:
+        SIGNALS["first"] = signum
+        SIGNALS["at"] = time.monotonic()
+
+
+def install_signal_handlers():
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, on_signal)
+
+
+def stop_requested():
+    """Whether SIGINT or SIGTERM came."""
+    return SIGNALS["first"] is not None
+
+
+def stop_waited():
+    """Seconds since the first signal (0 without one)."""
+    return time.monotonic() - SIGNALS["at"] if SIGNALS["at"] is not None else 0.0
+
+
+class Interrupted(Exception):
+    """SIGINT or SIGTERM before the run could end at a period (waiting for the controller to
+    join, or for an answer): the bridge exits 130."""
 
 
 def _type_name(name):
@@ -608,20 +652,34 @@ class UrdfChain(Chain):
             raise Fatal(f"URDF {path}: {e}")
         joints = {}
         for j in root.findall("joint"):
-            joints[j.find("child").get("link")] = j
+            child, parent = j.find("child"), j.find("parent")
+            if child is None or parent is None or child.get("link") is None or parent.get("link") is None:
+                raise Fatal(f"URDF {path}: joint {str(j.get('name'))[:80]!r} has no <parent link> or <child link>")
+            joints[child.get("link")] = j
         links = [lk.get("name") for lk in root.findall("link")]
-        base = base_link or next(lk for lk in links if lk not in joints)
-        if not tip_link:
-            raise Fatal(f"URDF {path}: give --tip-link")
+        roots = [lk for lk in links if lk not in joints]
+        base = base_link or (roots[0] if roots else None)
+        if not tip_link or base is None:
+            raise Fatal(f"URDF {path}: give --tip-link (and a file with a root link)")
+        # The walk up from the tip: at most one step per joint (a loop is refused, not walked).
         path_up, link = [], tip_link
         while link != base:
-            if link not in joints:
-                raise Fatal(f"URDF {path}: link {tip_link!r} is not below {base!r}")
+            if link not in joints or len(path_up) > len(joints):
+                raise Fatal(f"URDF {path}: link {str(tip_link)[:80]!r} is not below {str(base)[:80]!r}")
             path_up.append(joints[link])
             link = joints[link].find("parent").get("link")
 
         def numbers(el, attr, default):
-            return tuple(float(x) for x in el.get(attr).split()) if el is not None and el.get(attr) else default
+            if el is None or not el.get(attr):
+                return default
+            v = el.get(attr).split()
+            try:
+                out = tuple(float(x) for x in v[:4])
+            except ValueError:
+                out = ()
+            if len(out) != 3 or not all(math.isfinite(x) for x in out):
+                raise Fatal(f"URDF {path}: {attr}={el.get(attr)[:80]!r} is not three finite numbers")
+            return out
 
         self.name = root.get("name", path)
         self.mount = (IDENTITY, (0.0, 0.0, 0.0))
@@ -641,6 +699,8 @@ class UrdfChain(Chain):
             lim = j.find("limit")
             if kind == "continuous":
                 lower, upper = -math.inf, math.inf
+            elif lim is None:
+                raise Fatal(f"URDF {path}: joint {str(j.get('name'))[:80]!r} ({kind}) has no <limit>")
             else:
                 lower, upper = float(lim.get("lower", 0)), float(lim.get("upper", 0))
             self.joints.append(
@@ -796,6 +856,8 @@ class Link:
         end = time.monotonic() + timeout_s
         next_scan = 0.0
         while not self.connected():
+            if stop_requested():
+                raise Interrupted(f"interrupted while waiting for a controller to join demo '{self.name}'")
             now = time.monotonic()
             if now >= next_scan:
                 other = self.other_version()
@@ -832,7 +894,12 @@ class Link:
 
     def wait_event(self, seconds):
         if self.listener is not None:
-            self.listener.timed_wait(iox.Duration.from_micros(max(1, int(seconds * 1e6))))
+            try:
+                self.listener.timed_wait(iox.Duration.from_micros(max(1, int(seconds * 1e6))))
+            except iox.ListenerWaitError as e:
+                # A signal woke the wait (its handler recorded it): the loop looks at it next.
+                if "InterruptSignal" not in str(e):
+                    raise
 
     def peer_state(self):
         """'alive', 'dead' (with its resources cleaned) or 'absent'."""
@@ -961,6 +1028,8 @@ class Bridge:
         self.spin_ns = 300_000
         self.fell_behind = 0
         self.behind_ns = 0
+        # The period SIGINT/SIGTERM made the last one (None: not interrupted).
+        self.interrupted_at = None
 
     # -- messages --
 
@@ -1083,21 +1152,37 @@ class Bridge:
             f"{steps + 1} periods",
             file=sys.stderr,
         )
-        if a.lockstep:
-            return self.lockstep(steps)
-        return self.real_time(steps)
+        code = self.lockstep(steps) if a.lockstep else self.real_time(steps)
+        if self.interrupted_at is not None:
+            raise Interrupted(f"interrupted at period {self.interrupted_at}")
+        return code
+
+    def last_period(self, n, last):
+        """The run's last period: `last`, or the next one after SIGINT/SIGTERM (the run then
+        ends as `companion plant`'s does, with END_OF_RUN on that period's measurement)."""
+        if stop_requested() and self.interrupted_at is None and last > n + 1:
+            self.interrupted_at = n + 1
+            return n + 1
+        return last
+
+    def give_up_waiting(self):
+        """After SIGINT/SIGTERM, an answer is awaited INTERRUPT_GRACE_S at most."""
+        if stop_requested() and stop_waited() > INTERRUPT_GRACE_S:
+            raise Interrupted("interrupted while waiting for the controller's answer")
 
     def lockstep(self, steps):
         delay = 0.0
-        for n in range(steps + 1):
+        n, last = 0, steps
+        while n <= last:
             self.maybe_fault(n)
             self.progress(n)
-            self.publish(n, END_OF_RUN if n == steps else 0, delay)
+            self.publish(n, END_OF_RUN if n == last else 0, delay)
             heard = spun = time.monotonic_ns()
             while True:
                 got = self.drain(n)
                 if got:
                     break
+                self.give_up_waiting()
                 self.watch(heard)
                 self.idle(time.monotonic_ns() + 10_000_000, spun)
             c, _ = got
@@ -1105,8 +1190,10 @@ class Bridge:
             self.note_diagnostics(c)
             cmd = self.robot.command_of(c)
             self.summary.add(self.robot, cmd)
-            if n < steps:
+            if n < last:
                 self.robot.advance(cmd, cmd, 0.0)
+            last = self.last_period(n, last)
+            n += 1
         return EXIT_OK
 
     def real_time(self, steps):
@@ -1118,7 +1205,8 @@ class Bridge:
         misses = 0
         stopped = False
         heard = start
-        for n in range(steps + 1):
+        n, last = 0, steps
+        while n <= last:
             self.maybe_fault(n)
             self.progress(n)
             release = start + n * period
@@ -1138,17 +1226,19 @@ class Bridge:
                 self.behind_ns += late
                 start = time.monotonic_ns() - n * period
                 release = start + n * period
-            m = self.publish(n, (END_OF_RUN if n == steps else 0) | (STOPPED if stopped else 0), delay)
+            m = self.publish(n, (END_OF_RUN if n == last else 0) | (STOPPED if stopped else 0), delay)
             t_pub = m.plant_time_ns
             # The handshake's answer and the last one (the end of the run) are awaited up to
-            # the peer timeout; the others until the deadline.
-            patient = n in (0, steps)
+            # the peer timeout (a second after a signal); the others until the deadline.
+            patient = n in (0, last)
             limit = t_pub + int(a.peer_timeout * 1e9) if patient else release + deadline_ns
             got, spun = None, time.monotonic_ns()
             while True:
                 got = self.drain(n)
                 if got or time.monotonic_ns() >= limit:
                     break
+                if patient:
+                    self.give_up_waiting()
                 self.idle(limit, spun)
             if n == 0:
                 start = time.monotonic_ns()
@@ -1180,13 +1270,15 @@ class Bridge:
             if self.rows is not None:
                 outcome = "fresh" if got else ("held" if not stopped else "stopped")
                 self.rows.append((n, self.robot.t, self.summary.final_ep, outcome, switch_at, late))
-            if n == steps:
+            if n == last:
                 break
             self.robot.advance(acting, cmd, switch_at)
             acting = cmd
             if not got:
                 # Silence is the controller's: any valid answer, also a late one, is news.
                 self.watch(max(heard, self.late_heard))
+            last = self.last_period(n, last)
+            n += 1
         return EXIT_OK
 
     def progress(self, n):
@@ -1201,8 +1293,9 @@ class Bridge:
             time.sleep(a.pause_ms / 1000.0)
         if n == a.stall_at:
             print(f"bridge: stalling at period {n} (alive, silent)", file=sys.stderr)
-            while True:
-                time.sleep(1.0)
+            while not stop_requested():
+                time.sleep(0.01)
+            raise Interrupted(f"interrupted while stalled at period {n}")
 
     def report(self, code, why=None):
         out = {
@@ -1299,10 +1392,6 @@ def parse_inject(text):
     return plan
 
 
-def _terminate(*_):
-    raise KeyboardInterrupt
-
-
 def session_arguments(p):
     """The flags of a plant session (the wire, time, the handshake's announcement and the
     test faults): the reference bridge's and the MuJoCo plant's (bridges/mujoco)."""
@@ -1363,13 +1452,25 @@ def finish_arguments(a):
 def serve(make_bridge):
     """Runs the session `make_bridge()` builds to its end and reports it: the exit code
     (0 completed, 2 an error or a refusal, 3 the controller died or left, 4 it is silent,
-    130 interrupted)."""
-    signal.signal(signal.SIGTERM, _terminate)
+    101 a bug, 130 interrupted). Every code is one of companion's (docs/book/src/hil.md)."""
+    install_signal_handlers()
     try:
         bridge = make_bridge()
     except Fatal as e:
         print(f"error: {e}", file=sys.stderr)
-        return EXIT_ERROR
+        return EXIT_INTERRUPTED if stop_requested() else EXIT_ERROR
+    except (Interrupted, KeyboardInterrupt):
+        print("bridge: interrupted before the run started: nothing written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except Exception:  # noqa: BLE001 - a bug, said as one
+        import traceback
+
+        traceback.print_exc()
+        print("error: an unexpected exception in the bridge (a bug: please report it)", file=sys.stderr)
+        return EXIT_BUG
+    if stop_requested():
+        print("bridge: interrupted before the run started: nothing written", file=sys.stderr)
+        return EXIT_INTERRUPTED
     try:
         code, why = bridge.run(), None
     except Fatal as e:
@@ -1378,9 +1479,28 @@ def serve(make_bridge):
         code, why = EXIT_ERROR, f"error: {e}"
     except Lost as e:
         code, why = e.code, f"{e}; robot stopped"
-    except KeyboardInterrupt:
-        code, why = EXIT_INTERRUPTED, "interrupted; robot stopped"
-    bridge.report(code, why)
+    except (Interrupted, KeyboardInterrupt) as e:
+        code, why = EXIT_INTERRUPTED, f"{e or 'interrupted'}; robot stopped"
+    except Exception:  # noqa: BLE001 - a bug: said, and the files written as far as they go
+        import traceback
+
+        traceback.print_exc()
+        code, why = EXIT_BUG, "error: an unexpected exception in the bridge (a bug: please report it); robot stopped"
+    # (A signal after the last period leaves a completed run completed, as `companion plant`
+    # does: its files are written whole all the same.)
+    try:
+        bridge.report(code, why)
+    except OSError as e:
+        print(f"error: writing the run's files: {e}", file=sys.stderr)
+        return code if code != EXIT_OK else EXIT_ERROR
+    except Exception:  # noqa: BLE001 - a bug, said as one
+        import traceback
+
+        traceback.print_exc()
+        print("error: an unexpected exception writing the run's files (a bug: please report it)", file=sys.stderr)
+        return EXIT_BUG
+    if SIGNALS["count"] > 1:
+        print(f"bridge: {SIGNALS['count']} signals came; the first ended the run", file=sys.stderr)
     return code
 
 

@@ -37,18 +37,14 @@ sys.path.insert(0, HERE)
 sys.path.insert(0, os.path.join(HERE, "..", "python"))
 
 import ros2_msgs as m  # noqa: E402
-from companion_bridge import (  # noqa: E402
-    LIFT_AMPLITUDE,
-    LIFT_PERIOD,
-    TARGET_DISTANCE,
-    Chain,
-    UrdfChain,
-    urdf_arguments,
-    compose3,
-    inverse3,
-    planar_pose3,
-    so3_log,
-    transpose,
+from standin_kinematics import (  # noqa: E402
+    epoch,
+    final_errors,
+    percentiles,
+    quaternion_z,
+    robot_arguments,
+    rotation_of,
+    set_up,
 )
 from cyclonedds.core import Policy, Qos, ReadCondition, SampleState, ViewState, InstanceState, WaitSet  # noqa: E402
 from cyclonedds.domain import DomainParticipant  # noqa: E402
@@ -57,7 +53,6 @@ from cyclonedds.sub import DataReader  # noqa: E402
 from cyclonedds.topic import Topic  # noqa: E402
 from cyclonedds.util import duration  # noqa: E402
 
-UR5_JOINTS = "shoulder_pan_joint,shoulder_lift_joint,elbow_joint,wrist_1_joint,wrist_2_joint,wrist_3_joint"
 STOP = False
 
 
@@ -71,95 +66,6 @@ def dds_topic(name):
     return "rt" + (name if name.startswith("/") else "/" + name)
 
 
-def quaternion_z(yaw):
-    return m.Quaternion(x=0.0, y=0.0, z=math.sin(yaw / 2), w=math.cos(yaw / 2))
-
-
-def yaw_of(q):
-    return math.atan2(2 * (q.w * q.z + q.x * q.y), 1 - 2 * (q.y * q.y + q.z * q.z))
-
-
-def rotation_of(q):
-    x, y, z, w = q.x, q.y, q.z, q.w
-    return (
-        1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-        2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-        2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y),
-    )  # fmt: skip
-
-
-def se2_step(pose, v, v_lat, omega, dt):
-    """The platform moved by the body twist (v, v_lat, ω) held for dt (exactly)."""
-    x, y, th = pose
-    phi = omega * dt
-    if abs(phi) < 1e-9:
-        a, b = 1.0 - phi * phi / 6.0, phi / 2.0
-    else:
-        a, b = math.sin(phi) / phi, (1.0 - math.cos(phi)) / phi
-    dx, dy = (a * v - b * v_lat) * dt, (b * v + a * v_lat) * dt
-    s, c = math.sin(th), math.cos(th)
-    return (x + c * dx - s * dy, y + s * dx + c * dy, th + phi)
-
-
-class LiftedTrajectory1:
-    """The paper's trajectory 1 lifted (docs/protocol.md §8), in closed form: the circle of
-    radius 0.1 m and period 4 s from r_bd(0) = (2.6, 1, z0), level, and z0 + A sin(2πt/T)."""
-
-    def __init__(self, height):
-        self.height = height
-
-    def pose(self, t):
-        a = math.pi * t / 2.0
-        p = (2.6 + 0.1 * (math.cos(a) - 1.0), 1.0 - 0.1 * math.sin(a),
-             self.height + LIFT_AMPLITUDE * math.sin(2 * math.pi * t / LIFT_PERIOD))  # fmt: skip
-        return (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0), p
-
-    def twist(self, t):
-        k, a, w = math.pi / 20.0, math.pi * t / 2.0, 2 * math.pi / LIFT_PERIOD
-        return (-k * math.sin(a), -k * math.cos(a), LIFT_AMPLITUDE * w * math.cos(w * t)), (0.0, 0.0, 0.0)
-
-
-class Robot:
-    def __init__(self, chain, joints):
-        self.chain = chain
-        self.q = [j[5] for j in chain.joints]
-        self.base = (0.0, 0.0, 0.0)
-        self.v = (0.0, 0.0, 0.0)
-        self.qdot = [0.0] * joints
-        home = chain.end_effector(self.q)
-        # r*_ed: TARGET_DISTANCE along the flange's z, level when the arm is at home.
-        self.star = (transpose(home[0]), (0.0, 0.0, TARGET_DISTANCE))
-        self.height = compose3(home, self.star)[1][2]
-
-    def advance(self, dt):
-        if dt <= 0:
-            return
-        self.base = se2_step(self.base, self.v[0], self.v[1], self.v[2], dt)
-        self.q = [q + dt * d for q, d in zip(self.q, self.qdot)]
-
-    def effector_star(self):
-        return compose3(compose3(planar_pose3(self.base), self.chain.end_effector(self.q)), self.star)
-
-    def errors(self, target):
-        """(‖p̃‖ in metres, ‖e_p‖) against the target pose."""
-        e = self.effector_star()
-        r = compose3(inverse3(e), target)
-        pos = math.sqrt(sum(x * x for x in r[1]))
-        rot = math.sqrt(sum(x * x for x in so3_log(r[0])))
-        return pos, math.sqrt(pos * pos + rot * rot)
-
-
-class PlanarRobot(Robot):
-    """The unicycle carrying the paper's RPR arm: integrated as the spatial robot, not measured."""
-
-    def __init__(self):
-        self.q = [0.0, 0.35, 0.0]
-        self.base = (0.0, 0.0, 0.0)
-        self.v = (0.0, 0.0, 0.0)
-        self.qdot = [0.0] * 3
-        self.height = 0.0
-
-
 def qos(args, depth=None):
     rel = Policy.Reliability.Reliable(duration(milliseconds=100)) if args.reliable else Policy.Reliability.BestEffort
     return Qos(rel, Policy.History.KeepLast(depth or 10), Policy.Durability.Volatile)
@@ -167,55 +73,14 @@ def qos(args, depth=None):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--arm", required=True, help="arm file (TOML), a URDF, or rpr (the paper's planar arm)")
-    urdf_arguments(p)
-    p.add_argument("--joint-names", default=None, help="default: a URDF's, else the UR5's")
-    p.add_argument("--extra-joint", action="append", default=None,
-                   help="listed too, first (default: torso_lift_joint, or head_1_joint if the arm has it)")
-    p.add_argument("--rate", type=float, default=1000.0)
-    p.add_argument("--domain-id", type=int, default=0)
-    p.add_argument("--target", choices=["topics", "node"], default="node")
-    p.add_argument("--joint-states", default="/joint_states")
-    p.add_argument("--odom", default="/mobile_base_controller/odom")
-    p.add_argument("--base-command", default="/mobile_base_controller/cmd_vel")
-    p.add_argument("--joint-command", default="/arm_velocity_controller/commands")
-    p.add_argument("--target-pose", default="/companion/target_pose")
-    p.add_argument("--target-twist", default="/companion/target_twist")
-    p.add_argument("--diagnostics", default="/diagnostics")
+    robot_arguments(p, 1000.0)
     p.add_argument("--best-effort", dest="reliable", action="store_false")
-    p.add_argument("--inject", default=None, help="stale@T, nan@T, names@T or silent@T (s after the first command)")
-    p.add_argument("--inject-for", type=float, default=0.5)
-    p.add_argument("--final-at", type=float, default=None,
-                   help="the node's --duration: the final error is taken this long after the first command")
     p.add_argument("--trace", action="store_true", help="every error sample (t, ‖p̃‖, ‖e_p‖) in --out")
-    p.add_argument("--out", required=True)
     args = p.parse_args(argv)
     signal.signal(signal.SIGINT, _stop)
     signal.signal(signal.SIGTERM, _stop)
 
-    if args.arm == "rpr":
-        # The paper's planar arm: its joints only (q(0) = (0, 0.35, 0)); no error measured here.
-        chain, names, n = None, (args.joint_names or UR5_JOINTS).split(","), 3
-        robot = PlanarRobot()
-    elif args.arm.endswith(".urdf"):
-        chain = UrdfChain(args.arm, args.base_link, args.tip_link, args.home, args.srdf, args.home_state)
-        names = args.joint_names.split(",") if args.joint_names else chain.joint_names
-        n = len(chain.joints)
-        robot = Robot(chain, n)
-    else:
-        chain = Chain(args.arm)
-        names = (args.joint_names or UR5_JOINTS).split(",")
-        n = len(chain.joints)
-        robot = Robot(chain, n)
-    if args.extra_joint is None:
-        args.extra_joint = ["head_1_joint" if "torso_lift_joint" in names else "torso_lift_joint"]
-    if len(names) != n:
-        raise SystemExit(f"--joint-names has {len(names)} names, the arm {n} joints")
-    traj = LiftedTrajectory1(robot.height)
-    inject, inject_at = None, None
-    if args.inject:
-        inject, at = args.inject.split("@")
-        inject_at = float(at)
+    robot, chain, names, n, traj, inject, inject_at = set_up(args)
 
     dp = DomainParticipant(args.domain_id)
     q = qos(args)
@@ -257,7 +122,8 @@ def main(argv=None):
     }  # fmt: skip
     first_cmd = None
     latencies = []  # a base command's stamp to its application here (ms)
-    s0_ns = None  # the node's first target stamp (its run's epoch)
+    s0_ns = None  # the node's run's epoch, from its first target
+    stamps = []  # the last stamps published
     last_pub_mono = None
 
     def target_at_real(ns):
@@ -326,7 +192,8 @@ def main(argv=None):
                     continue
                 stamp = s.header.stamp.ns()
                 if s0_ns is None:
-                    s0_ns = stamp
+                    pp = s.pose.position
+                    s0_ns = epoch(traj, stamp, (pp.x, pp.y, pp.z), stamps)
                 res["target_messages"] += 1
                 if res["target_messages"] % every or chain is None:
                     continue
@@ -342,6 +209,8 @@ def main(argv=None):
             next_pub = now
         next_pub += period
         stamp_ns = now_ns
+        stamps.append(stamp_ns)
+        del stamps[:-50]
         fault = window(now) == "in" and inject
         js = m.JointState(header=m.Header(stamp=m.Time.of_ns(stamp_ns - (1_000_000_000 if fault == "stale" else 0)), frame_id=""))
         js.name = list(args.extra_joint) + names
@@ -355,7 +224,7 @@ def main(argv=None):
         x, y, th = robot.base
         od = m.Odometry(header=m.Header(stamp=m.Time.of_ns(stamp_ns), frame_id="odom"), child_frame_id="base_link")
         od.pose.pose.position = m.Point(x=x, y=y, z=0.0)
-        od.pose.pose.orientation = quaternion_z(th)
+        od.pose.pose.orientation = m.Quaternion(*quaternion_z(th))
         od.twist.twist.linear.x, od.twist.twist.angular.z = robot.v[0], robot.v[2]
         odom_w.write(od)
         if args.target == "topics":
@@ -376,26 +245,10 @@ def main(argv=None):
             res["errors"].append((now - first_cmd, pos, full))
 
     errs = res.pop("errors")
-    gaps = sorted(res.pop("publish_gaps_ms"))
-    res["publish_gap_ms"] = {
-        "p50": gaps[len(gaps) // 2] if gaps else None,
-        "p99": gaps[int(len(gaps) * 0.99)] if gaps else None,
-        "max": gaps[-1] if gaps else None,
-    }
-    latencies.sort()
-    res["command_latency_ms"] = {
-        "p50": latencies[len(latencies) // 2] if latencies else None,
-        "p99": latencies[int(len(latencies) * 0.99)] if latencies else None,
-        "max": latencies[-1] if latencies else None,
-    }
+    res["publish_gap_ms"] = percentiles(res.pop("publish_gaps_ms"))
+    res["command_latency_ms"] = percentiles(latencies)
     res["first_command_s"] = None if first_cmd is None else first_cmd - t0_mono
-    if args.final_at is not None and errs:
-        before = [e for e in errs if e[0] <= args.final_at - 0.05]
-        last2 = [e for e in before if e[0] >= args.final_at - 2.05]
-        res["final_position_error"] = before[-1][1] if before else None
-        res["final_ep_norm"] = before[-1][2] if before else None
-        res["max_position_error_last_2_s"] = max(e[1] for e in last2) if last2 else None
-    res["error_samples"] = len(errs)
+    final_errors(res, errs, args.final_at)
     if args.trace:
         res["trace"] = errs
     with open(args.out, "w") as f:

@@ -75,6 +75,10 @@ pub struct Diagnostics<T: Real, const N: usize, S: Space<T> = Planar> {
     pub joint_acceleration: T,
     /// `det H̄(α)` (1 for the omnidirectional platform).
     pub det_h: T,
+    /// The heading filter's lag `δ = θ_d − θ̂_d` (rad): how far the heading the platform's
+    /// law follows trails the target's (0 without the filter,
+    /// [`HeadingFilter`](crate::HeadingFilter)).
+    pub heading_lag: T,
     /// The 1-norm condition number of `∂e_m/∂q`, eq. (24).
     pub condition: T,
     /// `α` at the start of the hold (unused components zero).
@@ -111,6 +115,7 @@ impl<T: Real, const N: usize, S: Space<T>> Diagnostics<T, N, S> {
             platform_acceleration: one,
             joint_acceleration: one,
             det_h: z,
+            heading_lag: z,
             condition: z,
             alpha: Vector2::zeros(),
             alpha_rate: Vector2::zeros(),

@@ -41,8 +41,8 @@ use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
 use crate::secondary::{
-    bounded_filter_rate, psi_tilde, psi_tilde_value, psi_with_terms, rest_cost, sigma_tilde_joint,
-    sigma_tildes, RestCost,
+    bounded_filter_rate, heading_filtered, heading_rates, psi_tilde, psi_tilde_value, psi_with_terms,
+    rest_cost, sigma_tilde_joint, sigma_tildes, RestCost,
 };
 use crate::space::{Space, Vector};
 use crate::state::{wrap_alpha, Sent, State, HISTORY};
@@ -488,6 +488,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         s.q_hat = *q;
         s.sigma = SVector::zeros();
         s.r_tilde = Pose::identity();
+        s.heading_lag = T::zero();
         s.t0 = keep.t0;
         s.initialized = true;
         s.last_t = meas.t;
@@ -818,6 +819,18 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             pred.target.plane_r_bd
         };
         let rest = self.rest_at_te(st, half);
+        // The heading filter at t_e (half an explicit step, as the other filters), and the
+        // target its law sees.
+        let u_d = pred.target.plane_u_d;
+        let (r_bd, u_d, heading) = match &self.params.secondary.heading_filter {
+            Some(f) => {
+                let lag = st.heading_lag + heading_rates(st.heading_lag, u_d[2], f).1 * half;
+                let (turn, lag_rate) = heading_rates(lag, u_d[2], f);
+                let (r_bd, u_d) = heading_filtered(&r_bd, &u_d, lag, turn);
+                (r_bd, u_d, HeadingAtTe { lag, lag_rate })
+            }
+            None => (r_bd, u_d, HeadingAtTe { lag: T::zero(), lag_rate: T::zero() }),
+        };
         let xi_error = if P::KIND == PlatformKind::Car {
             // ξ_f when the command starts: ξ_f(α_e) less its change over the first half.
             start.xi - (frame.xi_f - frame.dxi_f.dot(&alpha_rate_prev) * half)
@@ -827,7 +840,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let point = PlatformPoint {
             r_bd: &r_bd,
             frame: &frame,
-            u_d: &{ pred.target.plane_u_d },
+            u_d: &u_d,
             psi: filters.psi,
             psi_rate: filters.psi_rate,
             rest: rest.as_ref(),
@@ -848,7 +861,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             previous,
         };
         let step = law.platform_step(&point, &pred.hold);
-        Ok(PlatformAtTe { step, alpha_rate: P::alpha_rate(&step.w), rest, det_h: frame.det_h })
+        Ok(PlatformAtTe { step, alpha_rate: P::alpha_rate(&step.w), rest, det_h: frame.det_h, heading })
     }
 
     /// The base at `t_e` relative to the measurement, moved from `t_k + τ` over `h/2` by a
@@ -1016,6 +1029,8 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
             psi: after.psi,
             sigma: after.sigma,
             r_tilde: self.rest_after(st, platform, h),
+            // δ⁺ = δ + h δ̇(t_e), the midpoint rule as for the other filters.
+            heading_lag: wrap_angle(st.heading_lag + platform.heading.lag_rate * h),
             w: plat.w,
             u_bar: plat.u_bar,
             sensitivity: arm.step.task.sensitivity,
@@ -1108,6 +1123,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         d.platform_acceleration = plat.acceleration;
         d.joint_acceleration = arm.joint_acceleration;
         d.det_h = platform.det_h;
+        d.heading_lag = platform.heading.lag;
         d.condition = prim.condition;
         d.alpha = st.alpha;
         d.alpha_rate = platform.alpha_rate;
@@ -1197,6 +1213,15 @@ struct PlatformAtTe<T> {
     rest: Option<RestCost<T>>,
     /// `det H(α_e)` of the companion frame.
     det_h: T,
+    /// The heading filter at `t_e` (zeros without one).
+    heading: HeadingAtTe<T>,
+}
+
+/// The heading filter's lag `δ(t_e)` and its rate there (phase 4).
+#[derive(Clone, Copy, Debug)]
+struct HeadingAtTe<T> {
+    lag: T,
+    lag_rate: T,
 }
 
 /// The arm law at `t_e` (phase 5) and the command of the step.
@@ -1244,6 +1269,7 @@ struct Update<T: Real, const N: usize, S: Space<T>> {
     psi: T,
     sigma: SVector<T, N>,
     r_tilde: Pose<T>,
+    heading_lag: T,
     w: Vector3<T>,
     u_bar: Vector3<T>,
     sensitivity: SMatrix<T, N, 3>,
@@ -1261,6 +1287,7 @@ impl<T: Real, const N: usize, S: Space<T>> Update<T, N, S> {
         state.psi = self.psi;
         state.sigma = self.sigma;
         state.r_tilde = self.r_tilde;
+        state.heading_lag = self.heading_lag;
         state.last_w = self.w;
         state.last_u_bar = self.u_bar;
         state.last_sensitivity = self.sensitivity;
@@ -1387,10 +1414,13 @@ fn all_finite<T: Real, const N: usize, S: Space<T>>(
         u.r_tilde.x,
         u.r_tilde.y,
         u.r_tilde.theta,
+        u.heading_lag,
     ] {
         nan += x * z;
     }
-    for x in [d.h_s, d.h_s1, d.h_s2, d.psi, d.joint_penalty, d.saturation, d.condition, d.det_h] {
+    for x in
+        [d.h_s, d.h_s1, d.h_s2, d.psi, d.joint_penalty, d.saturation, d.condition, d.det_h, d.heading_lag]
+    {
         nan += x * z;
     }
     for x in [d.companion.x, d.companion.y, d.companion.theta, u.u_bar[0], u.u_bar[1], u.u_bar[2]] {

@@ -93,8 +93,8 @@ pub use law::{ControlLaw, Controller};
 pub use lie::LieGroup;
 pub use measurement::Measurement;
 pub use params::{
-    Discretisation, JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter, SecondaryTask,
-    TargetMotion, Warning, Weight, WeightMargins,
+    Discretisation, HeadingFilter, JointLimits, PaperRun, Params, Precompensation, PrimaryTask, RestFilter,
+    SecondaryTask, TargetMotion, Warning, Weight, WeightMargins,
 };
 pub use platform::{
     CarLike, CompanionFrame, Omnidirectional, Platform, PlatformCommand, PlatformKind, Unicycle,

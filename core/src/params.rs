@@ -245,6 +245,35 @@ pub struct SecondaryTask<T, const N: usize> {
     /// Whether `∂h_s/∂t` includes `Ψ̇ (h_s1 − h_s2)`. The paper preset leaves it out: with
     /// it, runs (b) and (d) chatter (SPEC §3).
     pub psi_rate_in_drift: bool,
+    /// The platform follows the target's heading at a bounded rate (beyond the paper; `None`,
+    /// the default: the paper's `h_s1` (49), which follows it at once). See [`HeadingFilter`].
+    pub heading_filter: Option<HeadingFilter<T>>,
+}
+
+/// The target's heading as the platform's law sees it, filtered (beyond the paper).
+///
+/// `h_s1` (49) puts the companion frame at `r_d r_*`: when the target turns about its own
+/// vertical by `Δθ`, that pose swings `|p_*| Δθ` sideways — lateral motion, which a
+/// nonholonomic base can only make by manoeuvres, while the arm could simply turn the tool.
+/// With this filter the platform's law sees instead the target `r̂_d = r_d Rot(−δ)`: the same
+/// position, its heading `θ̂_d = θ_d − δ` lagging by `δ`, which turns at most `σ` rad/s
+/// towards the target's:
+///
+/// ```text
+/// θ̂̇_d = σ δ/(ξ + |δ|),   δ̇ = ω_d − θ̂̇_d,   δ(0) = 0          (the bounded filter of (26), (53))
+/// r̂_bd = r_bd Rot(−δ),   û_d = (R(δ) (u_d,x, u_d,y), θ̂̇_d)     (its body velocity, (4))
+/// ```
+///
+/// The target's translation reaches the platform's law unfiltered (with its feed-forward
+/// (51)); only its turning is slowed, and the arm holds the tool through the lag `δ`. The
+/// arm law (30) is unchanged and tracks the target itself. `δ` is wrapped to `(−π, π]`: a
+/// target that keeps turning faster than `σ` is followed the short way round.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeadingFilter<T> {
+    /// `σ > 0` (rad/s): the fastest the platform's reference heading turns.
+    pub rate: T,
+    /// `ξ > 0` (rad): the lag below which the filter is linear, with gain `σ/ξ` (1/s).
+    pub xi: T,
 }
 
 /// All parameters of the law for an arm with `N` joints and a target in the plane
@@ -396,6 +425,7 @@ impl<T: Real> Params<T, 3> {
                 precompensation,
                 rest_filter: RestFilter::LinearlyImplicit,
                 psi_rate_in_drift: false,
+                heading_filter: None,
             },
             velocity_limits: VelocityLimits::unlimited(),
             max_time_step: T::of(0.01),
@@ -534,6 +564,10 @@ impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
             }
             Precompensation::Off | Precompensation::Partial => {}
         }
+        if let Some(f) = &s.heading_filter {
+            check_positive("heading_rate", f.rate, Bound::Magnitude)?;
+            check_positive("heading_xi", f.xi, Bound::Length)?;
+        }
         self.velocity_limits.validate()?;
         check_positive("max_time_step", self.max_time_step, Bound::Time)?;
         // (To within rounding: the bound's own f32 rounding must not reject it.)
@@ -589,6 +623,9 @@ impl<T: Real, const N: usize, S: Space<T>> Params<T, N, S> {
         }
         if let Weight::Filtered { lambda, xi, .. } | Weight::PerJoint { lambda, xi, .. } = &s.weight {
             r = r.max(*lambda / *xi);
+        }
+        if let Some(f) = &s.heading_filter {
+            r = r.max(f.rate / f.xi);
         }
         T::of(0.1) / r
     }

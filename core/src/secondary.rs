@@ -7,12 +7,15 @@
 //! h_s  = Ψ h_s1 + (1 − Ψ) h_s2                                               (29)
 //! ū_b  = −b̂₁ − (aᵀDa + b̂₂)/(aᵀKa + μ) K a,   K(α) = H̄ K̄ H̄ᵀ                (36)–(37)
 //! ```
+//!
+//! Beyond the paper, the target these see may be the target with its heading filtered
+//! ([`HeadingFilter`](crate::HeadingFilter), [`heading_rates`], [`heading_filtered`]).
 
 use nalgebra::{Matrix3, SVector, Vector3};
 
-use crate::params::WeightMargins;
+use crate::params::{HeadingFilter, WeightMargins};
 use crate::scalar::Real;
-use crate::se2::Pose;
+use crate::se2::{Pose, PoseSc};
 
 /// `h_s1` of eq. (49) with its gradient `a₁` and the drift terms of (51).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -252,4 +255,26 @@ pub fn sigma_tildes<T: Real, const N: usize>(
 pub fn bounded_filter_rate<T: Real>(x: T, target: T, lambda: T, xi: T) -> T {
     let d = x - target;
     -lambda * d / (xi + d.abs())
+}
+
+/// The heading filter's rates ([`HeadingFilter`]) at lag `δ`, for a target turning at `ω_d`:
+/// the reference heading's `θ̂̇_d = σ δ/(ξ + |δ|)` and the lag's `δ̇ = ω_d − θ̂̇_d`.
+#[inline]
+pub fn heading_rates<T: Real>(lag: T, omega_d: T, f: &HeadingFilter<T>) -> (T, T) {
+    let turn = f.rate * lag / (f.xi + lag.abs());
+    (turn, omega_d - turn)
+}
+
+/// The target as the platform's law sees it through the heading filter ([`HeadingFilter`]):
+/// seen from the base `r̂_bd = r_bd Rot(−δ)`, moving at `û_d = (R(δ) (u_d,x, u_d,y), θ̂̇_d)`.
+#[inline]
+pub fn heading_filtered<T: Real>(
+    r_bd: &PoseSc<T>,
+    u_d: &Vector3<T>,
+    lag: T,
+    turn: T,
+) -> (PoseSc<T>, Vector3<T>) {
+    let (s, c) = lag.sincos();
+    let rot = PoseSc { pose: Pose::new(T::zero(), T::zero(), -lag), sc: (-s, c) };
+    (r_bd.compose(&rot), Vector3::new(c * u_d[0] - s * u_d[1], s * u_d[0] + c * u_d[1], turn))
 }

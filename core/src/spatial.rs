@@ -905,6 +905,7 @@ impl<T: Real, const N: usize> Params<T, N, Spatial> {
                 precompensation: s.precompensation,
                 rest_filter: s.rest_filter,
                 psi_rate_in_drift: s.psi_rate_in_drift,
+                heading_filter: s.heading_filter,
             },
             velocity_limits: paper.velocity_limits,
             max_time_step: paper.max_time_step,

@@ -39,11 +39,11 @@ impl<T: Real, const N: usize> Sent<T, N> {
     }
 }
 
-/// The law's evolving quantities: `α`, `q̂` (26), `Ψ` (53) or `σᵢ` (54), `r̃_b` (28), and
-/// what the discretisation predicts from.
+/// The law's evolving quantities: `α`, `q̂` (26), `Ψ` (53) or `σᵢ` (54), `r̃_b` (28), the
+/// heading filter's lag `δ`, and what the discretisation predicts from.
 ///
 /// [`State::new`] is uninitialised; the first accepted step sets it per SPEC §3:
-/// `q̂(0) = q(0)`, `Ψ(0) = Ψ̃(q(0))`, `σᵢ(0) = σ̃ᵢ(qᵢ(0))`, `r̃_b(0) = 0`, and keeps `α`
+/// `q̂(0) = q(0)`, `Ψ(0) = Ψ̃(q(0))`, `σᵢ(0) = σ̃ᵢ(qᵢ(0))`, `r̃_b(0) = 0`, `δ(0) = 0`, and keeps `α`
 /// (0 unless set before); the robot is taken to be at rest before it.
 ///
 /// Bounded whatever the measurements: `α` and the angles are wrapped, `Ψ, σᵢ ∈ [0, 1]`,
@@ -65,6 +65,9 @@ pub struct State<T: Real, const N: usize, S: Space<T> = Planar> {
     pub sigma: SVector<T, N>,
     /// `r̃_b` of the rest filter (28).
     pub r_tilde: Pose<T>,
+    /// `δ = θ_d − θ̂_d` of the heading filter (rad; 0 without one,
+    /// [`HeadingFilter`](crate::HeadingFilter)).
+    pub heading_lag: T,
     /// The time of the first step (s).
     pub t0: T,
     /// Whether the first step has set the state.
@@ -100,6 +103,7 @@ impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
             psi: T::zero(),
             sigma: SVector::zeros(),
             r_tilde: Pose::identity(),
+            heading_lag: T::zero(),
             t0: T::zero(),
             initialized: false,
             last_w: z3,
@@ -171,6 +175,7 @@ impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
             psi: c(self.psi),
             sigma: self.sigma.map(c),
             r_tilde: Pose::new(c(self.r_tilde.x), c(self.r_tilde.y), c(self.r_tilde.theta)),
+            heading_lag: c(self.heading_lag),
             t0: c(self.t0),
             initialized: self.initialized,
             last_w: self.last_w.map(c),
@@ -194,6 +199,7 @@ impl<T: Real, const N: usize, S: Space<T>> State<T, N, S> {
         angle_ok(self.alpha[0])
             && angle_ok(self.alpha[1])
             && angle_ok(self.r_tilde.theta)
+            && angle_ok(self.heading_lag)
             && unit(self.psi)
             && self.sigma.iter().all(|s| unit(*s))
             && (0..N).all(|i| self.q_hat[i] >= lower[i] && self.q_hat[i] <= upper[i])
@@ -210,6 +216,7 @@ impl<T: Real, const N: usize, S: Space<T>> PartialEq for State<T, N, S> {
             && self.psi == other.psi
             && self.sigma == other.sigma
             && self.r_tilde == other.r_tilde
+            && self.heading_lag == other.heading_lag
             && self.t0 == other.t0
             && self.initialized == other.initialized
             && self.last_w == other.last_w

@@ -109,10 +109,15 @@ fn laws<T: Real>(run: PaperRun) -> Vec<(&'static str, usize, usize)> {
     )
     .expect("valid");
     let omni = ControlLaw::new(p, Omnidirectional, Rpr::paper()).expect("valid");
+    let mut filtered = p;
+    filtered.secondary.heading_filter =
+        Some(companion_core::HeadingFilter { rate: T::of(0.05), xi: T::of(0.2) });
+    let heading = ControlLaw::new(filtered, Unicycle::paper(), Rpr::paper()).expect("valid");
     let (a, b) = count(&uni, paper_start, 0.0);
     let (c, d) = count(&car, paper_start, 0.0);
     let (e, f) = count(&omni, paper_start, 0.0);
-    vec![("unicycle", a, b), ("car", c, d), ("omni", e, f)]
+    let (g, h) = count(&heading, paper_start, 0.0);
+    vec![("unicycle", a, b), ("car", c, d), ("omni", e, f), ("unicycle, heading filter", g, h)]
 }
 
 /// A spatial arm's law for `STEPS` steps: the target held `0.2 m` below the flange at home

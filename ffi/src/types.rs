@@ -553,6 +553,7 @@ impl<T: Real> CompanionParams<T> {
                 precompensation,
                 rest_filter,
                 psi_rate_in_drift,
+                heading_filter: None,
             },
             velocity_limits: VelocityLimits {
                 forward: l.forward,

@@ -3,6 +3,7 @@ runs (its summary.json digests, the repository's golden digests), never from the
 
 import json
 import math
+import pathlib
 import struct
 import subprocess
 
@@ -10,7 +11,10 @@ import numpy as np
 import pytest
 
 import companion
-from conftest import ROOT
+
+# Not `from conftest import ROOT`: pytest runs this file beside bridges/*/tests, whose conftest
+# modules share the name, and the first one imported wins.
+ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 # FNV-1a 64 over the IEEE-754 bits, as runtime/src/domain/record/digest.rs defines the trajectory digest.
 OFFSET, PRIME, MASK = 0xCBF29CE484222325, 0x100000001B3, (1 << 64) - 1
@@ -247,3 +251,20 @@ def test_the_panda_simulate_carries_its_platform_settings_as_the_cli(cli, tmp_pa
     want = cli_digest(cli, tmp_path, "--arm", "panda", "--duration", "2")
     _, summary = companion.simulate(1, "a", arm="panda", duration=2.0)
     assert summary["trajectory_digest"] == want
+
+
+def test_limits_compose_with_the_config_file_as_the_cli(cli, tmp_path):
+    """`limits='tiago'` merges with the config file's limits, the stricter value per key: the
+    file's `alpha_rate` caps the commanded phase rate (its timeseries column), the TIAGo's
+    2.09 rad/s caps ω, scenario.json names each source, and the run is the CLI's bit for bit."""
+    cfg = tmp_path / "limits.toml"
+    cfg.write_text("[velocity_limits]\nalpha_rate = 0.8\nangular = 3.0\n")
+    out = tmp_path / "py"
+    ts, s = companion.simulate(1, "a", duration=5.0, config=str(cfg), limits="tiago", log_every=1, out=str(out))
+    assert np.abs(ts["alpha_rate"][:, 0]).max() <= 0.8 * (1 + 1e-12)
+    assert np.abs(ts["command"][:, 2]).max() <= 2.09 * (1 + 1e-12)
+    applied = {a["key"]: (a["value"], a["from"]) for a in json.loads((out / "scenario.json").read_text())["limits"]["applied"]}
+    assert applied["velocity_limits.alpha_rate"] == (0.8, "config file")
+    assert applied["velocity_limits.angular"] == (2.09, "limits tiago")
+    assert applied["acceleration_limits.forward"] == (1.0, "limits tiago")
+    assert s["trajectory_digest"] == cli_digest(cli, tmp_path, "--duration", "5", "--config", cfg, "--limits", "tiago")

@@ -310,6 +310,8 @@ fn no_config_value_makes_the_program_panic() {
         ("controller", "max_delay", false),
         ("controller", "max_turn_per_step", false),
         ("controller", "rest_reach", false),
+        ("controller", "heading_rate", false),
+        ("controller", "heading_xi", false),
         // A spatial arm's law's: a planar run refuses them by name, whatever the value.
         ("controller", "damping_below", false),
         ("controller", "damping_depth", false),
@@ -558,4 +560,128 @@ fn bad_arm_files_and_spatial_targets_are_refused_by_field() {
         &["`reach` is a parameter of a spatial arm"],
     );
     refused(&d, &["explore", "--arm", "ur5", "--space", &reach, "--noise"], &["noise", "spatial arm"]);
+}
+
+/// A small URDF (a fixed base, six revolute joints in line, a tool) with `extra` elements
+/// before `</robot>`, one element a line.
+fn urdf(extra: &str) -> String {
+    let mut s = String::from("<?xml version=\"1.0\"?>\n<robot name=\"six\">\n<link name=\"base\"/>\n");
+    for i in 1..=6 {
+        s.push_str(&format!(
+            "<link name=\"l{i}\"/>\n<joint name=\"j{i}\" type=\"revolute\">\n<parent link=\"{}\"/>\n<child link=\"l{i}\"/>\n\
+             <origin xyz=\"0 0 0.1\" rpy=\"0 {} 0\"/>\n<axis xyz=\"0 {} 1\"/>\n<limit lower=\"0\" upper=\"2\" effort=\"1\" velocity=\"1\"/>\n</joint>\n",
+            if i == 1 { "base".to_string() } else { format!("l{}", i - 1) },
+            if i % 2 == 0 { "0.5" } else { "0" },
+            if i % 2 == 0 { "1" } else { "0" },
+        ));
+    }
+    s.push_str("<link name=\"tool\"/>\n<joint name=\"tool_joint\" type=\"fixed\">\n<parent link=\"l6\"/>\n<child link=\"tool\"/>\n</joint>\n");
+    s.push_str(extra);
+    s.push_str("</robot>\n");
+    s
+}
+
+/// The line of `pat` in `text` (1-based).
+fn line_of(text: &str, pat: &str) -> usize {
+    text[..text.find(pat).unwrap()].matches('\n').count() + 1
+}
+
+/// Issue 45's reproducers through the command line: a URDF whose joints loop (before the
+/// fix, `sim` ran until 4 GiB of memory were gone), a joint whose parent is its child, an
+/// `origin` of 2 million numbers (quoted whole before), `velocity="inf"` and `effort="-5"`
+/// (read before, refused by urdfdom) — each refused at once, exit 2, one line naming the
+/// file's line, nothing written; and `--home`: a value 1e-320 above a limit (accepted before,
+/// then every step non-finite), an empty value, a joint named twice.
+#[test]
+fn issue_45s_urdfs_and_homes_are_refused_in_one_line_naming_the_line() {
+    let d = dir("urdf");
+    let sim = |arm: &str, home: &str| {
+        vec![
+            "sim",
+            "--arm",
+            arm,
+            "--tip-link",
+            "tool",
+            "--home",
+            home,
+            "--platform",
+            "omni",
+            "--duration",
+            "1",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>()
+    };
+    let home = "1,1,1,1,1,1";
+    let ok = file(&d, "ok.urdf", &urdf(""));
+    let out = d.join("out");
+    let ok_args = sim(&ok, home);
+    let (code, err) = run(&ok_args
+        .iter()
+        .map(String::as_str)
+        .chain(["--no-plots", "--out", out.to_str().unwrap()])
+        .collect::<Vec<_>>());
+    assert_eq!(code, Some(0), "the file itself is valid: {err}");
+    let _ = std::fs::remove_dir_all(d.join("out"));
+    let loop_text = urdf(
+        "<joint name=\"back\" type=\"fixed\">\n<parent link=\"l3\"/>\n<child link=\"base\"/>\n</joint>\n",
+    );
+    let self_text = urdf("<link name=\"cam\"/>\n<joint name=\"cam_joint\" type=\"fixed\">\n<parent link=\"cam\"/>\n<child link=\"cam\"/>\n</joint>\n");
+    let numbers = "0 ".repeat(2_000_000);
+    let huge_text = urdf("").replacen("<origin xyz=\"0 0 0.1\"", &format!("<origin xyz=\"{numbers}\""), 1);
+    let inf_text = urdf("").replacen("velocity=\"1\"", "velocity=\"inf\"", 1);
+    let neg_text = urdf("").replacen("effort=\"1\"", "effort=\"-5\"", 1);
+    for (name, text, at, says) in [
+        ("loop", &loop_text, "<joint name=\"j1\"", "form a loop"),
+        ("self", &self_text, "<joint name=\"cam_joint\"", "has `cam` as both parent and child link"),
+        ("huge", &huge_text, "<origin xyz=\"0 0 0 0", "xyz=\"0 0 0 0 0"),
+        ("inf", &inf_text, "<limit", "<limit velocity>=\"inf\" is not a finite number"),
+        ("neg", &neg_text, "<limit", "<limit effort>=\"-5\" is negative"),
+    ] {
+        let arm = file(&d, &format!("{name}.urdf"), text);
+        let args = sim(&arm, home);
+        let (code, err) = run(&args
+            .iter()
+            .map(String::as_str)
+            .chain(["--out", d.join("out").to_str().unwrap()])
+            .collect::<Vec<_>>());
+        assert_eq!(code, Some(2), "{name}: {err}");
+        let line = format!("{arm}:{}:", line_of(text, at));
+        assert!(err.contains(&line) && err.contains(says), "{name}: not {line} … {says}:\n{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{name}: one line:\n{err}");
+        assert!(err.len() < 600, "{name}: {} characters", err.len());
+        assert!(!d.join("out").exists(), "{name}: wrote its folder");
+    }
+    for (h, says) in [
+        (
+            "1e-320,1,1,1,1,1",
+            "home of joint `j1`: 1e-320 lies within 1 % of the range [0, 2] of its lower limit",
+        ),
+        ("1,,1,1,1,1,1", "--home: \"1,,1,1,1,1,1\": value 2 of 7 is empty"),
+        ("j1=1,j2=1,j1=0.5", "joint `j1` is named twice"),
+    ] {
+        refused(&d, &sim(&ok, h).iter().map(String::as_str).collect::<Vec<_>>(), &[says]);
+    }
+}
+
+/// `--out` naming an existing file is refused before anything starts or is written, by every
+/// command that writes a folder (`hil` started both processes before refusing it).
+#[test]
+fn an_out_that_is_a_file_is_refused_before_anything_starts() {
+    let d = dir("outfile");
+    let f = file(&d, "afile", "not a folder\n");
+    for args in [
+        &["hil", "--duration", "0.1", "--name", "outfile-hil"][..],
+        &["plant", "--duration", "0.1", "--name", "outfile-plant"][..],
+        &["sim", "--duration", "0.1"][..],
+        &["explore", "--samples", "2"][..],
+    ] {
+        let mut all = args.to_vec();
+        all.extend(["--out", f.as_str()]);
+        let (code, err) = run(&all);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.contains(&f) && !err.contains("started the plant"), "{args:?}:\n{err}");
+        assert_eq!(std::fs::read_to_string(&f).unwrap(), "not a folder\n");
+    }
 }

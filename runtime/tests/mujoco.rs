@@ -254,6 +254,17 @@ fn the_demo_writes_a_filmstrip_or_says_why_it_has_none() {
     assert!(text.contains("no off-screen renderer"), "{text}");
 }
 
+/// Whether a line containing `pat` comes on `lines` (within [`LIMIT`]) before they end.
+fn seen(lines: &Receiver<String>, pat: &str) -> bool {
+    let end = Instant::now() + LIMIT;
+    while let Ok(l) = lines.recv_timeout(end.saturating_duration_since(Instant::now())) {
+        if l.contains(pat) {
+            return true;
+        }
+    }
+    false
+}
+
 /// Waits for a line containing `pat` on `lines` (at most [`LIMIT`]).
 fn wait_for(lines: &Receiver<String>, pat: &str) {
     let end = Instant::now() + LIMIT;
@@ -264,6 +275,22 @@ fn wait_for(lines: &Receiver<String>, pat: &str) {
             Err(_) => panic!("no line with {pat:?} within {LIMIT:?}"),
         }
     }
+}
+
+/// `err`'s lines as they come, and all of them once it ends.
+fn line_by_line(err: std::process::ChildStderr) -> (Receiver<String>, std::thread::JoinHandle<String>) {
+    let (tx, lines) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        use std::io::BufRead;
+        let mut seen = String::new();
+        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
+            seen.push_str(&l);
+            seen.push('\n');
+            let _ = tx.send(l);
+        }
+        seen
+    });
+    (lines, reader)
 }
 
 /// Real time, UR5 on the omni base; one side SIGKILLed once the plant has run 500 periods (a
@@ -295,17 +322,7 @@ fn kill_at_period_500(kill_plant: bool, out: &Path) -> ((ExitStatus, String), (E
         out.to_str().unwrap(),
     ]);
     let err = plant.stderr.take().unwrap();
-    let (tx, lines) = std::sync::mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        use std::io::BufRead;
-        let mut seen = String::new();
-        for l in std::io::BufReader::new(err).lines().map_while(Result::ok) {
-            seen.push_str(&l);
-            seen.push('\n');
-            let _ = tx.send(l);
-        }
-        seen
-    });
+    let (lines, reader) = line_by_line(err);
     wait_for(&lines, "bridge: period 500");
     let victim = if kill_plant { plant.id() } else { control.id() };
     assert!(Command::new("kill").args(["-KILL", &victim.to_string()]).status().unwrap().success());
@@ -455,10 +472,10 @@ fn position_errors(run: &Path) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// The book's TIAGo command (the mid-reach home and transverse function of
-/// `examples/arms/tiago-unicycle.toml`), 20 s in lockstep: the TIAGo on its wheels converges
-/// from 2 m away to within 5 cm over the last 5 s (3.2 cm measured; issue 36's aim of 2 mm is
-/// not met, docs/book/src/mujoco.md says why), its wheels at their friction's limit less than
+/// The book's TIAGo command (`examples/arms/tiago-unicycle.toml`: the mid-reach home, the
+/// base's own limits, the heading filter), 20 s in lockstep: the TIAGo on its wheels converges
+/// from 2 m away to within 5 cm over the last 5 s (1.4 cm measured; the 1 mm aim is not met,
+/// docs/book/src/mujoco.md says why), its wheels at their friction's limit less than
 /// 1 % of the time (0.3 % measured) and no joint at its limit.
 #[test]
 fn the_tiago_from_a_home_it_settles_from_converges_on_its_wheels_without_sliding() {
@@ -517,4 +534,308 @@ fn what_the_mujoco_plant_cannot_do_is_refused_by_name_before_anything_starts() {
     let (st, text) = ended(companion(&["plant", "--plant", "mujoco"]), "companion plant");
     assert_eq!(st.code(), Some(2), "{text}");
     assert!(text.contains("--plant and --plant-arg are for `companion hil`"), "{text}");
+    // What the plant itself would refuse, refused before anything starts too (issue 45: each
+    // of these started both processes, or ran nothing and exited 0).
+    let ur5_omni = ["--arm", ur5.as_str(), "--platform", "omni"];
+    let with = |extra: &'static [&'static str]| {
+        ur5_omni.iter().copied().chain(extra.iter().copied()).collect::<Vec<&str>>()
+    };
+    for (flags, says) in [
+        (vec!["--arm", "ur5", "--platform", "unicycle"], "on --platform omni only"),
+        (vec!["--arm", ur5.as_str(), "--platform", "unicycle"], "on --platform omni only"),
+        (vec!["--arm", "panda", "--platform", "omni"], "it has no model of --arm panda"),
+        (
+            with(&["--plant-arg=--help"]),
+            "printed its help (above) instead of checking its flags: no run was started",
+        ),
+        (with(&["--plant-arg=--set=nonsense=1"]), "SECTION.KEY=VALUE, e.g. arm.time_constant=0.002"),
+        (
+            with(&["--plant-arg=--set=wheels.kv=40"]),
+            "unknown key wheels.kv (wheels has caster_friction, effort, speed, time_constant",
+        ),
+        (
+            with(&["--plant-arg=--name=other"]),
+            "--plant-arg=--name=other: `companion hil` gives the plant --name itself",
+        ),
+        (with(&["--plant-arg=--filmstrip=x"]), "argument --filmstrip: invalid int value: 'x'"),
+        (with(&["--plant-arg=--open-loop=1:0,0"]), "without the controller"),
+    ] {
+        let out = out_dir("refused");
+        let mut a = vec!["hil", "--plant", "mujoco", "--name", "refused"];
+        a.extend(&flags);
+        a.extend(["--out", out.to_str().unwrap()]);
+        let (st, text) = ended(companion(&a), "companion hil");
+        assert_eq!(st.code(), Some(2), "{flags:?}: {text}");
+        assert!(text.contains(says), "{flags:?}: {text}");
+        assert!(!text.contains("started the plant") && !text.contains("Traceback"), "{flags:?}: {text}");
+        assert!(!out.exists(), "{flags:?}: {} was written", out.display());
+        if flags.contains(&"--plant-arg=--help") {
+            assert!(text.contains("usage: companion_mujoco.py"), "the help is printed: {text}");
+        }
+    }
+    let mut c = Command::new(BIN);
+    c.args(["hil", "--plant", "mujoco", "--name", "refused", "--arm", &ur5, "--platform", "omni"])
+        .env("COMPANION_PYTHON", "/nonexistent/python3");
+    let (st, text) = ended(started(c), "companion hil");
+    assert_eq!(st.code(), Some(2), "{text}");
+    assert!(text.contains("COMPANION_PYTHON=/nonexistent/python3: no such file"), "{text}");
+}
+
+/// Two threads spinning for as long as the value lives: the machine loaded beside the runs.
+struct Load(std::sync::Arc<std::sync::atomic::AtomicBool>, Vec<std::thread::JoinHandle<()>>);
+
+impl Load {
+    fn start() -> Self {
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let threads = (0..2)
+            .map(|_| {
+                let stop = std::sync::Arc::clone(&stop);
+                std::thread::spawn(move || {
+                    let mut x = 0u64;
+                    while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                        x = std::hint::black_box(x.wrapping_mul(6364136223846793005).wrapping_add(1));
+                    }
+                })
+            })
+            .collect();
+        Self(stop, threads)
+    }
+}
+
+impl Drop for Load {
+    fn drop(&mut self) {
+        self.0.store(true, std::sync::atomic::Ordering::Relaxed);
+        for t in self.1.drain(..) {
+            let _ = t.join();
+        }
+    }
+}
+
+/// `companion hil --plant mujoco` (the UR5, real time, 30 s unless `extra` gives a
+/// `--duration`) in a process group of its own; its stderr as lines, and everything it wrote
+/// once it ends.
+fn hil_in_group(
+    name: &str,
+    out: &Path,
+    extra: &[&str],
+) -> (Child, Receiver<String>, std::thread::JoinHandle<String>) {
+    use std::os::unix::process::CommandExt;
+    let mut c = Command::new(BIN);
+    c.args(["hil", "--plant", "mujoco", "--name", name, "--arm", &ur5_file(), "--platform", "omni"])
+        .args(if extra.contains(&"--duration") { &[][..] } else { &["--duration", "30"][..] })
+        .args(["--max-miss-fraction", "1", "--hold-periods", "100000", "--quiet", "--no-plots"])
+        // A loaded machine starts Python, MuJoCo and the model slowly (over 20 s was seen with
+        // load 18 on two CPUs): the start is waited for as long as the process watchdog.
+        .args(["--startup-timeout", "120"])
+        .args(["--plant-arg=--progress=300", "--plant-arg=--filmstrip=0", "--out"])
+        .arg(out)
+        .args(extra)
+        .process_group(0);
+    let mut child = started(c);
+    let err = child.stderr.take().unwrap();
+    let (lines, reader) = line_by_line(err);
+    (child, lines, reader)
+}
+
+fn signal_group(pgid: u32, signal: &str) {
+    let st = Command::new("kill").args([&format!("-{signal}"), "--", &format!("-{pgid}")]).status().unwrap();
+    assert!(st.success(), "kill -{signal} -- -{pgid}");
+}
+
+/// SIGINT and SIGTERM to the demo's process group — a terminal's Ctrl-C, a supervisor's stop:
+/// both processes get it, and the controller forwards a SIGTERM to the plant — once or three
+/// times, before the plant's run starts, in its middle and while it writes its files, with
+/// two threads spinning beside it: the run ends with its files (those of a run that started)
+/// and exit 130, never a Python traceback (issue 45: 2 of 5 SIGINT and 4 of 5 SIGTERM died
+/// in the plant's report() and exited 3). Each signal goes when the run reaches a counted
+/// state — a line the processes print — never after a sleep.
+#[test]
+fn sigint_and_sigterm_to_the_group_end_the_mujoco_run_with_its_files_and_exit_130() {
+    if !available() {
+        return;
+    }
+    let _g = one_at_a_time();
+    let _load = Load::start();
+    let mut k = 0;
+    let mut tally = Vec::new();
+    for (moment, at) in [("before the run", "started the plant"), ("mid-run", "bridge: period 300")] {
+        for signal in ["INT", "TERM"] {
+            for count in [1, 3] {
+                k += 1;
+                let out = out_dir(&format!("sig{k}"));
+                let (child, lines, reader) = hil_in_group(&demo(&format!("sig{k}")), &out, &[]);
+                let pgid = child.id();
+                wait_for(&lines, at);
+                for _ in 0..count {
+                    signal_group(pgid, signal);
+                }
+                let (st, _) = ended(child, "companion hil --plant mujoco");
+                let text = reader.join().unwrap();
+                let what = format!("SIG{signal} x{count} {moment}");
+                assert_eq!(st.code(), Some(130), "{what}:\n{text}");
+                assert!(!text.contains("Traceback"), "{what}:\n{text}");
+                if moment == "mid-run" {
+                    for f in ["timeseries.csv", "summary.json", "latency.json", "session.json"] {
+                        assert!(out.join(f).is_file(), "{what}: no {f}:\n{text}");
+                    }
+                    let rows =
+                        std::fs::read_to_string(out.join("timeseries.csv")).unwrap().lines().count() - 1;
+                    assert!(rows >= 300, "{what}: {rows} rows");
+                    let s = json(&out.join("summary.json"));
+                    assert_eq!(s["exit"], 130, "{what}: {s}");
+                    assert!(s["end"].as_str().unwrap().contains("interrupted"), "{what}: {s}");
+                    assert_eq!(s["steps"].as_u64(), Some(rows as u64), "{what}: every row counted");
+                } else {
+                    assert!(!out.exists(), "{what}: wrote {} before its run", out.display());
+                }
+                tally.push(what);
+            }
+        }
+    }
+    // While the plant writes the files of a completed run (lockstep, 0.3 s): the files are whole
+    // and the run's verdict stands, as `companion plant`'s does.
+    for signal in ["INT", "TERM"] {
+        k += 1;
+        let out = out_dir(&format!("sig{k}"));
+        let (child, lines, reader) =
+            hil_in_group(&demo(&format!("sig{k}")), &out, &["--lockstep", "--duration", "0.3"]);
+        let pgid = child.id();
+        if !seen(&lines, "bridge: final|ep|") {
+            let (st, _) = ended(child, "companion hil --plant mujoco");
+            panic!("the run ended ({st}) before its files:\n{}", reader.join().unwrap());
+        }
+        for _ in 0..3 {
+            signal_group(pgid, signal);
+        }
+        let (st, _) = ended(child, "companion hil --plant mujoco");
+        let text = reader.join().unwrap();
+        assert_eq!(st.code(), Some(0), "SIG{signal} in report():\n{text}");
+        assert!(!text.contains("Traceback"), "{text}");
+        let s = json(&out.join("summary.json"));
+        assert_eq!((s["exit"].as_i64(), s["steps"].as_u64()), (Some(0), Some(301)), "{s}");
+        assert!(out.join("latency.json").is_file() && out.join("index.html").is_file(), "{text}");
+        tally.push(format!("SIG{signal} x3 in report()"));
+    }
+    println!("{} runs, each as it should: {}", tally.len(), tally.join("; "));
+}
+
+/// A SIGKILLed MuJoCo plant leaves the rows it had on disk, as the Rust plant does: the plant
+/// streams timeseries.csv (flushed every 50 ms), and the controller trims a cut last line and
+/// counts them in fault.json (issue 45: 0 of 10 runs left a timeseries.csv).
+#[test]
+fn a_sigkilled_mujoco_plant_leaves_its_rows_and_fault_json_counts_them() {
+    if !available() {
+        return;
+    }
+    let _g = one_at_a_time();
+    let out = out_dir("sigkill");
+    let (child, lines, reader) = hil_in_group(&demo("sigkill"), &out, &[]);
+    let plant = loop {
+        let l = lines.recv_timeout(LIMIT).expect("the plant's pid");
+        if let Some(rest) = l.strip_prefix("started the plant (pid ") {
+            break rest.split(')').next().unwrap().to_string();
+        }
+    };
+    wait_for(&lines, "bridge: period 600");
+    assert!(Command::new("kill").args(["-KILL", &plant]).status().unwrap().success());
+    let (st, _) = ended(child, "companion hil --plant mujoco");
+    let text = reader.join().unwrap();
+    assert_eq!(st.code(), Some(3), "{text}");
+    let fault = json(&out.join("fault.json"));
+    let rows = std::fs::read_to_string(out.join("timeseries.csv")).unwrap().lines().count() as u64 - 1;
+    assert_eq!(fault["rows_on_disk"].as_u64(), Some(rows), "{fault}");
+    // Period 600 was printed before its row: at most 50 ms of rows (50 at 1 kHz) were not flushed.
+    assert!(rows >= 550, "{rows} rows on disk after period 600: {fault}");
+}
+
+/// What the plant changes of a URDF to simulate it is said by link, in the run's output and in
+/// summary.json — a mass of -1 kg raised to MuJoCo's 1 g, the meshes it cannot find dropped —
+/// and a file MuJoCo cannot load (a negative principal inertia), or would load with NaN (a mass
+/// of nan: MuJoCo only warns), is refused with the reason, exit 2, before the controller
+/// starts (issue 45: a traceback and exit 1). MuJoCo's own log lands in the run's folder, not
+/// in the working directory.
+#[test]
+fn physics_fixes_are_reported_by_link_and_a_file_mujoco_cannot_load_is_refused_before_the_run() {
+    if !available() {
+        return;
+    }
+    let _g = one_at_a_time();
+    let dir = out_dir("fixes");
+    std::fs::create_dir_all(&dir).unwrap();
+    let tiago = std::fs::read_to_string(tiago_urdf()).unwrap();
+    let mass = r#"<mass value="2.275860"/>"#;
+    let inertia = r#"<inertia ixx="0.018178""#;
+    assert!(tiago.contains(mass) && tiago.contains(inertia), "arm_3_link's inertial, as the tests know it");
+    let write = |name: &str, text: String| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    };
+    let run = |arm: &str, out: &Path| {
+        let mut c = Command::new(BIN);
+        c.args(["hil", "--plant", "mujoco", "--name", &demo("fixes"), "--arm", arm])
+            .args(TIAGO_CUT)
+            .args(["--lockstep", "--duration", "0.2", "--plant-arg=--filmstrip=0", "--no-plots", "--out"])
+            .arg(out)
+            .current_dir(&dir);
+        ended(started(c), "companion hil --plant mujoco (a mutated TIAGo)")
+    };
+    let light = write("light.urdf", tiago.replacen(mass, r#"<mass value="-1"/>"#, 1));
+    let out = dir.join("light-run");
+    let (st, text) = run(&light, &out);
+    assert!(st.success(), "{text}");
+    assert!(text.contains("arm_3_link: mass -1 -> 0.001 kg (MuJoCo's boundmass)"), "{text}");
+    assert!(text.contains("visual meshes replaced or dropped"), "{text}");
+    let s = json(&out.join("summary.json"));
+    let fixes = s["physics_fixes"].as_array().unwrap();
+    assert!(
+        fixes.iter().any(|f| f["link"] == "arm_3_link" && f["fix"].as_str().unwrap().contains("mass -1")),
+        "{s}"
+    );
+    let meshes = s["mesh_fixes"].as_array().unwrap();
+    assert!(meshes.iter().any(|f| f["fix"].as_str().unwrap().contains("not found: dropped")), "{s}");
+    for (name, text_in, says) in [
+        (
+            "negative-inertia",
+            tiago.replacen(inertia, r#"<inertia ixx="-5""#, 1),
+            "inertia must have positive eigenvalues",
+        ),
+        (
+            "nan-mass",
+            tiago.replacen(mass, r#"<mass value="nan"/>"#, 1),
+            "<mass value>='nan' is not finite numbers",
+        ),
+    ] {
+        let arm = write(&format!("{name}.urdf"), text_in);
+        let out = dir.join(format!("{name}-run"));
+        let (st, text) = run(&arm, &out);
+        assert_eq!(st.code(), Some(2), "{name}:\n{text}");
+        assert!(text.contains(says) && text.contains("arm_3_link"), "{name}:\n{text}");
+        assert!(!text.contains("Traceback") && !text.contains("started the plant"), "{name}:\n{text}");
+        assert!(!out.exists(), "{name}: wrote {}", out.display());
+    }
+    // A table that makes MuJoCo warn (an unstable base drive): its log in the run's folder,
+    // none in the working directory.
+    let cwd = dir.join("cwd");
+    std::fs::create_dir_all(&cwd).unwrap();
+    let out = dir.join("log-run");
+    let mut c = Command::new(BIN);
+    c.args(["hil", "--plant", "mujoco", "--name", &demo("log"), "--arm", &ur5_file(), "--platform", "omni"])
+        .args([
+            "--lockstep",
+            "--duration",
+            "0.2",
+            "--max-rejected",
+            "1",
+            "--no-plots",
+            "--plant-arg=--filmstrip=0",
+        ])
+        .args(["--plant-arg=--set=omni.time_constant=1e-12", "--plant-arg=--set=omni.force=1e30", "--out"])
+        .arg(&out)
+        .current_dir(&cwd);
+    let (st, text) = ended(started(c), "companion hil --plant mujoco (an unstable table)");
+    assert!(text.contains("The simulation is unstable"), "no warning from MuJoCo (status {st}):\n{text}");
+    let log = std::fs::read_to_string(out.join("MUJOCO_LOG.TXT")).unwrap();
+    assert!(log.contains("The simulation is unstable"), "{log}");
+    assert_eq!(std::fs::read_dir(&cwd).unwrap().count(), 0, "the working directory got a file");
 }

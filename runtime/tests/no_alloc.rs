@@ -742,8 +742,9 @@ fn the_simulation_loop_of_either_arm_allocates_nothing() {
 }
 
 /// `companion ros2`'s own work in a period allocates nothing: the inputs taken and checked
-/// (the HIL's safety rules), the generated target, the law's step on the measurement made of
-/// them — 2 000 periods of the UR5 at 1 kHz. (The messages' decoding and encoding are RustDDS's
+/// (the HIL's safety rules and the one-writer rule), the generated target, the law's step on the
+/// measurement made of them, the command delay's record — 5 000 periods of the UR5 at 1 kHz
+/// (more than the delay probe's capacity, so its rings wrap). (The messages' decoding and encoding are RustDDS's
 /// and serde's, inside the transport's calls.)
 #[cfg(feature = "ros2")]
 #[test]
@@ -754,7 +755,7 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
     use companion_runtime::run::ros2::inputs::{Ages, FaultCounts, Latest};
     use companion_runtime::run::ros2::target::{planar_pose, Generator};
     use companion_runtime::transport::ros2::msgs::{self, JointSample, Time};
-    use companion_runtime::transport::ros2::{Arrived, Inputs, StampedPose};
+    use companion_runtime::transport::ros2::{Arrived, Inputs, StampedPose, WriterId};
 
     let ss = ur5_scenario(5.0);
     let chain = ss.arm.chain::<f64, 6>().unwrap();
@@ -767,23 +768,21 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
     let ages = Ages { max_age_ns: 5_000_000, silence_ns: 20_000_000 };
     let home = chain.home();
     let base0 = Pose::new(0.5, -0.2, 0.3);
+    let robot = WriterId([7; 16]);
+    let mut probe = companion_runtime::run::ros2::delay::DelayProbe::<6>::new();
     let (n, finite) = allocations_in(|| {
         let mut finite = true;
-        for k in 0..2000u64 {
+        for k in 0..5000u64 {
             let stamp = Time::from_ns(k as i64 * 1_000_000);
             let mut joints = [f64::NAN; 8];
             joints[..6].copy_from_slice(home.as_slice());
             let sample = JointSample { stamp, joints, found: 0b11_1111, malformed: false };
             let inputs = Inputs {
-                joints: Arrived { last: Some(sample), samples: 1, undecodable: 0 },
-                base: Arrived {
-                    last: Some(StampedPose { stamp, pose: msgs::Pose::default() }),
-                    samples: 1,
-                    undecodable: 0,
-                },
+                joints: Arrived::one(robot, sample),
+                base: Arrived::one(robot, StampedPose { stamp, pose: msgs::Pose::default() }),
                 ..Inputs::default()
             };
-            latest.update(&inputs, k * 1_000_000, &mut counts);
+            latest.update(&inputs, k * 1_000_000, [1, 1, 0, 0], ages.silence_ns, &mut counts);
             let s = latest.check(k * 1_000_000, k as i64 * 1_000_000 + 200_000, ages).unwrap();
             let t = k as f64 * 1e-3;
             let (pose, twist) = target.at(t, &base0).unwrap();
@@ -796,10 +795,14 @@ fn the_ros2_nodes_period_allocates_nothing_of_its_own() {
                 target_velocity: twist,
             };
             let r = law.step(&meas, 1e-3, 2e-4);
+            probe.joints(s.joints_stamp.as_ns(), &s.joints[..6]);
+            let mut sent = [0.0; 6];
+            sent.copy_from_slice(r.command.joints.as_slice());
+            probe.command(k as i64 * 1_000_000, &sent);
             finite &= r.command.joints.iter().all(|x| x.is_finite()) && r.command.platform.v.is_finite();
         }
         finite
     });
     assert!(finite);
-    assert_eq!(n, 0, "the node's period allocated {n} times in 2000 periods");
+    assert_eq!(n, 0, "the node's period allocated {n} times in 5000 periods");
 }

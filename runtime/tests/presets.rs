@@ -252,3 +252,133 @@ fn panda_car() {
     assert!(f(&s, "final_ep_norm") > 1e-5, "{s}");
     assert!(f(&s, "max_joint_scale") > 1.0, "the joint guard slowed the arm: {s}");
 }
+
+#[path = "common/robots.rs"]
+#[allow(dead_code)]
+mod robots;
+
+/// `sim --arm` the TIAGo from its URDF with its robot file (`examples/arms/tiago-unicycle.toml`:
+/// its base's limits, the heading filter, the elbow kept bent) and `extra`.
+fn tiago_file(
+    tag: &str,
+    duration: &str,
+    extra: &[&str],
+) -> (Option<i32>, serde_json::Value, serde_json::Value) {
+    let urdf = robots::robot("tiago_description/robots/tiago_no_hand.urdf");
+    let file = arm_arg("tiago-unicycle.toml");
+    let mut args = vec!["--config", &file];
+    args.extend_from_slice(extra);
+    sim_for(tag, &urdf, "unicycle", duration, &args)
+}
+
+/// The TIAGo on its own base's limits (PAL's 1 m/s, 1 m/s², 2.09 rad/s, 2.09 rad/s², from its
+/// robot file alone): lifted T1 (a) settles to the discretisation's floor and T2 (a) is
+/// tracked most of the time, with the limits acting, the elbow never within its law's limit
+/// (0.253 rad) and no step refused. (Deterministic runs; the spread over perturbed homes is
+/// the `tiago-limits` report's, law.md.)
+#[test]
+fn the_tiago_tracks_on_its_own_base_limits() {
+    let (code, s, scenario) = tiago_file("tiago-limits-t1", "40", &[]);
+    assert_eq!(code, Some(0), "{s}");
+    assert!(f(&s, "final_ep_norm") <= 1e-7, "{s}");
+    assert!(f(&s, "max_ep_norm_after_20s") <= 1e-6, "{s}");
+    assert!(f(&s, "max_abs_v") <= 1.0 + 1e-9 && f(&s, "max_abs_omega") <= 2.09 + 1e-9, "{s}");
+    assert!(s["platform_acceleration_steps"].as_u64().is_some_and(|n| n > 0), "the limits never acted: {s}");
+    assert_eq!(s["rejected_steps"], 0, "{s}");
+    let o = &scenario["base"]["controller"]["overrides"];
+    assert_eq!(o["joint_limits"]["arm_4_joint"][0], 0.253, "{scenario}");
+    let (code, s, _) = tiago_file("tiago-limits-t2", "120", &["--trajectory", "2"]);
+    assert_eq!(code, Some(0), "{s}");
+    assert!(f(&s, "fraction_ep_below_1e-3_after_20s") >= 0.9, "{s}");
+    // The elbow (the fifth joint) kept off straight: its law limit is 0.253 rad.
+    let lower = s["min_joint_margin"][4].as_f64().expect("margins");
+    assert!(lower > 0.0, "{s}");
+}
+
+/// The same file without its heading filter tracks T2 less of the time: the base swings
+/// around the target while it turns in place. (The filter's own equations are tested in
+/// companion-core's suite, `heading`.)
+#[test]
+fn the_heading_filter_is_what_keeps_the_tiago_on_trajectory_2() {
+    let d = out("tiago-no-heading");
+    std::fs::create_dir_all(&d).unwrap();
+    let text = std::fs::read_to_string(arm_arg("tiago-unicycle.toml")).unwrap();
+    let without: String =
+        text.lines().filter(|l| !l.starts_with("heading_")).map(|l| format!("{l}\n")).collect();
+    let file = d.join("no-heading.toml");
+    std::fs::write(&file, without).unwrap();
+    let urdf = robots::robot("tiago_description/robots/tiago_no_hand.urdf");
+    let args = ["--trajectory", "2", "--config", file.to_str().unwrap()];
+    let (_, s_without, _) = sim_for("tiago-no-heading-t2", &urdf, "unicycle", "120", &args);
+    let (_, s_with, _) = tiago_file("tiago-heading-t2", "120", &["--trajectory", "2"]);
+    let (a, b) =
+        (f(&s_without, "fraction_ep_below_1e-3_after_20s"), f(&s_with, "fraction_ep_below_1e-3_after_20s"));
+    assert!(b > a + 0.02, "with the filter {b}, without {a}");
+    assert!(
+        f(&s_with, "path_length_after_20s") < f(&s_without, "path_length_after_20s"),
+        "{s_with}\n{s_without}"
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+/// `[controller.joint_limits]`: refused by name and rule before anything runs — an unknown
+/// joint (the message lists the arm's), limits wider than the robot's, limits that leave out
+/// the home — and with the planar arm.
+#[test]
+fn the_laws_joint_limits_are_checked() {
+    let d = out("law-limits");
+    std::fs::create_dir_all(&d).unwrap();
+    let urdf = robots::robot("tiago_description/robots/tiago_no_hand.urdf");
+    let base = std::fs::read_to_string(arm_arg("tiago-unicycle.toml")).unwrap();
+    let base = &base[..base.find("[controller.joint_limits]").expect("the file has the table")];
+    for (table, says) in [
+        (
+            "elbow_joint = [0.3, 2.0]",
+            "names elbow_joint, which is not a joint of the arm (torso_lift_joint, arm_1_joint",
+        ),
+        (
+            "arm_4_joint = [-1.0, 2.0]",
+            "arm_4_joint = [-1, 2] is not inside the robot's limits [-0.392699081699, 2.35619449019]",
+        ),
+        ("arm_4_joint = [1.7, 2.0]", "arm_4_joint = [1.7, 2] does not hold the home (arm_4_joint = 1.66)"),
+        ("arm_4_joint = [2.0, 1.0]", "the limits must be finite, lower < upper"),
+    ] {
+        let file = d.join("c.toml");
+        std::fs::write(&file, format!("{base}[controller.joint_limits]\n{table}\n")).unwrap();
+        let dir = d.join("out");
+        let o = Command::new(BIN)
+            .args([
+                "sim",
+                "--arm",
+                &urdf,
+                "--platform",
+                "unicycle",
+                "--duration",
+                "1",
+                "--no-plots",
+                "--config",
+            ])
+            .arg(&file)
+            .arg("--out")
+            .arg(&dir)
+            .output()
+            .expect("companion runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{table}: {err}");
+        assert!(err.contains(says), "{table}: {err}");
+        assert!(!dir.exists(), "{table}: refused, yet written");
+    }
+    let file = d.join("planar.toml");
+    std::fs::write(&file, "[controller.joint_limits]\nq1 = [0.0, 0.5]\n").unwrap();
+    let o = Command::new(BIN)
+        .args(["sim", "--duration", "1", "--no-plots", "--config"])
+        .arg(&file)
+        .arg("--out")
+        .arg(d.join("out"))
+        .output()
+        .expect("companion runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("controller.joint_limits"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -14,6 +14,7 @@
 //! | [`derivatives`] | every analytic derivative of the arm, `e_p`, `e_m`, `h_s1`, `h_s2`, `h_s` by differences |
 //! | [`arms`] | arms as data: `rpr` is the paper's arm bit for bit; planar chains by differences; `ur5`, `panda` against their DH tables and published poses; validation |
 //! | [`arm_law`] | `ė_m = G e_m` through whole steps (30), every platform and run, saturated or not |
+//! | [`heading`] | the heading filter (beyond the paper): the filtered target's body velocity by differences, nothing changed while the target does not turn, the lag to second order, a target turning in place no longer drags the platform |
 //! | [`hold`] | the hold-aware discretisation: third-order residual over a hold, delays predicted exactly, no lock-out, bounded state, turn bound |
 //! | [`platform_law`] | (36)–(37) with every weight and pre-compensation; the state update; initialisation |
 //! | [`saturation`] | one common factor, direction kept, limits met |
@@ -33,6 +34,7 @@ mod arm_law;
 mod arms;
 mod closed_loop;
 mod derivatives;
+mod heading;
 mod hold;
 mod joint_guard;
 mod lie;

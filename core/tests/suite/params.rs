@@ -219,6 +219,29 @@ fn weight_margins_are_checked_for_every_weight_kind() {
     assert_eq!(p.validate(), Err(scalar("weight.lambda", Rule::NotPositive)));
 }
 
+/// The heading filter's rate and `ξ`: positive and bounded, named as the config keys.
+#[test]
+fn the_heading_filter_is_checked() {
+    use companion_core::HeadingFilter;
+    for (rate, xi, name, rule) in [
+        (0.0, 0.2, "heading_rate", Rule::NotPositive),
+        (f64::NAN, 0.2, "heading_rate", Rule::NonFinite),
+        (2e6, 0.2, "heading_rate", Rule::TooLarge(Bound::Magnitude)),
+        (0.1, -1.0, "heading_xi", Rule::NotPositive),
+        (0.1, f64::INFINITY, "heading_xi", Rule::NonFinite),
+    ] {
+        let mut p = P::paper(PaperRun::A);
+        p.secondary.heading_filter = Some(HeadingFilter { rate, xi });
+        assert_eq!(p.validate(), Err(scalar(name, rule)), "{rate} {xi}");
+    }
+    let mut p = P::paper(PaperRun::A);
+    p.secondary.heading_filter = Some(HeadingFilter { rate: 0.05, xi: 0.2 });
+    assert_eq!(p.validate(), Ok(()));
+    // Its gain σ/ξ counts in the period bound: 0.1/(10/0.01) here.
+    p.secondary.heading_filter = Some(HeadingFilter { rate: 10.0, xi: 0.01 });
+    assert!((p.period_bound() - 1e-4).abs() < 1e-12, "{}", p.period_bound());
+}
+
 /// Every `Rule` variant is covered by the table above (or by the platform and arm checks
 /// below): a new rule must get a case.
 #[test]

@@ -175,22 +175,31 @@ fn closed_loop_deviation<P64: Platform<f64>, P32: Platform<f32>>(
     law64: &ControlLaw<f64, P64, Rpr<f64>, 3>,
     law32: &ControlLaw<f32, P32, Rpr<f32>, 3>,
 ) -> f64 {
+    closed_loop_deviation_on(law64, law32, &trajectory_1)
+}
+
+/// [`closed_loop_deviation`] with the target moving at `u_d(t)`.
+fn closed_loop_deviation_on<P64: Platform<f64>, P32: Platform<f32>>(
+    law64: &ControlLaw<f64, P64, Rpr<f64>, 3>,
+    law32: &ControlLaw<f32, P32, Rpr<f32>, 3>,
+    u_d: &dyn Fn(f64) -> V3,
+) -> f64 {
     let dt = 5e-4;
     let start = Plant::paper_start(V3::new(2.6, 1.0, 0.0), Q::new(0.0, 0.35, 0.0), 0.0);
     let (mut p64, mut p32) = (start, start);
     let (mut s64, mut s32) = (State::<f64, 3>::new(), State::<f32, 3>::new());
     let mut worst: f64 = 0.0;
     for _ in 0..4000 {
-        let o64 = law64.step(&mut s64, &p64.measurement(&trajectory_1), dt).expect("f64 step");
-        let m32: Measurement<f32, 3> = measurement_as(&p32.measurement(&trajectory_1));
+        let o64 = law64.step(&mut s64, &p64.measurement(u_d), dt).expect("f64 step");
+        let m32: Measurement<f32, 3> = measurement_as(&p32.measurement(u_d));
         let o32 = law32.step(&mut s32, &m32, dt as f32).expect("f32 step");
         let e_p32 = o32.diagnostics.e_p.map(f64::from);
         worst = worst
             .max((p64.base - p32.base).amax())
             .max((p64.q - p32.q).amax())
             .max((o64.diagnostics.e_p - e_p32).amax());
-        p64.advance(P64::KIND, &o64.command, &trajectory_1, dt, 1);
-        p32.advance(P32::KIND, &command_f64(&o32.command), &trajectory_1, dt, 1);
+        p64.advance(P64::KIND, &o64.command, u_d, dt, 1);
+        p32.advance(P32::KIND, &command_f64(&o32.command), u_d, dt, 1);
     }
     worst
 }
@@ -209,4 +218,24 @@ fn closed_loop_runs_a_and_c_track_point_by_point() {
         );
         assert!(d < 2e-5, "omni {r:?}: f32 and f64 runs differ by {d:e}");
     }
+}
+
+/// The same with the heading filter on, the target turning in place as in trajectory 2's
+/// rotations (`ω_d = (π²/20) cos(π t/2)`), run (a) on the unicycle: the filter's lag and what
+/// the platform's law sees of the target agree in f32 and f64 as the rest does.
+#[test]
+fn closed_loop_with_the_heading_filter_tracks_point_by_point() {
+    let turning = |t: f64| {
+        V3::new(0.0, 0.0, std::f64::consts::PI.powi(2) / 20.0 * (std::f64::consts::FRAC_PI_2 * t).cos())
+    };
+    let mut p64 = paper(PaperRun::A);
+    p64.secondary.heading_filter = Some(companion_core::HeadingFilter { rate: 0.1, xi: 0.2 });
+    let mut p32 = paper_f32(PaperRun::A);
+    p32.secondary.heading_filter = Some(companion_core::HeadingFilter { rate: 0.1, xi: 0.2 });
+    let d = closed_loop_deviation_on(
+        &ControlLaw::new(p64, Unicycle::paper(), Rpr::paper()).expect("valid"),
+        &ControlLaw::new(p32, Unicycle::paper(), Rpr::paper()).expect("valid"),
+        &turning,
+    );
+    assert!(d < 2e-5, "f32 and f64 runs differ by {d:e}");
 }

@@ -188,6 +188,8 @@ fn params<T: Real>(k: usize, lim: bool) -> Params<T, 3> {
             angular: T::of(2.0),
             joints: SVector::repeat(T::of(5.0)),
         };
+        // And the heading filter, whose lag garbage also reaches.
+        p.secondary.heading_filter = Some(companion_core::HeadingFilter { rate: T::of(0.1), xi: T::of(0.2) });
     }
     p
 }

@@ -101,7 +101,8 @@ impl From<DiscretisationArg> for DiscretisationConfig {
 /// Velocity limits on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum LimitsArg {
-    /// None (the paper's runs): no velocity and no acceleration limits.
+    /// None (the paper's runs): no velocity and no acceleration limits, the config file's
+    /// dropped.
     None,
     /// A realistic robot's velocity limits (see `companion_plant::realistic_limits`).
     Realistic,
@@ -186,14 +187,17 @@ pub struct ScenarioArgs {
     /// "Precise at real control rates" (docs/book/src/precision.md) has the figures.
     #[arg(long, value_enum, value_name = "MODE", hide_possible_values = true)]
     pub discretisation: Option<DiscretisationArg>,
-    /// Limits: none, realistic or tiago (accelerations too).
+    /// Limits: none, realistic or tiago (accelerations too), merged with --config's.
     ///
-    /// Platform velocity limits, met by one common scale factor: `none` (the paper's runs; it
-    /// also drops any acceleration limits of --config's `[acceleration_limits]`), unless the
-    /// config file sets some; `realistic` (a realistic robot's limits, see
-    /// `companion_plant::realistic_limits`); `tiago` (the TIAGo base as PAL configures it,
-    /// with its acceleration limits, met by a second common factor on the change of the
-    /// command). The book's chapter "The law" (docs/book/src/law.md) has the details.
+    /// Named platform limits, merged with the --config file's `[velocity_limits]` and
+    /// `[acceleration_limits]` key by key, the stricter value winning (a key only one of them
+    /// sets, such as the file's `alpha_rate`, is kept): `realistic` (a realistic robot's
+    /// velocity limits, see `companion_plant::realistic_limits`); `tiago` (the TIAGo base as
+    /// PAL configures it, velocities and accelerations); `none` (the paper's runs: no limit at
+    /// all, the file's dropped). Velocity limits are met by one common scale factor,
+    /// acceleration limits by a second one on the change of the command. scenario.json records
+    /// every limit that ran and where it came from (`limits`). The book's chapter "The law"
+    /// (docs/book/src/law.md) has the details.
     #[arg(long, value_enum, value_name = "NAME", hide_possible_values = true)]
     pub limits: Option<LimitsArg>,
     /// Plant: a first-order actuator lag of this time constant, in s.

@@ -24,6 +24,9 @@ pub const EXIT_CHAOS_MISMATCH: u8 = 8;
 /// Exit code: `explore` refused to start because another process is running on its `--out`
 /// folder (it holds the folder's lock).
 pub const EXIT_FOLDER_BUSY: u8 = 9;
+/// Exit code: `ros2`: a second writer published on one of the node's inputs (the robot got the
+/// zero command while it did; none of its samples was used).
+pub const EXIT_SECOND_WRITER: u8 = 10;
 /// Exit code: a panic (Rust's own code for it).
 pub const EXIT_PANIC: u8 = 101;
 /// Exit code: ended early by SIGINT or SIGTERM (files are written).
@@ -104,6 +107,13 @@ pub const EXIT_CODES: &[ExitCodeDoc] = &[
         commands: &["explore"],
         meaning: "not started: another process is running in the same --out folder (it holds the folder's lock)",
         key: "--out folder",
+    },
+    ExitCodeDoc {
+        code: EXIT_SECOND_WRITER,
+        commands: &["ros2"],
+        meaning: "a second writer published on an input of the node: the robot got the zero command while it \
+                  did and none of its samples was used; summary.json names it (before 6 and 7)",
+        key: "second writer",
     },
     ExitCodeDoc { code: EXIT_PANIC, commands: &[], meaning: "a panic: a bug, please report it", key: "panic" },
     ExitCodeDoc {

@@ -636,8 +636,28 @@ fn forwarded_args() -> Vec<OsString> {
     fwd
 }
 
-fn code_of(st: Option<ExitStatus>) -> u8 {
-    st.and_then(|s| s.code()).and_then(|c| u8::try_from(c).ok()).unwrap_or(EXIT_ERROR)
+/// `--out` names a folder, or nothing yet (it is made): never a file.
+///
+/// # Errors
+/// `out` is an existing file (or anything else that is not a folder).
+fn out_is_a_folder(out: &std::path::Path) -> Result<()> {
+    if out.exists() && !out.is_dir() {
+        bail!(
+            "--out {}: a file, not a folder: give a folder (made if missing) for the run's files",
+            out.display()
+        );
+    }
+    Ok(())
+}
+
+/// The plant's exit code as the demo's: one of the book's table (`exit::EXIT_CODES`); a code
+/// the table does not have (a plant that crashed: a Python traceback exits 1) or a signal is
+/// `otherwise`.
+fn code_of(st: Option<ExitStatus>, otherwise: u8) -> u8 {
+    st.and_then(|s| s.code())
+        .and_then(|c| u8::try_from(c).ok())
+        .filter(|c| super::exit::EXIT_CODES.iter().any(|e| e.code == *c))
+        .unwrap_or(otherwise)
 }
 
 /// The TLS material `companion hil --transport zenoh` makes for its two roles (hosts `plant`,
@@ -724,6 +744,37 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
     if a.child {
         bail!("--child is for the plant that `companion hil` starts");
     }
+    if a.plant == PlantArg::Kinematic && !a.plant_args.is_empty() {
+        bail!("--plant-arg is for --plant mujoco");
+    }
+    out_is_a_folder(&cfg.out)?;
+    // The plant's command, checked whole before anything of the run exists (the MuJoCo plant
+    // checks its own flags and builds its robot first: `mujoco::plant_process`).
+    let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
+    let mut plant = Process::new(&exe);
+    if a.plant == PlantArg::Mujoco {
+        let unsupported = [
+            (a.transport != TransportArg::Iceoryx2, "--transport zenoh"),
+            (a.chaos.is_some(), "--chaos"),
+            (a.mcap.is_some(), "--mcap"),
+            (a.delay != 0.0, "--delay"),
+            (a.max_command_age != 0, "--max-command-age"),
+        ];
+        let unsupported = unsupported.iter().filter(|(given, _)| *given).map(|(_, f)| *f).collect();
+        let flags = DemoFlags { arm: &a.arm, scenario: &a.scenario, plant_args: &a.plant_args, unsupported };
+        plant = plant_process(&flags, &cfg, &s)?;
+    } else {
+        plant
+            .arg("plant")
+            .args(forwarded_args())
+            .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
+            .args(&plant_tls)
+            .arg("--child");
+    }
+    if termination_requested() {
+        eprintln!("interrupted before the run started: nothing written");
+        return Ok(ExitCode::from(EXIT_INTERRUPTED));
+    }
     if let Some(w) = cfg.cpu_warning() {
         eprintln!("warning: {w}");
     }
@@ -748,47 +799,28 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         // The controller connects where the plant listens.
         cfg.transport = transport::listen_to_connect(&cfg.transport);
     }
-    let exe = std::env::current_exe().map_err(|e| anyhow!("locating this program: {e}"))?;
-    let mut plant = Process::new(&exe);
-    if a.plant == PlantArg::Mujoco {
-        let unsupported = [
-            (a.transport != TransportArg::Iceoryx2, "--transport zenoh"),
-            (a.chaos.is_some(), "--chaos"),
-            (a.mcap.is_some(), "--mcap"),
-            (a.delay != 0.0, "--delay"),
-            (a.max_command_age != 0, "--max-command-age"),
-        ];
-        let unsupported = unsupported.iter().filter(|(given, _)| *given).map(|(_, f)| *f).collect();
-        let flags = DemoFlags { arm: &a.arm, scenario: &a.scenario, plant_args: &a.plant_args, unsupported };
-        plant = plant_process(&flags, &cfg, &s)?;
-    } else {
-        plant
-            .arg("plant")
-            .args(forwarded_args())
-            .args(picked.iter().flat_map(|ep| ["--listen".to_string(), ep.clone()]))
-            .args(&plant_tls)
-            .arg("--child");
-    }
-    if a.plant == PlantArg::Kinematic && !a.plant_args.is_empty() {
-        bail!("--plant-arg is for --plant mujoco");
-    }
     plant.stdin(Stdio::null());
     if let Some(c) = &mut cfg.chaos {
         // The faults count from a second from now in both processes.
         c.epoch_ns = companion_runtime::sys::rt::monotonic_ns() + 1_000_000_000;
         plant.arg("--chaos-epoch-ns").arg(c.epoch_ns.to_string());
     }
-    let child = plant.spawn().map_err(|e| anyhow!("starting the plant ({} plant): {e}", exe.display()))?;
+    let child = plant
+        .spawn()
+        .map_err(|e| anyhow!("starting the plant ({}): {e}", plant.get_program().to_string_lossy()))?;
     eprintln!("started the plant (pid {}); controller is pid {}", child.id(), std::process::id());
     let term = Terminal::lines();
     let faults = Faults { corruptions: inject, delays: Vec::new() };
     let outcome = run_as_parent(&cfg, &s, &faults, ChildGuard::new(child), &term, &locks)?;
     Ok(ExitCode::from(match outcome {
-        ParentOutcome::PlantExitedEarly(st) => code_of(Some(st)),
+        // Interrupted while the plant started: its end is the signal's (exit 130).
+        ParentOutcome::PlantExitedEarly(_) if termination_requested() => EXIT_INTERRUPTED,
+        ParentOutcome::PlantExitedEarly(st) => code_of(Some(st), EXIT_ERROR),
         ParentOutcome::Failed(..) if termination_requested() => EXIT_INTERRUPTED,
         ParentOutcome::Failed(..) => EXIT_ERROR,
         ParentOutcome::Finished { end, plant, chaos, failure } => {
-            let code = code_of(plant);
+            // A plant that ended outside the table after the run started died in it.
+            let code = code_of(plant, EXIT_PEER_LOST);
             let interrupted = end == ControlEnd::Interrupted || code == EXIT_INTERRUPTED;
             match chaos {
                 _ if interrupted => EXIT_INTERRUPTED,
@@ -883,6 +915,7 @@ pub fn run_plant(a: &HilArgs) -> Result<ExitCode> {
         );
     }
     let (mut cfg, s) = a.resolve()?;
+    out_is_a_folder(&cfg.out)?;
     match (cfg.chaos, a.chaos_epoch_ns) {
         (Some(_), None) => bail!("--chaos is for `companion hil` (it starts the plant with it)"),
         (Some(c), Some(e)) => cfg.chaos = Some(ChaosConfig { epoch_ns: e, ..c }),

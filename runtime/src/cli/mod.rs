@@ -12,6 +12,7 @@ mod hil;
 mod latency;
 mod mujoco;
 mod ros2;
+mod settle;
 mod sim;
 mod terminal;
 mod tune;
@@ -78,6 +79,14 @@ enum Command {
     /// Pareto-front report.
     #[command(after_help = short_after("explore-tune.md"), after_long_help = long_after("explore-tune.md"))]
     Tune(tune::TuneArgs),
+    /// One setting from many perturbed homes: how many settle, with spreads.
+    ///
+    /// Runs a spatial arm's setting (--arm, --config, --limits, as `sim --arm`) from --starts
+    /// homes perturbed by up to --perturb, seeded, in parallel, and prints how many settle
+    /// (‖e_p‖ below --tolerance from --settle-by on) and the spreads of the final ‖e_p‖, its
+    /// largest value after --settle-by, the tracked fraction and how often the limits acted.
+    #[command(after_help = short_after("explore-tune.md"), after_long_help = long_after("explore-tune.md"))]
+    Settle(settle::SettleArgs),
     /// Worst-case latency: the step, the transports and the HIL cycle.
     ///
     /// Worst-case latency benchmark: controller step, bare iceoryx2 and Unix-socket ping-pong,
@@ -111,6 +120,7 @@ pub fn main() -> ExitCode {
         Command::Control(a) => hil::run_control(a),
         Command::Explore(a) => explore::run(a),
         Command::Tune(a) => tune::run(a).map(|()| ExitCode::SUCCESS),
+        Command::Settle(a) => settle::run(a).map(|()| ExitCode::SUCCESS),
         Command::Latency(a) => latency::run(a).map(|()| ExitCode::SUCCESS),
         Command::Ros2(a) => ros2::run(a),
         Command::Certs(a) => certs::run(a).map(|()| ExitCode::SUCCESS),

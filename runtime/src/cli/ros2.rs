@@ -13,7 +13,7 @@ use serde::Deserialize;
 
 use super::args::ScenarioArgs;
 #[cfg(feature = "ros2")]
-use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED};
+use super::exit::{EXIT_DEADLINES, EXIT_INTERRUPTED, EXIT_REJECTED, EXIT_SECOND_WRITER};
 #[cfg(feature = "ros2")]
 use super::terminal::Terminal;
 #[cfg(feature = "ros2")]
@@ -24,6 +24,8 @@ use companion_runtime::domain::controller::{boxed_spatial_controller, AnyControl
 use companion_runtime::domain::scenario::{Scenario, ScenarioError};
 #[cfg(feature = "ros2")]
 use companion_runtime::run::ros2::inputs::Ages;
+#[cfg(feature = "ros2")]
+use companion_runtime::run::ros2::security::{self, Decision};
 #[cfg(feature = "ros2")]
 use companion_runtime::run::ros2::target::Generator;
 #[cfg(feature = "ros2")]
@@ -238,6 +240,19 @@ pub struct Ros2Args {
     /// Where `summary.json` goes.
     #[arg(long, default_value = "out/ros2", value_name = "DIR")]
     pub out: PathBuf,
+    /// The SROS 2 enclave (with ROS_SECURITY_ENABLE=true)
+    ///
+    /// Its files are ROS_SECURITY_KEYSTORE/enclaves/NAME; ROS_SECURITY_ENCLAVE_OVERRIDE wins;
+    /// ROS_SECURITY_STRATEGY=Enforce refuses to start without them (docs/ros2.md, "Secured on a
+    /// robot") [default: /].
+    #[arg(long, value_name = "NAME")]
+    pub enclave: Option<String>,
+    /// Print the DDS topics of these flags and exit
+    ///
+    /// `publish TOPIC` and `subscribe TOPIC` lines, ROS 2's DDS names: the enclave's
+    /// permissions for exactly this node (scripts/sros2-keystore enclave ... --topics -).
+    #[arg(long)]
+    pub sros2_topics: bool,
 }
 
 /// The paper's planar arm's joints (it has no URDF: these names are the node's own).
@@ -441,8 +456,21 @@ fn resolve(a: &Ros2Args, base: &Scenario, arm: Option<&SpatialArmSpec>) -> Resul
         }
     }
     let st = within("--startup-timeout", n.startup_timeout.unwrap_or(20.0), 0.0, 86_400.0)?;
+    let security = if a.sros2_topics {
+        Decision::Off
+    } else {
+        security::decide(a.enclave.as_deref(), &|k| std::env::var(k).ok())?
+    };
+    match (&security, &a.enclave) {
+        (Decision::Unsecured { warning }, _) => eprintln!("warning: ros2: {warning}"),
+        (Decision::Off, Some(e)) => eprintln!(
+            "warning: ros2: --enclave {e} is given but ROS_SECURITY_ENABLE is not true: the node runs WITHOUT security"
+        ),
+        _ => {}
+    }
     let endpoint = EndpointConfig {
         domain_id,
+        security: security.enclave().cloned(),
         node_name: n.node_name.unwrap_or_else(|| "companion".into()),
         namespace: n.namespace.unwrap_or_else(|| "/".into()),
         qos: Qos { reliable: n.reliability != Some(ReliabilityArg::BestEffort), depth },
@@ -492,6 +520,7 @@ fn resolve(a: &Ros2Args, base: &Scenario, arm: Option<&SpatialArmSpec>) -> Resul
             run: RunDescription::run_letter(base.controller.choice),
             target: target_text,
         },
+        security: security.summary(),
     })
 }
 
@@ -520,7 +549,28 @@ fn refuse_plant_flags(a: &Ros2Args) -> Result<()> {
 }
 
 #[cfg(feature = "ros2")]
+/// `--sros2-topics`: the node's DDS topics with these flags, one `publish T` or `subscribe T`
+/// a line (nothing joins the domain).
+fn print_topics(a: &Ros2Args) -> Result<ExitCode> {
+    let d = a.scenario.duration.unwrap_or(120.0);
+    let cfg = match a.scenario.arm_spec(&a.arm)? {
+        None => resolve(a, &a.scenario.scenario_with(d, |b| b)?, None)?,
+        Some(arm) => {
+            let ss = a.scenario.spatial_scenario(arm, d, |b| b)?;
+            resolve(a, &ss.base, Some(&ss.arm))?
+        }
+    };
+    for (access, topic) in companion_runtime::transport::ros2::dds_topics(&cfg.endpoint) {
+        println!("{} {topic}", access.as_str());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(feature = "ros2")]
 fn run_node(a: &Ros2Args) -> Result<ExitCode> {
+    if a.sros2_topics {
+        return print_topics(a);
+    }
     companion_runtime::sys::signals::install_termination_handler()?;
     companion_runtime::sys::rt::tight_timer_slack();
     refuse_plant_flags(a)?;
@@ -563,12 +613,21 @@ fn run_node(a: &Ros2Args) -> Result<ExitCode> {
         s.measurement_age_ns.max as f64 / 1e6,
         s.final_ep_norm
     );
+    if let Some(d) = &s.command_delay {
+        println!(
+            "the robot's joints followed the commands {:.2} ms after their stamps (fitted to its joint states; residual {:.1e} of motion {:.1e})",
+            d.latency_s * 1e3,
+            d.residual_rms,
+            d.motion_rms
+        );
+    }
     println!("wrote {}", a.out.join("summary.json").display());
     for f in &s.failures {
         eprintln!("warning: ros2: RUN FAILED: {f}");
     }
     Ok(ExitCode::from(match s.end {
         NodeEnd::Interrupted => EXIT_INTERRUPTED,
+        NodeEnd::Completed if outcome.second_writer() => EXIT_SECOND_WRITER,
         NodeEnd::Completed if outcome.rejected() => EXIT_REJECTED,
         NodeEnd::Completed if !s.failures.is_empty() => EXIT_DEADLINES,
         NodeEnd::Completed => 0,

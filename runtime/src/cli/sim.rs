@@ -6,7 +6,9 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use companion_runtime::domain::arm::SpatialArmSpec;
-use companion_runtime::domain::record::{Failure, Replay, ReplaySummary, RunOutcome, Summary};
+use companion_runtime::domain::record::{
+    Failure, Replay, ReplaySummary, RunOutcome, Summary, LIMITS_ACTED_BEYOND,
+};
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::sim::{all_scenarios, run_one_replayed, run_one_with};
 use companion_runtime::run::spatial::run_spatial;
@@ -287,5 +289,24 @@ pub fn print_table(summaries: &[&Summary]) {
         if s.rejected_steps > 0 {
             println!("  {} steps rejected by the law: {}", s.rejected_steps, s.rejections.describe());
         }
+        print_limits_acted(s);
+    }
+}
+
+/// When the acceleration limits or the joint guard changed the law's command on more than
+/// [`LIMITS_ACTED_BEYOND`] of the steps after 20 s: a line saying so (the run after 20 s is the
+/// limits' as much as the law's).
+fn print_limits_acted(s: &Summary) {
+    let l = &s.limits_after_20s;
+    if l.beyond {
+        println!(
+            "  the limits acted on {:.1} % of the steps after 20 s ({}): the acceleration limits or the joint \
+             guard on {:.1} %, more than {:.0} %: what the run does after 20 s is theirs as much as the law's; if \
+             it settled, the law does not guarantee it would again",
+            100.0 * l.fraction,
+            l.describe(s.steps_after_20s),
+            100.0 * l.beyond_saturation_fraction,
+            100.0 * LIMITS_ACTED_BEYOND
+        );
     }
 }

@@ -9,6 +9,7 @@ use companion_plant::PaperTrajectory;
 use companion_runtime::domain::controller::run_name;
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::spatial::{self, SpatialTargetChoice};
+use companion_runtime::study::starts::Starts;
 use companion_runtime::study::trial::SpatialSetup;
 use companion_runtime::study::tune::{self, SetRun, TuneSpaceFile, Tuning};
 
@@ -31,8 +32,10 @@ pub struct TuneArgs {
     /// A TOML file of the ranges to search.
     ///
     /// A TOML file of ranges to search: `[parameters]` knob = [low, high] (low > 0), and
-    /// `[objective]` effort_weight [default: the platform's space, see the book's chapter
-    /// "Explore and tune", docs/book/src/explore-tune.md].
+    /// `[objective]` effort_weight and tolerance (‖e_p‖ below it is tracked, default 1e-3)
+    /// [default: the platform's space — with a real base's acceleration limits also k_bar_1,
+    /// d and alpha_rate; see the book's chapter "Explore and tune",
+    /// docs/book/src/explore-tune.md].
     #[arg(long, value_name = "FILE")]
     pub space: Option<PathBuf>,
     /// rpr (default, the paper's), ur5, panda, or a TOML or URDF file
@@ -51,6 +54,17 @@ pub struct TuneArgs {
     /// Output folder: preset.toml, report.json, candidates.csv, pareto.svg.
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Each run from N perturbed homes (a spatial --arm) [default: 1, the home].
+    ///
+    /// Score each candidate from N starts per run: homes of the spatial --arm perturbed by up
+    /// to --perturb, seeded by --seed (as `companion settle` draws them); the means are over
+    /// the runs and their starts, and each run says how many of its starts settled. 1: the
+    /// arm's home itself.
+    #[arg(long, default_value_t = 1, value_name = "N")]
+    pub starts: usize,
+    /// With --starts N > 1: each joint's home moved by up to ± this (rad or m).
+    #[arg(long, default_value_t = 0.1, value_name = "A", allow_hyphen_values = true)]
+    pub perturb: f64,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,
@@ -134,7 +148,11 @@ pub fn run(args: &TuneArgs) -> Result<()> {
         toml::from_str(&text).with_context(|| format!("in space file {}", p.display()))
     });
     let space = space.transpose()?;
-    let tuning = Tuning::new(runs, space.as_ref(), args.budget, sc.seed)?;
+    let starts = match args.starts {
+        1 => Starts::HOME,
+        n => Starts::new(n, args.perturb, sc.seed)?,
+    };
+    let tuning = Tuning::new(runs, space.as_ref(), args.budget, sc.seed)?.with_starts(starts)?;
     let term = Terminal::bar_of(args.budget as u64, "candidates", args.quiet);
     let candidates = tuning.run(&term)?;
     term.finish();
@@ -147,9 +165,11 @@ pub fn run(args: &TuneArgs) -> Result<()> {
             println!("best of {} candidates: {}", report.candidates.len(), values.join(", "));
             for r in &b.runs {
                 println!(
-                    "  {}: tracked {:.1} %, rms |v| {:.3} m/s, {} maneuvers",
+                    "  {}: tracked {:.1} %, settled from {} of {} start(s), rms |v| {:.3} m/s, {} maneuvers",
                     r.run,
                     100.0 * r.tracked,
+                    r.settled,
+                    r.starts,
                     r.rms_v,
                     r.maneuvers
                 );

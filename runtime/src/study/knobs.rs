@@ -6,7 +6,8 @@
 //! `k` in `[car]` (Lemma 2 and eq. 59), `epsilon_1`, `epsilon_2` in `[unicycle]` (Lemma 1),
 //! `stroke` in `[arm]`, and in `[controller]` one entry of `k_bar` (`k_bar_1..3`, eq. 36), all
 //! of `d` (eq. 37) or `gain` (eq. 30), `lambda` (eq. 53), and a spatial arm's damping onset
-//! `damping_below`. Two more scale a spatial arm (`--arm`, [`ArmScale`]) rather than set a
+//! `damping_below`, and in `[velocity_limits]` the cap on the transverse function's phase rate
+//! `alpha_rate` (`|α̇ᵢ|`, rad/s; unicycle and car). Two more scale a spatial arm (`--arm`, [`ArmScale`]) rather than set a
 //! config key: `joint_speed` (every joint's published speed times it) and `reach` (every
 //! length of the arm times it).
 
@@ -57,6 +58,10 @@ pub enum Knob {
     /// A spatial arm's damping onset `ρ₀` (`[controller] damping_below`): below it the
     /// arm's inverse is damped.
     DampingBelow,
+    /// The cap on the transverse function's phase rate `|α̇ᵢ|` (`[velocity_limits]
+    /// alpha_rate`, rad/s; unicycle and car): with the velocity limits' common factor, it
+    /// slows the platform's manoeuvres (their frequency goes with `α̇`, the paper's §2).
+    AlphaRate,
 }
 
 /// Which arm a knob belongs to.
@@ -70,7 +75,7 @@ pub enum ArmKind {
 
 /// Every knob, in the order columns and draws use (new knobs go at the end, so that the
 /// draws of the others stay where they were).
-pub const ALL: [Knob; 17] = [
+pub const ALL: [Knob; 18] = [
     Knob::Epsilon,
     Knob::Eta1,
     Knob::Eta2,
@@ -88,6 +93,7 @@ pub const ALL: [Knob; 17] = [
     Knob::JointSpeed,
     Knob::Reach,
     Knob::DampingBelow,
+    Knob::AlphaRate,
 ];
 
 impl Knob {
@@ -111,6 +117,7 @@ impl Knob {
             Self::JointSpeed => "joint_speed",
             Self::Reach => "reach",
             Self::DampingBelow => "damping_below",
+            Self::AlphaRate => "alpha_rate",
         }
     }
 
@@ -177,6 +184,10 @@ impl Knob {
     /// # Errors
     /// The knob is another platform's.
     pub fn check_platform(self, platform: PlatformKind) -> Result<(), String> {
+        if self == Self::AlphaRate && platform == PlatformKind::Omni {
+            return Err("`alpha_rate` caps the transverse function's phase rate: the omni platform has none"
+                .to_string());
+        }
         match self.platform() {
             Some(p) if p != platform => Err(format!(
                 "`{}` is a parameter of the {} platform, not of the {} platform (--platform)",
@@ -214,6 +225,7 @@ impl Knob {
             // Factors on the arm as given.
             Self::JointSpeed | Self::Reach => 1.0,
             Self::DampingBelow => c.overrides.damping_below.unwrap_or(companion_core::DAMPING_BELOW),
+            Self::AlphaRate => p.velocity_limits.alpha_rate,
         }
     }
 }
@@ -264,6 +276,12 @@ pub fn apply(builder: &ScenarioBuilder, base: &Scenario, values: &[(Knob, f64)])
                 arm.stroke = Some(v);
             }
             Knob::DampingBelow => file.controller.damping_below = Some(v),
+            // Over the limits that ran (the car's default ones too), so that setting the cap
+            // keeps the rest; an infinite cap is none.
+            Knob::AlphaRate => {
+                file.velocity_limits.get_or_insert(c.limits.unwrap_or_default()).alpha_rate =
+                    v.is_finite().then_some(v);
+            }
             Knob::JointSpeed | Knob::Reach => {}
         }
     }
@@ -318,5 +336,32 @@ mod tests {
         );
         assert_eq!(arm_scale(&scaled), ArmScale { joint_speed: 1.5, reach: 0.8 });
         assert_eq!(arm_scale(&scaled[2..]), ArmScale::ONE);
+    }
+
+    /// `alpha_rate` sets `[velocity_limits] alpha_rate` over the limits that ran: the car's
+    /// default limits stay, a preset merges with it (the stricter wins), the omni platform
+    /// refuses it.
+    #[test]
+    fn alpha_rate_caps_the_phase_and_keeps_the_other_limits() {
+        let car = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Car);
+        let base = car.clone().build().unwrap();
+        let s = apply(&car, &base, &[(Knob::AlphaRate, 1.5)]).build().unwrap();
+        let (l, d) =
+            (s.controller.params::<f64>().velocity_limits, base.controller.params::<f64>().velocity_limits);
+        assert_eq!(
+            (l.alpha_rate, l.forward, l.angular, l.steering_rate),
+            (1.5, d.forward, d.angular, d.steering_rate)
+        );
+        assert_eq!(Knob::AlphaRate.value(&s), 1.5);
+        let uni = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+            .limits(crate::domain::scenario::LimitsChoice::Tiago);
+        let base = uni.clone().build().unwrap();
+        assert_eq!(Knob::AlphaRate.value(&base), f64::INFINITY);
+        let s = apply(&uni, &base, &[(Knob::AlphaRate, 2.5)]).build().unwrap();
+        let l = s.controller.params::<f64>().velocity_limits;
+        assert_eq!((l.alpha_rate, l.forward, l.angular), (2.5, 1.0, 2.09));
+        assert!(Knob::AlphaRate.check_platform(PlatformKind::Omni).is_err());
+        assert!(Knob::AlphaRate.check_platform(PlatformKind::Unicycle).is_ok());
+        assert!(Knob::AlphaRate.check_arm(ArmKind::Spatial).is_ok());
     }
 }

@@ -2,8 +2,27 @@
 //! (SIGTERM to hand an interruption on, SIGSTOP/SIGCONT for `--chaos`).
 #![allow(unsafe_code)]
 
-use std::process::{Child, ExitStatus};
+use std::process::{Child, Command, ExitStatus};
 use std::time::{Duration, Instant};
+
+/// `cmd` starts its process with SIGINT ignored (the disposition an `exec` keeps) until the
+/// program installs a handler of its own. For a child that installs one early but not at once
+/// — a Python interpreter, which otherwise turns a terminal's Ctrl-C in its first tens of
+/// milliseconds into a `KeyboardInterrupt` traceback: a Ctrl-C then reaches the parent, which
+/// hands the interruption on as SIGTERM.
+pub fn start_with_sigint_ignored(cmd: &mut Command) {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: the closure runs in the child between fork and exec and calls only signal(2),
+    // which is async-signal-safe; it touches no memory of the parent.
+    unsafe {
+        cmd.pre_exec(|| {
+            if libc::signal(libc::SIGINT, libc::SIG_IGN) == libc::SIG_ERR {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+}
 
 /// Kills and reaps a child on drop (a run that fails half-way leaves no process).
 #[derive(Debug)]

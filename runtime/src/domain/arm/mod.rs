@@ -54,6 +54,7 @@ use companion_core::nalgebra::Matrix3;
 use companion_core::{so3, Chain, FrameData, JointData, JointKind, ParamError, Real};
 use serde::Deserialize;
 
+use self::urdf::check_home;
 use crate::domain::platform_config::{CarConfig, UnicycleConfig};
 
 mod size;
@@ -149,6 +150,10 @@ pub enum SpatialArmSpec {
     /// Another arm made faster or larger, for a study of what limits it
     /// (`companion explore --arm`'s `joint_speed` and `reach`): [`ArmScale`].
     Scaled(Box<SpatialArmSpec>, ArmScale),
+    /// Another arm with another home (rad or m per joint, in the chain's order): the
+    /// perturbed starts of `companion settle` and `companion tune --starts`. The home is the
+    /// law's `q*` and where the run starts (`companion_runtime::study::starts`).
+    Rehomed(Box<SpatialArmSpec>, Vec<f64>),
 }
 
 /// Factors on an arm's published figures ([`SpatialArmSpec::Scaled`]); `1` changes nothing,
@@ -216,7 +221,7 @@ impl SpatialArmSpec {
             Self::Ur5 => UR5_JOINTS.iter().map(|s| s.to_string()).collect(),
             Self::Panda => (1..=7).map(|i| format!("panda_joint{i}")).collect(),
             Self::File(d) => d.joint_names.clone(),
-            Self::Scaled(a, _) => a.joint_names(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.joint_names(),
         }
     }
 
@@ -226,7 +231,7 @@ impl SpatialArmSpec {
             Self::Ur5 => "ur5",
             Self::Panda => "panda",
             Self::File(d) => &d.name,
-            Self::Scaled(a, _) => a.name(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.name(),
         }
     }
 
@@ -238,7 +243,7 @@ impl SpatialArmSpec {
             Self::Ur5 => PlatformDefaults::default(),
             Self::Panda => PlatformDefaults { unicycle: Some(PANDA_UNICYCLE), car: Some(PANDA_CAR) },
             Self::File(d) => d.platform,
-            Self::Scaled(a, _) => a.platform_defaults(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.platform_defaults(),
         }
     }
 
@@ -248,7 +253,7 @@ impl SpatialArmSpec {
             Self::Ur5 => 6,
             Self::Panda => 7,
             Self::File(d) => d.joints.len(),
-            Self::Scaled(a, _) => a.joints(),
+            Self::Scaled(a, _) | Self::Rehomed(a, _) => a.joints(),
         }
     }
 
@@ -263,6 +268,42 @@ impl SpatialArmSpec {
             Self::Panda => resize(Chain::<T, 7>::panda()).ok_or_else(wrong),
             Self::File(d) => d.chain(),
             Self::Scaled(a, scale) => scale.apply(&a.chain::<T, N>()?),
+            Self::Rehomed(a, home) => {
+                if home.len() != N {
+                    return Err(wrong());
+                }
+                let mut c = a.chain::<T, N>()?;
+                for (j, h) in c.joints.iter_mut().zip(home) {
+                    j.home = T::of(*h);
+                }
+                c.validate().map_err(ArmError::from_param)?;
+                Ok(c)
+            }
+        }
+    }
+
+    /// The home, in the chain's order (rad or m).
+    ///
+    /// # Errors
+    /// The chain cannot be built.
+    pub fn home(&self) -> Result<Vec<f64>, ArmError> {
+        fn of<const N: usize>(a: &SpatialArmSpec) -> Result<Vec<f64>, ArmError> {
+            Ok(a.chain::<f64, N>()?.home().iter().copied().collect())
+        }
+        match self.joints() {
+            6 => of::<6>(self),
+            7 => of::<7>(self),
+            8 => of::<8>(self),
+            n => Err(ArmError::JointCount { found: n }),
+        }
+    }
+
+    /// This arm with its home at `home` (rad or m per joint, in the chain's order; checked
+    /// strictly inside the limits when the law is built).
+    pub fn rehomed(self, home: Vec<f64>) -> Self {
+        match self {
+            Self::Rehomed(a, _) => Self::Rehomed(a, home),
+            a => Self::Rehomed(Box::new(a), home),
         }
     }
 
@@ -369,6 +410,9 @@ pub enum ArmError {
     /// A URDF (or its SRDF, or the home) was refused.
     #[error(transparent)]
     Urdf(Box<UrdfError>),
+    /// A joint's home within [`urdf::HOME_MARGIN`] of a limit (the URDF reader's rule).
+    #[error("arm file: {0}")]
+    Home(Box<UrdfError>),
     /// A value breaks one of the chain's rules.
     #[error("arm file: {field}: {rule}")]
     Invalid {
@@ -408,34 +452,17 @@ impl ArmDescription {
     pub fn from_urdf(request: &UrdfRequest) -> Result<Self, UrdfError> {
         let c = urdf::read(request)?;
         let d = Self {
-            name: c.name,
+            name: c.name.clone(),
             mount: c.mount,
-            joints: c.joints,
+            joints: c.joints.clone(),
             tool: c.tool,
             platform: PlatformDefaults::default(),
-            joint_names: c.joint_names,
+            joint_names: c.joint_names.clone(),
         };
-        let path = &request.path;
-        d.check().map_err(|e| match e {
-            ArmError::Invalid { field, rule } => {
-                // "joint 3: limits" → the joint's name.
-                let (joint, field) = match field.strip_prefix("joint ").and_then(|r| r.split_once(": ")) {
-                    Some((k, f)) => {
-                        let k: usize = k.parse().unwrap_or(1);
-                        (d.joint_names.get(k - 1).cloned().unwrap_or_default(), f.to_string())
-                    }
-                    None => (field.clone(), field),
-                };
-                UrdfError::Invalid { path: path.clone(), joint, field, rule }
-            }
-            other => UrdfError::Invalid {
-                path: path.clone(),
-                joint: String::new(),
-                field: other.to_string(),
-                rule: companion_core::Rule::Geometry,
-            },
-        })?;
-        Ok(d)
+        match d.param_error() {
+            None => Ok(d),
+            Some(e) => Err(urdf_rule(&request.path, &c, e)),
+        }
     }
 
     /// Reads, parses and checks an arm file (its chain is built once in `f64` to check every
@@ -496,6 +523,9 @@ impl ArmDescription {
             .collect();
         let d = Self { name, mount, joints, tool, platform, joint_names };
         d.check()?;
+        for (j, name) in d.joints.iter().zip(&d.joint_names) {
+            check_home(name, j.limits, j.home).map_err(|e| ArmError::Home(Box::new(e)))?;
+        }
         Ok(d)
     }
 
@@ -504,11 +534,19 @@ impl ArmDescription {
     /// # Errors
     /// Not 6 to 8 joints, or a rule of [`Chain::validate`] (in the file's words).
     pub fn check(&self) -> Result<(), ArmError> {
+        if !(MIN_SPATIAL_JOINTS..=MAX_JOINTS).contains(&self.joints.len()) {
+            return Err(ArmError::JointCount { found: self.joints.len() });
+        }
+        self.param_error().map_or(Ok(()), |e| Err(ArmError::from_param(e)))
+    }
+
+    /// The rule of [`Chain::validate`] the description breaks, if any (6 to 8 joints).
+    fn param_error(&self) -> Option<ParamError> {
         match self.joints.len() {
-            6 => self.chain::<f64, 6>().map(|_| ()),
-            7 => self.chain::<f64, 7>().map(|_| ()),
-            8 => self.chain::<f64, 8>().map(|_| ()),
-            n => Err(ArmError::JointCount { found: n }),
+            6 => self.built::<f64, 6>().err(),
+            7 => self.built::<f64, 7>().err(),
+            8 => self.built::<f64, 8>().err(),
+            _ => None,
         }
     }
 
@@ -520,6 +558,11 @@ impl ArmDescription {
         if self.joints.len() != N {
             return Err(ArmError::JointCount { found: self.joints.len() });
         }
+        self.built().map_err(ArmError::from_param)
+    }
+
+    /// The chain of `N` joints (`N` the number of joints), or the rule it breaks.
+    fn built<T: Real, const N: usize>(&self) -> Result<Chain<T, N>, ParamError> {
         let f = |d: &FrameData<f64>| FrameData {
             xyz: d.xyz.map(T::of),
             rotation: d.rotation.map(|r| r.map(T::of)),
@@ -535,7 +578,39 @@ impl ArmDescription {
                 max_velocity: T::of(j.max_velocity),
             }
         });
-        Chain::from_arrays(&f(&self.mount), &joints, &f(&self.tool)).map_err(ArmError::from_param)
+        Chain::from_arrays(&f(&self.mount), &joints, &f(&self.tool))
+    }
+}
+
+/// A rule of companion-core's chain that a URDF's chain breaks, in the URDF's words: the
+/// joint, its line and the attribute (the mount is the config file's `[robot] mount`).
+fn urdf_rule(path: &Path, c: &urdf::UrdfChain, e: ParamError) -> UrdfError {
+    let attribute = match e.param {
+        "joints.lower" | "joints.upper" => "<limit lower upper>",
+        "joints.home" => "its home",
+        "joints.axis" => "<axis xyz>",
+        "joints.max_velocity" => "<limit velocity>",
+        "joints.origin.translation" => "<origin xyz> (the fixed joints above it folded in)",
+        "joints.origin.rotation" => "<origin rpy> (the fixed joints above it folded in)",
+        "tool.translation" => "<origin xyz> of the fixed joints down to the tip link",
+        "tool.rotation" => "<origin rpy> of the fixed joints down to the tip link",
+        "mount.translation" | "mount.rotation" => "[robot] mount",
+        other => other,
+    };
+    let (line, joint) = match e.joint {
+        Some(i) => {
+            let i = usize::from(i);
+            (c.joint_lines.get(i).copied(), c.joint_names.get(i).cloned().unwrap_or_default())
+        }
+        None if e.param.starts_with("tool") => (Some(c.tool_line), String::new()),
+        None => (None, String::new()),
+    };
+    UrdfError::Invalid {
+        path: path.to_path_buf(),
+        line,
+        joint,
+        attribute: attribute.to_string(),
+        rule: e.rule,
     }
 }
 

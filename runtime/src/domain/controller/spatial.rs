@@ -114,6 +114,7 @@ pub fn spatial_params<T: Real, const N: usize>(
     s.weight = with_filter_of(s.weight, &from.weight);
     s.rest_filter = from.rest_filter;
     s.psi_rate_in_drift = from.psi_rate_in_drift;
+    s.heading_filter = from.heading_filter;
     p.primary.regularisation_gain = planar.primary.regularisation_gain;
     p.primary.regularisation_decay = planar.primary.regularisation_decay;
     p.primary.filter_sigma = planar.primary.filter_sigma;
@@ -223,6 +224,7 @@ pub fn spatial_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
         (o.reach_joints.is_some(), "controller.reach_joints"),
         (o.reach_margin.is_some(), "controller.reach_margin"),
         (o.reach_rule.is_some(), "controller.reach_rule"),
+        (o.joint_limits.is_some(), "controller.joint_limits"),
     ])
 }
 
@@ -276,6 +278,48 @@ pub enum SpatialControllerError {
         /// The arm's joints.
         joints: usize,
     },
+    /// `[controller.joint_limits]` breaks a rule.
+    #[error("[controller.joint_limits] {0}")]
+    JointLimits(String),
+}
+
+/// `chain` with the law's own limits of `[controller.joint_limits]` (by joint name, `names` in
+/// the chain's order): each inside the robot's, and the home strictly inside it.
+///
+/// # Errors
+/// An unknown joint (the message lists the chain's), limits not inside the robot's or empty,
+/// or a home outside them.
+pub fn law_limits<T: Real, const N: usize>(
+    spec: &ControllerSpec,
+    chain: &Chain<T, N>,
+    names: &[String],
+) -> Result<Chain<T, N>, SpatialControllerError> {
+    let mut chain = *chain;
+    let Some(limits) = &spec.overrides.joint_limits else {
+        return Ok(chain);
+    };
+    let err = |m: String| SpatialControllerError::JointLimits(m);
+    for (name, [lo, hi]) in limits {
+        let Some(i) = names.iter().position(|n| n == name) else {
+            return Err(err(format!("names {name}, which is not a joint of the arm ({})", names.join(", "))));
+        };
+        let j = &mut chain.joints[i];
+        let (rlo, rhi, home) = (j.lower.as_f64(), j.upper.as_f64(), j.home.as_f64());
+        if !(lo.is_finite() && hi.is_finite() && lo < hi) {
+            return Err(err(format!("{name} = [{lo}, {hi}]: the limits must be finite, lower < upper")));
+        }
+        if *lo < rlo || *hi > rhi {
+            return Err(err(format!(
+                "{name} = [{lo}, {hi}] is not inside the robot's limits [{rlo}, {rhi}]"
+            )));
+        }
+        if !(home > *lo && home < *hi) {
+            return Err(err(format!("{name} = [{lo}, {hi}] does not hold the home ({name} = {home})")));
+        }
+        j.lower = T::of(*lo);
+        j.upper = T::of(*hi);
+    }
+    Ok(chain)
 }
 
 /// The spatial controller of `spec` for `arm` with `N` joints, in the spec's scalar type on
@@ -298,7 +342,9 @@ where
         }
     }
     let joints = reach_joints(spec, &arm.joint_names())?;
-    let (c64, c32) = (|| arm.chain::<f64, N>(), || arm.chain::<f32, N>());
+    let names = arm.joint_names();
+    let c64 = || law_limits(spec, &arm.chain::<f64, N>()?, &names);
+    let c32 = || law_limits(spec, &arm.chain::<f32, N>()?, &names);
     Ok(match (spec.platform, spec.scalar) {
         (PlatformKind::Unicycle, Scalar::F64) => {
             Box::new(spatial_controller(spec, &c64()?, joints, spec.unicycle::<f64>()).map_err(law)?)

@@ -10,8 +10,8 @@
 
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
-    AccelerationLimits, CarLike, Discretisation, PaperRun, ParamError, Params, PlatformKind, Pose,
-    Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, TermRule, Unicycle, VelocityLimits, Weight,
+    AccelerationLimits, CarLike, Discretisation, HeadingFilter, PaperRun, ParamError, Params, PlatformKind,
+    Pose, Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, TermRule, Unicycle, VelocityLimits, Weight,
     WeightMargins,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
@@ -182,6 +182,18 @@ pub struct ControllerConfig {
     pub max_turn_per_step: Option<f64>,
     /// How far the rest filter's virtual frame may lag (m).
     pub rest_reach: Option<f64>,
+    /// The heading filter's `σ` (rad/s; default 0.05 when `heading_xi` is given): the
+    /// platform's reference heading turns at most this fast towards the target's
+    /// (`companion_core::HeadingFilter`; neither key: the paper's `h_s1`).
+    pub heading_rate: Option<f64>,
+    /// The heading filter's `ξ` (rad; default 0.2 when `heading_rate` is given): its gain
+    /// near zero lag is `σ/ξ`.
+    pub heading_xi: Option<f64>,
+    /// A spatial arm's limits as the law keeps them, by joint name (`[lower, upper]`, rad or
+    /// m), inside the robot's own: the law's penalty, weight and joint guard keep the joint
+    /// within them; the plant keeps the robot's. E.g. an elbow kept on one side of straight.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub joint_limits: Option<std::collections::BTreeMap<String, [f64; 2]>>,
     /// A spatial arm's damping onset `ρ₀ ∈ [0, 1)`: below this measure of its distance to a
     /// singular configuration the arm's inverse is damped (default `10⁻³`; 0: never).
     /// Spatial arms only (`companion_core::SpatialArm::with_damping`).
@@ -245,6 +257,10 @@ pub const CAR_K_BAR: [f64; 3] = [1.0, 2.07, 254.0];
 /// is no `α` and `w = u_b = (v₁, v₂, ω)`, so `K = K̄ = k̄_b I₃` (`k̄_b = 1`). The unicycle's
 /// `diag(1, 1, 100)` would make turning a hundred times cheaper than driving.
 pub const OMNI_K_BAR: [f64; 3] = [1.0, 1.0, 1.0];
+/// The heading filter's default `σ` (rad/s) when a config sets only its `ξ`.
+pub const DEFAULT_HEADING_RATE: f64 = 0.05;
+/// The heading filter's default `ξ` (rad) when a config sets only its rate.
+pub const DEFAULT_HEADING_XI: f64 = 0.2;
 
 /// The paper's RPR arm's prismatic stroke `q₂⁺` (m) and preferred extension `q₂*` (m), §4.3.
 pub const PAPER_STROKE: f64 = 0.7;
@@ -595,6 +611,11 @@ impl ControllerSpec {
         }
         if let Some(x) = o.max_turn_per_step {
             p.max_turn_per_step = t(x);
+        }
+        if o.heading_rate.is_some() || o.heading_xi.is_some() {
+            let rate = o.heading_rate.unwrap_or(DEFAULT_HEADING_RATE);
+            let xi = o.heading_xi.unwrap_or(DEFAULT_HEADING_XI);
+            p.secondary.heading_filter = Some(HeadingFilter { rate: t(rate), xi: t(xi) });
         }
         if let Some(x) = o.rest_reach {
             p.secondary.rest_reach = t(x);

@@ -42,7 +42,8 @@ pub use self::recorder::{Recorder, RowSink};
 pub use self::replay::Replay;
 pub use self::row::{CommandSource, PlantSample, Row, Task};
 pub use self::summary::{
-    ArmFigures, CommandSources, Summary, SummaryAccumulator, MANEUVER_DISTANCE, SIGN_SPEED,
+    ArmFigures, CommandSources, LimitsActed, Summary, SummaryAccumulator, LIMITS_ACTED_BEYOND,
+    MANEUVER_DISTANCE, SIGN_SPEED,
 };
 pub use self::verdict::{Acceptance, Failure, Rejections};
 pub use self::writer::{LogItem, RecordWriter};

@@ -137,6 +137,9 @@ pub struct Summary {
     pub platform_acceleration_steps: u64,
     /// Steps where the joints' acceleration limits acted.
     pub joint_acceleration_steps: u64,
+    /// How often the limits changed the law's command after 20 s, and whether more often than
+    /// [`LIMITS_ACTED_BEYOND`] of the steps.
+    pub limits_after_20s: LimitsActed,
     /// `h_s` at the first step.
     pub initial_h_s: f64,
     /// `h_s` at the last step.
@@ -186,6 +189,86 @@ pub struct LinkRecord {
     /// Whether the link let anyone in (`--insecure`: plain TCP, neither authenticated nor
     /// encrypted).
     pub insecure: bool,
+}
+
+/// The fraction of the steps after 20 s above which a run is said to have been shaped by the
+/// limits the law's analysis does not cover ([`LimitsActed::beyond`]): 5 %. The paper's own
+/// saturation (end of §3.4.2) divides the whole platform command by one common factor and keeps
+/// its direction, so `h_s` still decreases, only more slowly; the acceleration limits (a second
+/// factor on the *change* of the command, `companion_core::acceleration`) and the joint guard
+/// (the arm's published joint speeds) do not keep it — the command sent is then not the law's.
+/// A transient or a manoeuvre's peak cut now and then leaves the tracking to the law; once
+/// they act on more than one step in twenty after the run should have converged, what the run
+/// does after 20 s is theirs as much as the law's, and a run that settles so has no guarantee
+/// that it would again (from another start, at another target speed). The paper's runs and the
+/// presets' runs without limits are at 0–0.4 %, the runs under a real base's limits that do
+/// not settle at 20–100 % (the book's chapter "The law", "A robot's own limits").
+pub const LIMITS_ACTED_BEYOND: f64 = 0.05;
+
+/// How often the limits changed the law's command on the steps with `t ≥ 20 s`: the
+/// velocity limits' common factor (the paper's saturation), the platform's and the joints'
+/// acceleration factors and the joint guard (the arm's published joint speeds).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct LimitsActed {
+    /// Steps where the velocity limits' common factor was above 1.
+    pub velocity_steps: u64,
+    /// Steps where the platform's acceleration limits acted.
+    pub platform_acceleration_steps: u64,
+    /// Steps where the joints' acceleration limits acted.
+    pub joint_acceleration_steps: u64,
+    /// Steps where the joint guard slowed the arm.
+    pub joint_guard_steps: u64,
+    /// Steps where any of them acted.
+    pub steps: u64,
+    /// `steps` over the steps after 20 s (NaN, `null` in JSON, when there are none).
+    pub fraction: f64,
+    /// Steps where an acceleration limit or the joint guard acted: the limits beyond the
+    /// paper's saturation, which change the direction of the law's command.
+    pub beyond_saturation_steps: u64,
+    /// `beyond_saturation_steps` over the steps after 20 s (NaN when there are none).
+    pub beyond_saturation_fraction: f64,
+    /// Whether `beyond_saturation_fraction` is above [`LIMITS_ACTED_BEYOND`]: the run after
+    /// 20 s is shaped by its limits, not by the law alone (a run that settles so may have
+    /// settled by luck).
+    pub beyond: bool,
+}
+
+impl LimitsActed {
+    /// Adds one step after 20 s.
+    #[inline]
+    fn add(&mut self, velocity: bool, platform_acceleration: bool, joint_acceleration: bool, guard: bool) {
+        self.velocity_steps += u64::from(velocity);
+        self.platform_acceleration_steps += u64::from(platform_acceleration);
+        self.joint_acceleration_steps += u64::from(joint_acceleration);
+        self.joint_guard_steps += u64::from(guard);
+        let beyond = platform_acceleration || joint_acceleration || guard;
+        self.beyond_saturation_steps += u64::from(beyond);
+        self.steps += u64::from(velocity || beyond);
+    }
+
+    /// The fractions and the verdict over `after` steps after 20 s.
+    fn finish(&mut self, after: u64) {
+        let of = |n: u64| if after > 0 { n as f64 / after as f64 } else { f64::NAN };
+        self.fraction = of(self.steps);
+        self.beyond_saturation_fraction = of(self.beyond_saturation_steps);
+        self.beyond = self.beyond_saturation_fraction > LIMITS_ACTED_BEYOND;
+    }
+
+    /// `velocity 40.6 %, platform acceleration 12.0 %` (the kinds that acted, of `after` steps).
+    pub fn describe(&self, after: u64) -> String {
+        let pct = |n: u64| 100.0 * n as f64 / after.max(1) as f64;
+        let kinds: Vec<String> = [
+            ("velocity (saturation)", self.velocity_steps),
+            ("platform acceleration", self.platform_acceleration_steps),
+            ("joint acceleration", self.joint_acceleration_steps),
+            ("joint guard", self.joint_guard_steps),
+        ]
+        .into_iter()
+        .filter(|(_, n)| *n > 0)
+        .map(|(k, n)| format!("{k} {:.1} %", pct(n)))
+        .collect();
+        kinds.join(", ")
+    }
 }
 
 /// The speed below which `v` has no sign for counting sign changes (m/s).
@@ -389,6 +472,14 @@ impl SummaryAccumulator {
         }
         s.platform_acceleration_steps += u64::from(r.platform_acceleration);
         s.joint_acceleration_steps += u64::from(r.joint_acceleration);
+        if p.t >= 20.0 && ep.is_finite() {
+            s.limits_after_20s.add(
+                r.saturation > 1.0,
+                r.platform_acceleration,
+                r.joint_acceleration,
+                r.joint_scale > 1.0,
+            );
+        }
     }
 
     /// The summary so far, with the wall time (a run that ended: see [`Summary::judge`]).
@@ -422,6 +513,7 @@ impl SummaryAccumulator {
             s.fraction_ep_below_1e_3_after_20s = f64::NAN;
         }
         s.steps_after_20s = self.after20;
+        s.limits_after_20s.finish(self.after20);
         (s.max_ep_norm_after_20s_clear_of_holds, s.steps_after_20s_clear_of_holds) = self.clear.finish();
         s.wall_time_s = wall_time_s;
         s.trajectory_digest = self.digest.hex();

@@ -22,6 +22,7 @@
 //! ```
 
 mod config;
+pub mod limits;
 
 use std::path::PathBuf;
 
@@ -32,9 +33,10 @@ use serde::{Serialize, Serializer};
 pub use self::config::{
     ConfigError, ConfigFile, HomeConfig, MountConfig, NoiseConfig, PlantFileConfig, RobotConfig,
 };
+pub use self::limits::{LimitSource, LimitsRecord};
 use crate::domain::controller::{
-    platform_name, run_name, AccelerationConfig, AnyController, ControllerConfig, ControllerSpec,
-    DiscretisationConfig, LimitsConfig, RestFilterConfig, Scalar, JOINTS,
+    platform_name, run_name, AnyController, ControllerConfig, ControllerSpec, DiscretisationConfig,
+    LimitsConfig, RestFilterConfig, Scalar, JOINTS,
 };
 
 /// The target's motion.
@@ -70,18 +72,20 @@ impl Serialize for Target {
     }
 }
 
-/// Velocity (and acceleration) limits of a scenario.
+/// A named set of velocity (and acceleration) limits for a scenario (`--limits NAME`): merged
+/// with the config file's, the stricter value winning per key ([`limits`]), except
+/// [`Unlimited`](Self::Unlimited).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum LimitsChoice {
-    /// None (the paper's runs): no velocity and no acceleration limits.
+    /// None (the paper's runs): no velocity and no acceleration limits, the config file's
+    /// dropped.
     Unlimited,
-    /// A realistic robot's velocity limits (`companion_plant::realistic_limits`); acceleration
-    /// limits as the config file sets them.
+    /// A realistic robot's velocity limits (`companion_plant::realistic_limits`).
     Realistic,
     /// The TIAGo's base, velocity and acceleration, as PAL configures it
-    /// ([`LimitsConfig::tiago`], [`AccelerationConfig::tiago`]); no joint acceleration limits.
+    /// ([`LimitsConfig::tiago`], `AccelerationConfig::tiago`); no joint acceleration limits.
     Tiago,
-    /// These velocity limits; acceleration limits as the config file sets them.
+    /// These velocity limits.
     Custom(LimitsConfig),
 }
 
@@ -240,6 +244,11 @@ pub struct Scenario {
     /// A start of its own (`None`: the target's).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub start: Option<Start>,
+    /// The velocity and acceleration limits that run (`controller.limits`,
+    /// `controller.acceleration`), each with its source ([`limits`]); not written when there
+    /// are none.
+    #[serde(skip_serializing_if = "LimitsRecord::is_empty")]
+    pub limits: LimitsRecord,
 }
 
 /// Builds a [`Scenario`]: the paper's parameters plus what is set, checked by
@@ -334,11 +343,12 @@ impl ScenarioBuilder {
         self
     }
 
-    /// Velocity limits; default: the config file's `[velocity_limits]`, else realistic limits
-    /// for the car (unsaturated, Lemma 2's high gains can diverge within seconds, SPEC §3) and
-    /// none for the other platforms. Acceleration limits: the config file's
-    /// `[acceleration_limits]`, none with [`LimitsChoice::Unlimited`], the TIAGo's with
-    /// [`LimitsChoice::Tiago`].
+    /// A named set of limits, merged with the config file's `[velocity_limits]` and
+    /// `[acceleration_limits]` key by key, the stricter value winning
+    /// ([`LimitsChoice::Unlimited`] drops them all). Default: the config file's, else realistic
+    /// velocity limits for the car (unsaturated, Lemma 2's high gains can diverge within
+    /// seconds, SPEC §3) and none for the other platforms. The module [`limits`] has the
+    /// rules; [`Scenario::limits`] records where each limit came from.
     pub fn limits(mut self, limits: LimitsChoice) -> Self {
         self.limits = Some(limits);
         self
@@ -434,18 +444,13 @@ impl ScenarioBuilder {
         }
         let file = self.config;
         let spatial_arm = file.is_for_spatial_arm();
-        let limits = match self.limits {
-            Some(LimitsChoice::Unlimited) => None,
-            Some(LimitsChoice::Realistic) => Some(LimitsConfig::realistic()),
-            Some(LimitsChoice::Tiago) => Some(LimitsConfig::tiago()),
-            Some(LimitsChoice::Custom(l)) => Some(l),
-            None => file.velocity_limits.or_else(|| default_limits(self.platform)),
-        };
-        let acceleration = match self.limits {
-            Some(LimitsChoice::Unlimited) => None,
-            Some(LimitsChoice::Tiago) => Some(AccelerationConfig::tiago()),
-            _ => file.acceleration_limits.clone(),
-        };
+        let resolved = limits::resolve(
+            self.limits,
+            file.velocity_limits,
+            file.acceleration_limits.as_ref(),
+            self.platform,
+        );
+        let (limits, acceleration) = (resolved.velocity, resolved.acceleration);
         // The planar arm's joints (a spatial arm's are counted when its law is built).
         if let Some(given) = acceleration.as_ref().and_then(|a| a.joints.as_ref()).map(Vec::len) {
             if !spatial_arm && given != JOINTS {
@@ -511,6 +516,7 @@ impl ScenarioBuilder {
             delay: self.delay,
             delay_compensation: self.delay_compensation,
             start: self.start,
+            limits: resolved.record,
         };
         s.name = s.default_name();
         Ok(s)
@@ -593,15 +599,6 @@ impl Scenario {
             && self.controller.platform == PlatformKind::Unicycle
             && self.controller.scalar == Scalar::F64
             && self.controller.overrides.psi_rate_in_drift != Some(true)
-    }
-}
-
-/// The car-like platform runs with saturation by default (SPEC §3: unsaturated, the high
-/// gains of Lemma 2's function can diverge within seconds); the others run unlimited.
-fn default_limits(platform: PlatformKind) -> Option<LimitsConfig> {
-    match platform {
-        PlatformKind::Car => Some(LimitsConfig::realistic()),
-        PlatformKind::Unicycle | PlatformKind::Omni => None,
     }
 }
 
@@ -714,14 +711,19 @@ impl Options {
 mod tests {
     use super::*;
 
-    /// `[acceleration_limits]` reaches the law; `--limits tiago` sets the TIAGo's velocity and
-    /// acceleration limits (over the file's), `--limits none` drops both; per-joint arrays of
-    /// another count are refused by name.
+    /// `[acceleration_limits]` reaches the law; `--limits tiago` adds the TIAGo's velocity and
+    /// acceleration limits to the file's, the stricter value winning per key, and the file's
+    /// keys the preset lacks (`alpha_rate`, the joints) kept; `--limits none` drops both; the
+    /// scenario records each limit's source; per-joint arrays of another count are refused by
+    /// name.
     #[test]
     fn acceleration_limits_from_the_file_and_the_tiago_preset() {
         let b = || Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle);
         let file: ConfigFile = toml::from_str(
-            "[acceleration_limits]
+            "[velocity_limits]
+alpha_rate = 1.5
+forward = 2.0
+[acceleration_limits]
 forward = 0.5
 joints = [1.0, 2.0, 3.0]
 ",
@@ -732,14 +734,30 @@ joints = [1.0, 2.0, 3.0]
         assert_eq!(p.acceleration_limits.forward, 0.5);
         assert_eq!(p.acceleration_limits.angular, f64::INFINITY);
         assert_eq!(p.acceleration_limits.joints.as_slice(), &[1.0, 2.0, 3.0]);
-        let t = b().config(file.clone()).limits(LimitsChoice::Tiago).build().expect("valid").controller;
-        let p = t.params::<f64>();
-        assert_eq!((p.velocity_limits.forward, p.velocity_limits.angular), (1.0, 2.09));
-        assert_eq!((p.acceleration_limits.forward, p.acceleration_limits.angular), (1.0, 2.09));
-        assert!(p.acceleration_limits.joints.iter().all(|a| a.is_infinite()));
-        let none =
-            b().config(file.clone()).limits(LimitsChoice::Unlimited).build().expect("valid").controller;
-        assert_eq!(none.acceleration, None);
+        assert_eq!((p.velocity_limits.forward, p.velocity_limits.alpha_rate), (2.0, 1.5));
+        let tiago = b().config(file.clone()).limits(LimitsChoice::Tiago).build().expect("valid");
+        let p = tiago.controller.params::<f64>();
+        let v = p.velocity_limits;
+        assert_eq!((v.forward, v.angular, v.alpha_rate), (1.0, 2.09, 1.5));
+        assert_eq!((p.acceleration_limits.forward, p.acceleration_limits.angular), (0.5, 2.09));
+        assert_eq!(p.acceleration_limits.joints.as_slice(), &[1.0, 2.0, 3.0]);
+        // scenario.json says what ran and where it came from.
+        let json = serde_json::to_value(&tiago).expect("JSON");
+        let applied = json["limits"]["applied"].as_array().expect("applied limits");
+        let from = |key: &str| {
+            let s = applied.iter().find(|s| s["key"] == key).unwrap_or_else(|| panic!("{key}: {json}"));
+            (s["value"].as_f64().unwrap_or(f64::NAN), s["from"].as_str().unwrap_or("").to_string())
+        };
+        assert_eq!(from("velocity_limits.alpha_rate"), (1.5, "config file".into()));
+        assert_eq!(from("velocity_limits.forward"), (1.0, "limits tiago".into()));
+        assert_eq!(from("acceleration_limits.forward"), (0.5, "config file".into()));
+        assert_eq!(from("acceleration_limits.joints[1]"), (2.0, "config file".into()));
+        assert_eq!(json["controller"]["limits"]["alpha_rate"], 1.5);
+        assert!(serde_json::to_value(b().build().expect("valid")).expect("JSON").get("limits").is_none());
+        let none = b().config(file.clone()).limits(LimitsChoice::Unlimited).build().expect("valid");
+        assert_eq!(none.limits.dropped.len(), 4, "{:?}", none.limits);
+        let none = none.controller;
+        assert_eq!((none.limits, none.acceleration.clone()), (None, None));
         assert_eq!(none.params::<f64>().acceleration_limits, companion_core::AccelerationLimits::unlimited());
         // Realistic velocity limits keep the file's acceleration limits.
         let r = b().config(file).limits(LimitsChoice::Realistic).build().expect("valid").controller;

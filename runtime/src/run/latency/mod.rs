@@ -13,7 +13,8 @@
 //!    loopback TCP (the two-machine transport; aim: p50 at most twice the socket's) and,
 //!    where network namespaces are permitted (root), across a veth pair into a namespace
 //!    (skipped with a warning otherwise); in a build with the `ros2` feature, a DDS ping-pong
-//!    (RustDDS on loopback UDP, as `companion ros2` talks to a robot: module `dds`);
+//!    (RustDDS on loopback UDP, as `companion ros2` talks to a robot: module `dds`), plain and
+//!    under SROS 2 (DDS-Security, as the node with an enclave);
 //! 4. the full HIL cycle (`companion hil`, real time at 1 kHz) in each wait mode: the
 //!    measurement-to-command round trip on the plant's clock, deadline misses and robot
 //!    stops — once on the machine as it is ("idle") and once under a load this program makes
@@ -501,10 +502,18 @@ pub fn run(a: &LatencyOptions, observer: &dyn Observer) -> Result<Benchmark, Lat
             "(3) DDS ping-pong (RustDDS on loopback UDP, as companion ros2), {} round trips",
             a.cycles
         ));
-        let (h, c) = dds::round_trips(&exe, a.cycles, a.warmup, a.rt, observer)?;
+        let (h, c) = dds::round_trips(&exe, a.cycles, a.warmup, a.rt, false, observer)?;
         checked("dds ping-pong", c);
         dds_p50 = h.percentiles().p50;
         push("3", "dds ping-pong (RustDDS), reliable, poll".into(), h, &mut rows);
+        observer.note(&format!(
+            "(3) DDS ping-pong under SROS 2 (DDS-Security: authenticated, access-controlled, encrypted, as companion \
+             ros2 with an enclave), {} round trips",
+            a.cycles
+        ));
+        let (h, c) = dds::round_trips(&exe, a.cycles, a.warmup, a.rt, true, observer)?;
+        checked("dds ping-pong, SROS 2", c);
+        push("3", "dds ping-pong (RustDDS), reliable, poll, SROS 2".into(), h, &mut rows);
     }
     #[cfg_attr(not(feature = "zenoh"), allow(unused_mut))]
     let mut zenoh_hops: Vec<hops::HopReport> = Vec::new();
@@ -850,7 +859,7 @@ pub fn run_peer(a: &PeerOptions, observer: &dyn Observer) -> Result<(), LatencyE
         #[cfg(not(feature = "zenoh"))]
         Transport::Zenoh => Err(LatencyError::NoZenoh),
         #[cfg(feature = "ros2")]
-        Transport::Dds => dds::peer(&a.name),
+        Transport::Dds => dds::peer(&a.name, a.tls_dir.as_deref()),
         #[cfg(not(feature = "ros2"))]
         Transport::Dds => Err(LatencyError::NoDds),
     }

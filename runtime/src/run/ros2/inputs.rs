@@ -4,6 +4,8 @@
 //!
 //! An input is refused, in this order, when
 //!
+//! 0. it has a second writer ([`Writers`]): another DDS writer than the input's own is on its
+//!    topic (DDS discovery says so) or sent a sample within `silence`,
 //! 1. it never arrived (before the run starts: the node waits for it),
 //! 2. it arrived malformed: a joint state without one of the arm's joints, with one listed
 //!    twice, or with fewer positions than names (the whole message; extra names are ignored),
@@ -17,12 +19,21 @@
 //! A refused input is not replaced by an older good one: the robot gets the zero command
 //! until a good sample arrives. Each refusal is counted by input and cause ([`FaultCounts`]).
 //! Nothing here allocates.
+//!
+//! ## One writer per input
+//!
+//! Each input has its own writer: the first DDS writer whose samples arrive while it is the
+//! only writer of the topic. Only its samples are ever used; another writer's are refused and
+//! counted, and while another writer is present — on the topic by discovery, or a sample of
+//! it within `silence` — the robot gets the zero command ([`Fault::SecondWriter`]). A new
+//! writer is taken only when the input's own has left (it is silent and discovery lists one
+//! writer at most: a driver restarted), and the change is counted.
 
 use serde::Serialize;
 
 use crate::domain::arm::MAX_JOINTS;
 use crate::transport::ros2::msgs::{JointSample, Pose, Time, Twist};
-use crate::transport::ros2::{Arrived, Inputs, StampedPose, StampedTwist};
+use crate::transport::ros2::{Arrived, Inputs, StampedPose, StampedTwist, WriterId};
 
 /// The node's inputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -56,6 +67,8 @@ impl Input {
 /// Why the robot gets the zero command this period.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Fault {
+    /// Another writer than the input's own is on its topic or sent samples.
+    SecondWriter(Input),
     /// The input never arrived.
     Missing(Input),
     /// Its last sample is malformed (joint names, counts, or undecodable).
@@ -91,6 +104,81 @@ impl<T> Default for Slot<T> {
     }
 }
 
+/// The most other writers of one input told apart (more are counted together).
+pub const MAX_OTHERS: usize = 8;
+
+/// A writer of an input other than its own.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Other {
+    /// The writer.
+    pub id: WriterId,
+    /// Its samples, refused.
+    pub samples: u64,
+    /// When its first and last samples arrived (the node's clock, ns).
+    pub first_ns: u64,
+    /// When its last sample arrived.
+    pub last_ns: u64,
+}
+
+/// An input's writers: its own, and the others seen.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Writers {
+    /// The input's own writer (none yet, or none since it left).
+    pub own: Option<WriterId>,
+    /// Its samples taken (each checked as any sample).
+    pub own_samples: u64,
+    /// Writers the input took in turn after its first (a driver restarted).
+    pub adopted: u64,
+    /// The other writers that sent samples.
+    pub others: [Option<Other>; MAX_OTHERS],
+    /// Samples of other writers past [`MAX_OTHERS`].
+    pub others_overflow: u64,
+    /// The largest number of remote writers discovery listed on the topic at once.
+    pub max_listed: u32,
+    /// The other writer seen last, and when (the node's clock).
+    last_other: Option<(WriterId, u64)>,
+}
+
+impl Writers {
+    /// Notes refused samples of `id` at `now_ns`.
+    fn refuse(&mut self, id: WriterId, n: u64, now_ns: u64) {
+        self.last_other = Some((id, now_ns));
+        for o in &mut self.others {
+            match o {
+                Some(x) if x.id == id => {
+                    x.samples += n;
+                    x.last_ns = now_ns;
+                    return;
+                }
+                None => {
+                    *o = Some(Other { id, samples: n, first_ns: now_ns, last_ns: now_ns });
+                    return;
+                }
+                Some(_) => {}
+            }
+        }
+        self.others_overflow += n;
+    }
+
+    /// The other writer whose sample came last, if within `silence_ns` of `now_ns`.
+    pub fn recent_other(&self, now_ns: u64, silence_ns: u64) -> Option<WriterId> {
+        self.last_other.filter(|(_, t)| now_ns.saturating_sub(*t) <= silence_ns).map(|(w, _)| w)
+    }
+
+    /// Whether no writer but `id` and the input's own sent a sample within `silence_ns` of
+    /// `now_ns`.
+    fn quiet_but(&self, id: WriterId, now_ns: u64, silence_ns: u64) -> bool {
+        let recent = |t: u64| now_ns.saturating_sub(t) <= silence_ns;
+        self.others.iter().flatten().all(|o| o.id == id || !recent(o.last_ns))
+            && !(self.others_overflow > 0 && self.last_other.is_some_and(|(w, t)| w != id && recent(t)))
+    }
+
+    /// Whether any writer other than the input's own sent a sample.
+    pub fn had_others(&self) -> bool {
+        self.others[0].is_some()
+    }
+}
+
 /// The latest of each input.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Latest {
@@ -98,6 +186,10 @@ pub struct Latest {
     base: Slot<StampedPose>,
     target_pose: Slot<StampedPose>,
     target_twist: Slot<StampedTwist>,
+    /// Each input's writers.
+    writers: [Writers; 4],
+    /// Remote writers on each input's topic, as discovery last said.
+    listed: [u32; 4],
     /// The arm's joint count (the bits of a joint sample that must be set).
     joints_needed: usize,
     /// Whether the target comes from topics.
@@ -136,12 +228,27 @@ impl Latest {
         Self { joints_needed: joints.min(MAX_JOINTS), target_read, ..Self::default() }
     }
 
-    /// Takes what arrived (at `now_ns` on the node's clock) as the latest of each input,
-    /// refusing malformed and non-finite samples; counts samples that did not decode.
-    pub fn update(&mut self, inputs: &Inputs, now_ns: u64, counts: &mut FaultCounts) {
+    /// Takes what arrived (at `now_ns` on the node's clock) from each input's own writer as its
+    /// latest, refusing malformed and non-finite samples and other writers' samples (module
+    /// docs); counts samples that did not decode. `listed`: the remote writers of each input's
+    /// topic, as discovery last said; `silence_ns`: `--silence-ms`.
+    pub fn update(
+        &mut self,
+        inputs: &Inputs,
+        now_ns: u64,
+        listed: [u32; 4],
+        silence_ns: u64,
+        counts: &mut FaultCounts,
+    ) {
+        self.listed = listed;
+        for (w, n) in self.writers.iter_mut().zip(listed) {
+            w.max_listed = w.max_listed.max(n);
+        }
         let need = self.joints_needed;
         let all = if need >= 16 { u16::MAX } else { (1u16 << need) - 1 };
-        take(&mut self.joints, &inputs.joints, now_ns, Input::JointStates, counts, |s| {
+        let at = Arrival { now_ns, silence_ns };
+        let [w_joints, w_base, w_tpose, w_ttwist] = &mut self.writers;
+        at.take(&mut self.joints, w_joints, &inputs.joints, listed[0], Input::JointStates, counts, |s| {
             if s.malformed || s.found & all != all {
                 Err(Fault::Malformed(Input::JointStates))
             } else if !s.joints[..need].iter().all(|x| x.is_finite()) {
@@ -161,22 +268,39 @@ impl Latest {
                 }
             }
         };
-        take(&mut self.base, &inputs.base, now_ns, Input::BasePose, counts, pose_check(Input::BasePose));
-        take(
+        at.take(
+            &mut self.base,
+            w_base,
+            &inputs.base,
+            listed[1],
+            Input::BasePose,
+            counts,
+            pose_check(Input::BasePose),
+        );
+        at.take(
             &mut self.target_pose,
+            w_tpose,
             &inputs.target_pose,
-            now_ns,
+            listed[2],
             Input::TargetPose,
             counts,
             pose_check(Input::TargetPose),
         );
-        take(&mut self.target_twist, &inputs.target_twist, now_ns, Input::TargetTwist, counts, |t| {
-            if twist_finite(&t.twist) {
-                Ok(())
-            } else {
-                Err(Fault::NonFinite(Input::TargetTwist))
-            }
-        });
+        at.take(
+            &mut self.target_twist,
+            w_ttwist,
+            &inputs.target_twist,
+            listed[3],
+            Input::TargetTwist,
+            counts,
+            |t| {
+                if twist_finite(&t.twist) {
+                    Ok(())
+                } else {
+                    Err(Fault::NonFinite(Input::TargetTwist))
+                }
+            },
+        );
     }
 
     /// The inputs of a step at `now_mono_ns` (the node's clock) and `now_real_ns` (the system
@@ -186,7 +310,14 @@ impl Latest {
     /// # Errors
     /// The [`Fault`] that gives the robot the zero command.
     pub fn check(&self, now_mono_ns: u64, now_real_ns: i64, ages: Ages) -> Result<Snapshot, Fault> {
-        // Missing, then malformed or non-finite, over every input before silence and age.
+        // A second writer first, then missing, then malformed or non-finite, over every input
+        // before silence and age.
+        let n = if self.target_read { 4 } else { 2 };
+        for input in &Input::ALL[..n] {
+            if self.second_writer(*input, now_mono_ns, ages.silence_ns).is_some() {
+                return Err(Fault::SecondWriter(*input));
+            }
+        }
         let joints = value(&self.joints, Input::JointStates)?;
         let base = value(&self.base, Input::BasePose)?;
         let target = if self.target_read {
@@ -209,7 +340,6 @@ impl Latest {
             visits[2].2 = p.stamp;
             visits[3].2 = t.stamp;
         }
-        let n = if target.is_some() { 4 } else { 2 };
         for &(input, arrived, _) in &visits[..n] {
             if silent(arrived) {
                 return Err(Fault::Silent(input));
@@ -230,6 +360,61 @@ impl Latest {
     }
 }
 
+impl Latest {
+    /// Whether `input` has a second writer at `now_ns` (module docs): `Some` with the other
+    /// writer whose sample came last (`None` inside: only discovery lists it).
+    pub fn second_writer(&self, input: Input, now_ns: u64, silence_ns: u64) -> Option<Option<WriterId>> {
+        let w = &self.writers[input as usize];
+        let recent = w.recent_other(now_ns, silence_ns);
+        (recent.is_some() || self.listed[input as usize] > 1).then_some(recent)
+    }
+
+    /// Each input's writers.
+    pub fn writers(&self) -> &[Writers; 4] {
+        &self.writers
+    }
+
+    /// Each input's fault at `now_*` (`None`: good, or not read) — for naming every missing input
+    /// when the node gives up waiting, not for the period.
+    pub fn faults(&self, now_mono_ns: u64, now_real_ns: i64, ages: Ages) -> [Option<Fault>; 4] {
+        let n = if self.target_read { 4 } else { 2 };
+        let mut out = [None; 4];
+        for input in &Input::ALL[..n] {
+            // The check over this input alone: the others taken as good.
+            let mut alone = *self;
+            for other in &Input::ALL[..n] {
+                if other != input {
+                    alone.make_good(*other, now_mono_ns, now_real_ns);
+                }
+            }
+            out[*input as usize] = alone.check(now_mono_ns, now_real_ns, ages).err();
+        }
+        out
+    }
+
+    /// `input` made a good, fresh sample (for [`Self::faults`]).
+    fn make_good(&mut self, input: Input, now_mono_ns: u64, now_real_ns: i64) {
+        let stamp = Time::from_ns(now_real_ns);
+        let pose = StampedPose { stamp, pose: Pose::default() };
+        let i = input as usize;
+        self.writers[i].last_other = None;
+        self.listed[i] = 0;
+        match input {
+            Input::JointStates => {
+                let joints = [0.0; MAX_JOINTS];
+                let v = JointSample { stamp, joints, found: u16::MAX, malformed: false };
+                self.joints = Slot { value: Some(Ok(v)), arrived_ns: now_mono_ns };
+            }
+            Input::BasePose => self.base = Slot { value: Some(Ok(pose)), arrived_ns: now_mono_ns },
+            Input::TargetPose => self.target_pose = Slot { value: Some(Ok(pose)), arrived_ns: now_mono_ns },
+            Input::TargetTwist => {
+                let v = StampedTwist { stamp, twist: Twist::default() };
+                self.target_twist = Slot { value: Some(Ok(v)), arrived_ns: now_mono_ns };
+            }
+        }
+    }
+}
+
 fn value<T: Copy>(slot: &Slot<T>, input: Input) -> Result<T, Fault> {
     match slot.value {
         None => Err(Fault::Missing(input)),
@@ -237,25 +422,66 @@ fn value<T: Copy>(slot: &Slot<T>, input: Input) -> Result<T, Fault> {
     }
 }
 
-/// The last sample of `arrived` into `slot`, checked by `ok` (a refused one is counted).
-fn take<T: Copy>(
-    slot: &mut Slot<T>,
-    arrived: &Arrived<T>,
+/// When samples are taken, and the silence after which a writer is gone.
+#[derive(Clone, Copy)]
+struct Arrival {
     now_ns: u64,
-    input: Input,
-    counts: &mut FaultCounts,
-    ok: impl Fn(&T) -> Result<(), Fault>,
-) {
-    if arrived.undecodable > 0 {
-        counts.undecodable[input as usize] += arrived.undecodable;
-    }
-    if let Some(v) = arrived.last {
-        slot.arrived_ns = now_ns;
-        slot.value = Some(ok(&v).map(|()| v));
-    } else if arrived.undecodable > 0 {
-        // The newest sample could not be read: what the robot sent last is unknown.
-        slot.arrived_ns = now_ns;
-        slot.value = Some(Err(Fault::Malformed(input)));
+    silence_ns: u64,
+}
+
+impl Arrival {
+    /// The last sample of the input's own writer in `arrived` into `slot`, checked by `ok` (a
+    /// refused one is counted); other writers' samples refused and noted in `w` (module docs).
+    #[allow(clippy::too_many_arguments)]
+    fn take<T: Copy>(
+        self,
+        slot: &mut Slot<T>,
+        w: &mut Writers,
+        arrived: &Arrived<T>,
+        listed: u32,
+        input: Input,
+        counts: &mut FaultCounts,
+        ok: impl Fn(&T) -> Result<(), Fault>,
+    ) {
+        let now_ns = self.now_ns;
+        if arrived.undecodable > 0 {
+            counts.undecodable[input as usize] += arrived.undecodable;
+        }
+        let own_gone = slot.value.is_none() || now_ns.saturating_sub(slot.arrived_ns) > self.silence_ns;
+        // A writer is taken as the input's own when it is the only one: the only one that sent
+        // samples now and lately, discovery listing one at most — and the input's own (if any)
+        // is gone.
+        if let (1, 0, Some((id, _))) = (arrived.writers(), arrived.overflow, arrived.by_writer[0]) {
+            if listed <= 1 && own_gone && w.own != Some(id) && w.quiet_but(id, now_ns, self.silence_ns) {
+                if w.own.is_some() {
+                    w.adopted += 1;
+                }
+                w.own = Some(id);
+            }
+        }
+        let mut own = None;
+        for (s, n) in arrived.by_writer.iter().zip(arrived.samples) {
+            match s {
+                Some((id, v)) if Some(*id) == w.own => {
+                    own = Some(*v);
+                    w.own_samples += n;
+                }
+                Some((id, _)) => w.refuse(*id, n, now_ns),
+                None => {}
+            }
+        }
+        if arrived.overflow > 0 {
+            w.others_overflow += arrived.overflow;
+            w.last_other = Some((WriterId::default(), now_ns));
+        }
+        if let Some(v) = own {
+            slot.arrived_ns = now_ns;
+            slot.value = Some(ok(&v).map(|()| v));
+        } else if arrived.undecodable > 0 && arrived.writers() == 0 {
+            // The newest sample could not be read: what the robot sent last is unknown.
+            slot.arrived_ns = now_ns;
+            slot.value = Some(Err(Fault::Malformed(input)));
+        }
     }
 }
 
@@ -263,6 +489,8 @@ fn take<T: Copy>(
 /// `base_pose`, `target_pose`, `target_twist`), and undecodable samples.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
 pub struct FaultCounts {
+    /// A second writer on the input.
+    pub second_writer: [u64; 4],
     /// An input never arrived (after the run started: it cannot; kept for completeness).
     pub missing: [u64; 4],
     /// A malformed sample (joint names or counts, undecodable).
@@ -282,6 +510,7 @@ impl FaultCounts {
     /// Counts one period answered with zero for `f`.
     pub fn count(&mut self, f: Fault) {
         let (list, input) = match f {
+            Fault::SecondWriter(i) => (&mut self.second_writer, i),
             Fault::Missing(i) => (&mut self.missing, i),
             Fault::Malformed(i) => (&mut self.malformed, i),
             Fault::NonFinite(i) => (&mut self.non_finite, i),
@@ -293,7 +522,7 @@ impl FaultCounts {
 
     /// Periods answered with zero for any input fault.
     pub fn total(&self) -> u64 {
-        [&self.missing, &self.malformed, &self.non_finite, &self.silent, &self.stale]
+        [&self.second_writer, &self.missing, &self.malformed, &self.non_finite, &self.silent, &self.stale]
             .iter()
             .map(|l| l.iter().sum::<u64>())
             .sum()
@@ -320,8 +549,16 @@ mod tests {
         }
     }
 
+    const ROBOT: WriterId = WriterId([1; 16]);
+    const ROGUE: WriterId = WriterId([2; 16]);
+
     fn arrived<T>(v: T) -> Arrived<T> {
-        Arrived { last: Some(v), samples: 1, undecodable: 0 }
+        Arrived::one(ROBOT, v)
+    }
+
+    /// `update` with discovery listing the robot alone.
+    fn up(l: &mut Latest, inputs: &Inputs, now_ns: u64, c: &mut FaultCounts) {
+        l.update(inputs, now_ns, [1; 4], AGES.silence_ns, c);
     }
 
     fn inputs(j: JointSample, b: StampedPose) -> Inputs {
@@ -333,7 +570,7 @@ mod tests {
         let mut l = Latest::new(2, false);
         let mut c = FaultCounts::default();
         assert_eq!(l.check(0, 0, AGES), Err(Fault::Missing(Input::JointStates)));
-        l.update(&inputs(joints(1_000_000, 0b11, [0.1, 0.2]), pose(1_000_000, 3.0)), 100, &mut c);
+        up(&mut l, &inputs(joints(1_000_000, 0b11, [0.1, 0.2]), pose(1_000_000, 3.0)), 100, &mut c);
         let s = l.check(200, 2_000_000, AGES).unwrap();
         assert_eq!(&s.joints[..2], &[0.1, 0.2]);
         assert_eq!(s.base.position.x, 3.0);
@@ -345,29 +582,29 @@ mod tests {
     fn a_missing_joint_name_and_a_non_finite_value_are_refused_until_a_good_sample() {
         let mut l = Latest::new(2, false);
         let mut c = FaultCounts::default();
-        l.update(&inputs(joints(0, 0b01, [0.1, f64::NAN]), pose(0, 1.0)), 0, &mut c);
+        up(&mut l, &inputs(joints(0, 0b01, [0.1, f64::NAN]), pose(0, 1.0)), 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::Malformed(Input::JointStates)));
         // A good sample, then a non-finite one: the good one is not used again.
-        l.update(&inputs(joints(0, 0b11, [0.1, 0.2]), pose(0, 1.0)), 0, &mut c);
+        up(&mut l, &inputs(joints(0, 0b11, [0.1, 0.2]), pose(0, 1.0)), 0, &mut c);
         assert!(l.check(0, 0, AGES).is_ok());
         let j = Inputs { joints: arrived(joints(0, 0b11, [0.1, f64::INFINITY])), ..Inputs::default() };
-        l.update(&j, 0, &mut c);
+        up(&mut l, &j, 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::NonFinite(Input::JointStates)));
         let b = Inputs {
             joints: arrived(joints(0, 0b11, [0.1, 0.2])),
             base: arrived(pose(0, f64::NAN)),
             ..Inputs::default()
         };
-        l.update(&b, 0, &mut c);
+        up(&mut l, &b, 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::NonFinite(Input::BasePose)));
         // A name listed twice.
         let mut dup = joints(0, 0b11, [0.1, 0.2]);
         dup.malformed = true;
-        l.update(&inputs(dup, pose(0, 1.0)), 0, &mut c);
+        up(&mut l, &inputs(dup, pose(0, 1.0)), 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::Malformed(Input::JointStates)));
         // An undecodable newest sample.
-        let u = Inputs { joints: Arrived { last: None, samples: 0, undecodable: 2 }, ..Inputs::default() };
-        l.update(&u, 0, &mut c);
+        let u = Inputs { joints: Arrived { undecodable: 2, ..Arrived::default() }, ..Inputs::default() };
+        up(&mut l, &u, 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::Malformed(Input::JointStates)));
         assert_eq!(c.undecodable, [2, 0, 0, 0]);
     }
@@ -376,7 +613,7 @@ mod tests {
     fn silence_and_age_are_refused_at_their_limits() {
         let mut l = Latest::new(2, false);
         let mut c = FaultCounts::default();
-        l.update(&inputs(joints(10_000_000, 0b11, [0.1, 0.2]), pose(10_000_000, 1.0)), 1_000, &mut c);
+        up(&mut l, &inputs(joints(10_000_000, 0b11, [0.1, 0.2]), pose(10_000_000, 1.0)), 1_000, &mut c);
         // Age: exactly max_age is good, one ns more is stale; a stamp from the future too.
         assert!(l.check(1_000, 15_000_000, AGES).is_ok());
         assert_eq!(l.check(1_000, 15_000_001, AGES), Err(Fault::Stale(Input::JointStates)));
@@ -386,7 +623,7 @@ mod tests {
         assert_eq!(l.check(20_001_001, 10_000_000, AGES), Err(Fault::Silent(Input::JointStates)));
         // Only the base stale.
         let b = Inputs { base: arrived(pose(0, 1.0)), ..Inputs::default() };
-        l.update(&b, 1_000, &mut c);
+        up(&mut l, &b, 1_000, &mut c);
         assert_eq!(l.check(1_000, 10_000_000, AGES), Err(Fault::Stale(Input::BasePose)));
     }
 
@@ -394,18 +631,102 @@ mod tests {
     fn the_target_read_from_topics_is_checked_as_the_robot_is() {
         let mut l = Latest::new(2, true);
         let mut c = FaultCounts::default();
-        l.update(&inputs(joints(0, 0b11, [0.1, 0.2]), pose(0, 1.0)), 0, &mut c);
+        up(&mut l, &inputs(joints(0, 0b11, [0.1, 0.2]), pose(0, 1.0)), 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::Missing(Input::TargetPose)));
         let twist = StampedTwist { stamp: Time::from_ns(0), twist: Twist::default() };
         let t =
             Inputs { target_pose: arrived(pose(0, 2.0)), target_twist: arrived(twist), ..Inputs::default() };
-        l.update(&t, 0, &mut c);
+        up(&mut l, &t, 0, &mut c);
         let s = l.check(0, 0, AGES).unwrap();
         assert_eq!(s.target.map(|(p, _)| p.pose.position.x), Some(2.0));
         let mut bad = twist;
         bad.twist.angular.z = f64::NAN;
-        l.update(&Inputs { target_twist: arrived(bad), ..Inputs::default() }, 0, &mut c);
+        up(&mut l, &Inputs { target_twist: arrived(bad), ..Inputs::default() }, 0, &mut c);
         assert_eq!(l.check(0, 0, AGES), Err(Fault::NonFinite(Input::TargetTwist)));
+    }
+
+    #[test]
+    fn a_second_writer_is_refused_and_gives_the_zero_command_while_it_publishes() {
+        let mut l = Latest::new(2, false);
+        let mut c = FaultCounts::default();
+        let good = |t: i64| inputs(joints(t, 0b11, [0.1, 0.2]), pose(t, 1.0));
+        up(&mut l, &good(0), 0, &mut c);
+        assert!(l.check(0, 0, AGES).is_ok());
+        assert_eq!(l.writers()[0].own, Some(ROBOT));
+        // The rogue's joint state right after the robot's, in the same read: refused, and the
+        // period gets the zero command.
+        let mut both = good(1_000_000);
+        both.joints.push(ROGUE, joints(1_000_000, 0b11, [0.6, 0.7]));
+        up(&mut l, &both, 1_000_000, &mut c);
+        assert_eq!(l.check(1_000_000, 1_000_000, AGES), Err(Fault::SecondWriter(Input::JointStates)));
+        assert_eq!(l.second_writer(Input::JointStates, 1_000_000, AGES.silence_ns), Some(Some(ROGUE)));
+        // Alone in a read while the robot is still there: refused too, never the snapshot's.
+        let rogue =
+            Inputs { joints: Arrived::one(ROGUE, joints(2_000_000, 0b11, [0.6, 0.7])), ..Inputs::default() };
+        up(&mut l, &rogue, 2_000_000, &mut c);
+        assert_eq!(l.check(2_000_000, 2_000_000, AGES), Err(Fault::SecondWriter(Input::JointStates)));
+        let w = l.writers()[0];
+        assert_eq!(
+            (w.own, w.own_samples, w.others[0].map(|o| (o.id, o.samples))),
+            (Some(ROBOT), 2, Some((ROGUE, 2)))
+        );
+        // The rogue silent for --silence-ms: the robot's samples again, its own values.
+        let t = 2_000_000 + AGES.silence_ns + 1;
+        up(&mut l, &good(t as i64), t, &mut c);
+        let s = l.check(t, t as i64, AGES).unwrap();
+        assert_eq!(&s.joints[..2], &[0.1, 0.2]);
+        // Discovery listing two writers on the base's topic: the zero command, with no sample of
+        // the second.
+        l.update(&good(t as i64), t, [1, 2, 0, 0], AGES.silence_ns, &mut c);
+        assert_eq!(l.check(t, t as i64, AGES), Err(Fault::SecondWriter(Input::BasePose)));
+        assert_eq!(l.second_writer(Input::BasePose, t, AGES.silence_ns), Some(None));
+    }
+
+    #[test]
+    fn a_new_writer_is_taken_only_when_the_old_one_left_and_it_is_alone() {
+        let mut l = Latest::new(2, false);
+        let mut c = FaultCounts::default();
+        // Two writers from the start: neither is taken.
+        let mut both = inputs(joints(0, 0b11, [0.1, 0.2]), pose(0, 1.0));
+        both.joints.push(ROGUE, joints(0, 0b11, [0.6, 0.7]));
+        l.update(&both, 0, [2, 1, 0, 0], AGES.silence_ns, &mut c);
+        assert_eq!(l.writers()[0].own, None);
+        assert_eq!(l.check(0, 0, AGES), Err(Fault::SecondWriter(Input::JointStates)));
+        // The robot alone, the other gone from discovery and silent: taken.
+        let t = AGES.silence_ns + 1;
+        let good = |t: u64| inputs(joints(t as i64, 0b11, [0.1, 0.2]), pose(t as i64, 1.0));
+        l.update(&good(t), t, [1, 1, 0, 0], AGES.silence_ns, &mut c);
+        assert_eq!(l.writers()[0].own, Some(ROBOT));
+        assert!(l.check(t, t as i64, AGES).is_ok());
+        // The robot's driver restarts: a new writer, alone, after the old one went silent and
+        // left discovery — taken, and counted.
+        let new = WriterId([3; 16]);
+        let t2 = t + AGES.silence_ns + 1;
+        let restarted = Inputs {
+            joints: Arrived::one(new, joints(t2 as i64, 0b11, [0.3, 0.4])),
+            base: arrived(pose(t2 as i64, 1.0)),
+            ..Inputs::default()
+        };
+        l.update(&restarted, t2, [1, 1, 0, 0], AGES.silence_ns, &mut c);
+        assert_eq!((l.writers()[0].own, l.writers()[0].adopted), (Some(new), 1));
+        assert_eq!(&l.check(t2, t2 as i64, AGES).unwrap().joints[..2], &[0.3, 0.4]);
+    }
+
+    #[test]
+    fn every_faulty_input_is_named_when_the_node_gives_up_waiting() {
+        let mut l = Latest::new(2, true);
+        let mut c = FaultCounts::default();
+        up(&mut l, &Inputs { base: arrived(pose(0, 1.0)), ..Inputs::default() }, 0, &mut c);
+        let f = l.faults(0, 0, AGES);
+        assert_eq!(
+            f,
+            [
+                Some(Fault::Missing(Input::JointStates)),
+                None,
+                Some(Fault::Missing(Input::TargetPose)),
+                Some(Fault::Missing(Input::TargetTwist))
+            ]
+        );
     }
 
     #[test]

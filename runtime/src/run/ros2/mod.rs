@@ -44,7 +44,9 @@
 //! handed to their thread through a wait-free ring ([`rtrb`]) and formatted there. RustDDS
 //! allocates a buffer per sample it reads or writes (its own threads, and `write`).
 
+pub mod delay;
 pub mod inputs;
+pub mod security;
 pub mod target;
 
 use std::path::PathBuf;
@@ -66,7 +68,9 @@ use crate::transport::ros2::msgs::{
     DiagnosticArray, DiagnosticStatus, Header, JointVelocities, KeyValue, Time, Twist, Vector3,
     MAX_COMMAND_JOINTS,
 };
-use crate::transport::ros2::{EndpointConfig, Ros2Endpoint, Ros2Error, TargetTopics};
+use crate::transport::ros2::{
+    EndpointConfig, GraphNames, LogLevel, Ros2Endpoint, Ros2Error, Rosout, TargetTopics, WriterId,
+};
 
 /// The node's settings (the command line's flags and `--ros-config` file, checked).
 #[derive(Clone, Debug, PartialEq)]
@@ -102,6 +106,8 @@ pub struct NodeConfig {
     pub out: PathBuf,
     /// What the summary names the run by (arm, platform, run (a)–(d), target).
     pub describe: RunDescription,
+    /// SROS 2, as decided ([`security::decide`]; the enclave itself is the endpoint's).
+    pub security: security::SecuritySummary,
 }
 
 /// What the summary says the run is.
@@ -139,14 +145,17 @@ pub enum NodeError {
     /// Not every input arrived in time.
     #[error(
         "the robot's inputs did not all come within --startup-timeout ({:.1} s): {}; is the robot publishing on this ROS_DOMAIN_ID, with these topic \
-         names and a compatible QoS (a best-effort publisher does not match a reliable subscription)?",
-        .timeout_s, .missing
+         names and a compatible QoS (a best-effort publisher does not match a reliable subscription){}?",
+        .timeout_s, .missing,
+        if *.secured { ", and, the node being secured (SROS 2), certified by the keystore's identity CA and granted these topics" } else { "" }
     )]
     NoInputs {
-        /// What was missing (or refused) when the time ran out.
+        /// Every input that was missing (or refused) when the time ran out, and why.
         missing: String,
         /// The timeout (s).
         timeout_s: f64,
+        /// Whether the node ran under SROS 2 (only certified, permitted robots are heard).
+        secured: bool,
     },
     /// The generated target could not be advanced.
     #[error("the generated target: {0:?}")]
@@ -192,6 +201,8 @@ pub struct NodeSummary {
     pub topics: std::collections::BTreeMap<&'static str, String>,
     /// Every topic's QoS.
     pub qos: String,
+    /// SROS 2: whether the participant ran under DDS-Security, its enclave and strategy.
+    pub security: security::SecuritySummary,
     /// The period (s).
     pub period_s: f64,
     /// `--max-age` (s).
@@ -210,6 +221,8 @@ pub struct NodeSummary {
     pub zero_commands: u64,
     /// Them by cause and input.
     pub input_faults: FaultCountsByInput,
+    /// Each input's writers: its own, and any other (module docs of [`inputs`]).
+    pub writers: std::collections::BTreeMap<&'static str, InputWriters>,
     /// Steps the law rejected (zero command), by reason.
     pub rejections: Rejections,
     /// Periods whose command went out after the next release.
@@ -222,12 +235,51 @@ pub struct NodeSummary {
     pub measurement_age_ns: Percentiles,
     /// The period's work, from the release to the command sent (ns).
     pub work_ns: Percentiles,
+    /// The robot's command delay, estimated from its joint states' response to the commands
+    /// ([`delay`]): what `--command-latency` should be, given the measurement's age the node
+    /// counts (none: too little motion).
+    pub command_delay: Option<delay::DelayEstimate>,
     /// `‖e_p‖` of the last step the law made (NaN if none).
     pub final_ep_norm: f64,
     /// The largest `‖e_p‖` in the last 5 s of steps.
     pub max_ep_norm_last_5_s: f64,
     /// Why the run failed (empty: it did not).
     pub failures: Vec<String>,
+}
+
+/// An input's writers, in `summary.json`.
+#[derive(Clone, Debug, Serialize)]
+pub struct InputWriters {
+    /// The input's topic.
+    pub topic: String,
+    /// The writer whose samples the node used last (its DDS GUID, as `ros2 topic info -v`
+    /// prints a GID), if any.
+    pub writer: Option<String>,
+    /// The ROS node behind it, where `ros_discovery_info` names it.
+    pub node: Option<String>,
+    /// Its samples taken.
+    pub samples: u64,
+    /// Writers the input took after its first (a driver restarted).
+    pub adopted: u64,
+    /// The most remote writers discovery listed on the topic at once.
+    pub max_listed: u32,
+    /// Every other writer: those that sent samples (refused) and those discovery listed.
+    pub others: Vec<OtherWriter>,
+}
+
+/// A writer of an input other than its own.
+#[derive(Clone, Debug, Serialize)]
+pub struct OtherWriter {
+    /// Its DDS GUID.
+    pub writer: String,
+    /// The ROS node behind it, where the graph names it.
+    pub node: Option<String>,
+    /// Its samples, all refused.
+    pub samples_refused: u64,
+    /// When its first and last samples arrived, from the node's start (s); none if it sent none.
+    pub first_s: Option<f64>,
+    /// When its last sample arrived.
+    pub last_s: Option<f64>,
 }
 
 /// [`FaultCounts`] with each input named.
@@ -240,6 +292,7 @@ impl From<&FaultCounts> for FaultCountsByInput {
     fn from(c: &FaultCounts) -> Self {
         let mut m = std::collections::BTreeMap::new();
         for (cause, list) in [
+            ("second_writer", &c.second_writer),
             ("missing", &c.missing),
             ("malformed", &c.malformed),
             ("non_finite", &c.non_finite),
@@ -267,7 +320,15 @@ impl NodeOutcome {
     pub fn rejected(&self) -> bool {
         self.summary.failures.iter().any(|f| f.starts_with("the law rejected"))
     }
+
+    /// Whether an input had a second writer (exit code 10, before 6 and 7).
+    pub fn second_writer(&self) -> bool {
+        self.summary.failures.iter().any(|f| f.starts_with(SECOND_WRITER))
+    }
 }
+
+/// How a failure for a second writer begins.
+const SECOND_WRITER: &str = "a second writer";
 
 /// What the diagnostics thread is handed each period (`Copy`: through a ring, no allocation).
 #[derive(Clone, Copy, Debug, Default)]
@@ -283,11 +344,15 @@ struct DiagSample {
     late: u64,
     age_ns: u64,
     fault: Option<Fault>,
+    /// With [`Fault::SecondWriter`]: the other writer whose sample came last (none: only
+    /// discovery listed it).
+    writer: Option<WriterId>,
     running: bool,
 }
 
 fn fault_text(f: Fault) -> String {
     match f {
+        Fault::SecondWriter(i) => format!("{} has a second writer", i.as_str()),
         Fault::Missing(i) => format!("{} missing", i.as_str()),
         Fault::Malformed(i) => format!("{} malformed", i.as_str()),
         Fault::NonFinite(i) => format!("{} not finite", i.as_str()),
@@ -296,27 +361,77 @@ fn fault_text(f: Fault) -> String {
     }
 }
 
-/// The diagnostics thread: every `1/hz` seconds, the last sample as a
-/// `diagnostic_msgs/DiagnosticArray` (level OK while the law steps, WARN on a zero command).
-fn spawn_diagnostics(
-    publisher: ros2_client::Publisher<DiagnosticArray>,
-    mut ring: rtrb::Consumer<DiagSample>,
+/// A second writer named: its GUID and, where the graph says, its ROS node.
+fn writer_text(w: Option<WriterId>, names: &GraphNames) -> String {
+    match w {
+        None => "listed by discovery, no sample yet".to_string(),
+        Some(w) => match names.node_of(w) {
+            Some(n) => format!("writer {w} (node {n})"),
+            None => format!("writer {w} (no ROS node names it)"),
+        },
+    }
+}
+
+/// What the diagnostics thread needs besides its ring.
+struct DiagOut {
+    publisher: Option<ros2_client::Publisher<DiagnosticArray>>,
+    rosout: Rosout,
+    names: GraphNames,
     hz: f64,
     name: String,
+}
+
+/// The diagnostics thread: every `1/hz` seconds, the last sample as a
+/// `diagnostic_msgs/DiagnosticArray` (level OK while the law steps, WARN on a zero command,
+/// ERROR for a second writer, naming it); and a `/rosout` line whenever the reason for the zero
+/// command changes (WARN, ERROR for a second writer) and when tracking resumes (INFO).
+fn spawn_diagnostics(
+    out: DiagOut,
+    mut ring: rtrb::Consumer<DiagSample>,
     stop: Arc<AtomicBool>,
 ) -> Result<std::thread::JoinHandle<()>, NodeError> {
     std::thread::Builder::new()
         .name("ros2-diagnostics".into())
         .spawn(move || {
-            let every = std::time::Duration::from_secs_f64(1.0 / hz);
+            let every = std::time::Duration::from_secs_f64(1.0 / out.hz.max(10.0));
+            let publish_every = if out.hz > 0.0 { 1.0 / out.hz } else { f64::INFINITY };
+            let mut since_publish = 0.0;
             let mut last: Option<DiagSample> = None;
+            let mut last_reason: Option<(Option<Fault>, Option<WriterId>)> = None;
             while !stop.load(Ordering::Relaxed) {
                 std::thread::sleep(every);
+                since_publish += every.as_secs_f64();
                 while let Ok(s) = ring.pop() {
+                    let reason = (s.fault, s.writer);
+                    if s.running && last_reason != Some(reason) {
+                        match s.fault {
+                            Some(f @ Fault::SecondWriter(_)) => out.rosout.log(
+                                LogLevel::Error,
+                                &format!(
+                                    "zero command: {}: {}",
+                                    fault_text(f),
+                                    writer_text(s.writer, &out.names)
+                                ),
+                            ),
+                            Some(f) => {
+                                out.rosout.log(LogLevel::Warn, &format!("zero command: {}", fault_text(f)))
+                            }
+                            None if last_reason.is_some() => out.rosout.log(LogLevel::Info, "tracking"),
+                            None => {}
+                        }
+                        last_reason = Some(reason);
+                    }
                     last = Some(s);
                 }
-                let Some(s) = last else { continue };
+                let (Some(s), Some(publisher)) = (last, &out.publisher) else { continue };
+                if since_publish + 1e-9 < publish_every {
+                    continue;
+                }
+                since_publish = 0.0;
                 let (level, message) = match (s.running, s.fault) {
+                    (_, Some(f @ Fault::SecondWriter(_))) => {
+                        (2, format!("zero command: {}: {}", fault_text(f), writer_text(s.writer, &out.names)))
+                    }
                     (false, Some(f)) => (1, format!("waiting for the robot: {}", fault_text(f))),
                     (false, None) => (1, "waiting for the robot".to_string()),
                     (true, Some(f)) => (1, format!("zero command: {}", fault_text(f))),
@@ -328,7 +443,7 @@ fn spawn_diagnostics(
                 let kv = |k: &str, v: String| KeyValue { key: k.to_string(), value: v };
                 let status = DiagnosticStatus {
                     level,
-                    name: name.clone(),
+                    name: out.name.clone(),
                     message,
                     hardware_id: String::new(),
                     values: vec![
@@ -403,18 +518,29 @@ where
     }
     let mut ep = Ros2Endpoint::open(&cfg.endpoint)?;
     let stop = Arc::new(AtomicBool::new(false));
-    let (mut diag_in, diag_out) = rtrb::RingBuffer::<DiagSample>::new(64);
-    let diag_thread = match (ep.take_diagnostics(), cfg.diagnostics_hz > 0.0) {
-        (Some(p), true) => Some(spawn_diagnostics(
-            p,
-            diag_out,
-            cfg.diagnostics_hz,
-            format!("companion: {}", cfg.endpoint.node_name),
-            Arc::clone(&stop),
-        )?),
-        _ => None,
+    // A period's sample for the diagnostics thread: room for 1 s at 1 kHz between its reads.
+    let (mut diag_in, diag_out) = rtrb::RingBuffer::<DiagSample>::new(1024);
+    let out = DiagOut {
+        publisher: ep.take_diagnostics().filter(|_| cfg.diagnostics_hz > 0.0),
+        rosout: ep.rosout(),
+        names: ep.graph_names(),
+        hz: cfg.diagnostics_hz,
+        name: format!("companion: {}", cfg.endpoint.node_name),
     };
-    observer.note(&format!(
+    let diag_thread = Some(spawn_diagnostics(out, diag_out, Arc::clone(&stop))?);
+    let rosout = ep.rosout();
+    let note = |line: &str| {
+        observer.note(line);
+        rosout.log(LogLevel::Info, line.trim_start_matches("ros2: "));
+    };
+    if let Some(enc) = &cfg.endpoint.security {
+        note(&format!(
+            "ros2: secured by SROS 2 (DDS-Security: authenticated, access-controlled, encrypted) with enclave {} ({})",
+            enc.name,
+            enc.dir.display()
+        ));
+    }
+    note(&format!(
         "ros2: node {} on ROS_DOMAIN_ID {} at {:.0} Hz, {}; waiting for {} and {}{}",
         cfg.endpoint.node_name,
         cfg.endpoint.domain_id,
@@ -428,7 +554,7 @@ where
             String::new()
         }
     ));
-    let result = run_loop(cfg, &ep, &mut law, &mut target, &mut diag_in, observer);
+    let result = run_loop(cfg, &ep, &mut law, &mut target, &mut diag_in, &note);
     stop.store(true, Ordering::Relaxed);
     if let Some(t) = diag_thread {
         let _ = t.join();
@@ -447,7 +573,16 @@ where
         }
         rt::sleep_until_ns((t + cfg.period_ns).min(until));
     }
-    let summary = result?;
+    let summary = match result {
+        Ok(s) => s,
+        Err(e) => {
+            rosout.log(LogLevel::Error, &e.to_string());
+            return Err(e);
+        }
+    };
+    for f in &summary.failures {
+        rosout.log(LogLevel::Error, &format!("run failed: {f}"));
+    }
     let path = cfg.out.join("summary.json");
     std::fs::create_dir_all(&cfg.out).map_err(|source| NodeError::Write { path: cfg.out.clone(), source })?;
     let text = serde_json::to_string_pretty(&summary)
@@ -510,7 +645,7 @@ fn run_loop<S, P, L, const N: usize>(
     law: &mut L,
     target: &mut TargetSource<P, N>,
     diag: &mut rtrb::Producer<DiagSample>,
-    observer: &dyn Observer,
+    note: &dyn Fn(&str),
 ) -> Result<NodeSummary, NodeError>
 where
     S: NodeSpace,
@@ -542,6 +677,7 @@ where
     // The command the robot is executing (what the node sent last): the older of the joint
     // state and the base pose is moved by it to the newer one's stamp.
     let mut last_sent = Command::<f64, N>::zero();
+    let mut probe = delay::DelayProbe::<N>::new();
     let end = loop {
         let release = t0 + k * period_ns;
         rt::sleep_until_ns(release);
@@ -555,7 +691,7 @@ where
             k += behind;
         }
         let inputs = ep.take_inputs(&cfg.joint_names);
-        latest.update(&inputs, woke, &mut c.faults);
+        latest.update(&inputs, woke, ep.writer_counts(), cfg.ages.silence_ns, &mut c.faults);
         let now_real = realtime_ns();
         let checked = latest.check(woke, now_real, cfg.ages);
         if epoch.is_none() {
@@ -565,7 +701,7 @@ where
                 Ok(s) => {
                     let stamp = s.joints_stamp.as_ns().min(s.base_stamp.as_ns());
                     epoch = Some((stamp, planar_pose(&s.base).unwrap_or(Pose::identity()), release));
-                    observer.note(&format!(
+                    note(&format!(
                         "ros2: every input arrived; running{}",
                         cfg.duration_ns.map_or_else(
                             || " until SIGINT or SIGTERM".to_string(),
@@ -574,12 +710,21 @@ where
                     ));
                 }
                 Err(f) => {
-                    let _ =
-                        diag.push(DiagSample { fault: Some(f), stamp_ns: now_real, ..DiagSample::default() });
+                    let writer = second_writer_of(&latest, f, woke, cfg);
+                    let _ = diag.push(DiagSample {
+                        fault: Some(f),
+                        writer,
+                        stamp_ns: now_real,
+                        ..DiagSample::default()
+                    });
                     if woke - t0 > cfg.startup_timeout_ns {
+                        // Every input's fault, not only the first.
+                        let all = latest.faults(woke, now_real, cfg.ages);
+                        let missing: Vec<String> = all.iter().flatten().map(|f| fault_text(*f)).collect();
                         return Err(NodeError::NoInputs {
-                            missing: fault_text(f),
+                            missing: missing.join(", "),
                             timeout_s: cfg.startup_timeout_ns as f64 * 1e-9,
+                            secured: cfg.endpoint.security.is_some(),
                         });
                     }
                     k += 1;
@@ -594,9 +739,11 @@ where
             Err(f) => {
                 c.faults.count(f);
                 sample.fault = Some(f);
+                sample.writer = second_writer_of(&latest, f, woke, cfg);
                 StepReport::zero(None)
             }
             Ok(s) => {
+                probe.joints(s.joints_stamp.as_ns(), &s.joints[..N]);
                 let stamp = s.joints_stamp.as_ns().max(s.base_stamp.as_ns());
                 let age_ns = (now_real - stamp).max(0) as u64;
                 let t = (stamp - epoch_stamp) as f64 * 1e-9;
@@ -635,6 +782,11 @@ where
             Command::zero()
         };
         last_sent = cmd;
+        let mut sent = [0.0; N];
+        for (x, v) in sent.iter_mut().zip(cmd.joints.iter()) {
+            *x = *v;
+        }
+        probe.command(now_real, &sent);
         let p = &cmd.platform;
         let twist = Twist {
             linear: Vector3 { x: p.v, y: p.v_lat, z: 0.0 },
@@ -672,7 +824,82 @@ where
         k += 1;
     };
     let t_end = epoch.map_or(0.0, |(_, _, r)| (rt::monotonic_ns() - r) as f64 * 1e-9);
-    Ok(summary(cfg, &c, end, t_end))
+    let mut out = summary(cfg, &c, end, t_end, &writers_summary(cfg, ep, &latest, t0));
+    out.command_delay = probe.estimate(period_ns);
+    Ok(out)
+}
+
+/// The other writer behind a [`Fault::SecondWriter`] (none: another fault, or only discovery
+/// lists it).
+fn second_writer_of(latest: &Latest, f: Fault, now_ns: u64, cfg: &NodeConfig) -> Option<WriterId> {
+    match f {
+        Fault::SecondWriter(i) => latest.second_writer(i, now_ns, cfg.ages.silence_ns).flatten(),
+        _ => None,
+    }
+}
+
+/// Each read input's writers for the summary, named by the graph (after the run).
+fn writers_summary(
+    cfg: &NodeConfig,
+    ep: &Ros2Endpoint,
+    latest: &Latest,
+    t0: u64,
+) -> std::collections::BTreeMap<&'static str, InputWriters> {
+    let e = &cfg.endpoint;
+    let names = ep.graph_names();
+    let secs = |ns: u64| ns.saturating_sub(t0) as f64 * 1e-9;
+    let mut out = std::collections::BTreeMap::new();
+    let topics = [&e.joint_states, &e.base_pose, &e.target_pose, &e.target_twist];
+    let n = if e.target == TargetTopics::Read { 4 } else { 2 };
+    for (i, input) in Input::ALL.iter().enumerate().take(n) {
+        let w = &latest.writers()[i];
+        let mut others: Vec<OtherWriter> = w
+            .others
+            .iter()
+            .flatten()
+            .map(|o| OtherWriter {
+                writer: o.id.to_string(),
+                node: names.node_of(o.id),
+                samples_refused: o.samples,
+                first_s: Some(secs(o.first_ns)),
+                last_s: Some(secs(o.last_ns)),
+            })
+            .collect();
+        for id in ep.writers_ever(i) {
+            let seen = w.others.iter().flatten().any(|o| o.id == id);
+            if Some(id) != w.own && !seen {
+                others.push(OtherWriter {
+                    writer: id.to_string(),
+                    node: names.node_of(id),
+                    samples_refused: 0,
+                    first_s: None,
+                    last_s: None,
+                });
+            }
+        }
+        if w.others_overflow > 0 {
+            others.push(OtherWriter {
+                writer: format!("{} more writers' samples", w.others_overflow),
+                node: None,
+                samples_refused: w.others_overflow,
+                first_s: None,
+                last_s: None,
+            });
+        }
+        out.insert(
+            input.as_str(),
+            InputWriters {
+                topic: topics[i].clone(),
+                writer: w.own.map(|o| o.to_string()),
+                node: w.own.and_then(|o| names.node_of(o)),
+                samples: w.own_samples,
+                adopted: w.adopted,
+                max_listed: w.max_listed,
+                others,
+            },
+        );
+    }
+    out
 }
 
 /// A step's measurement, and the generated target's pose to send.
@@ -728,7 +955,13 @@ where
     Ok(Some((meas, out)))
 }
 
-fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummary {
+fn summary(
+    cfg: &NodeConfig,
+    c: &Counts,
+    end: NodeEnd,
+    t_end: f64,
+    writers: &std::collections::BTreeMap<&'static str, InputWriters>,
+) -> NodeSummary {
     let e = &cfg.endpoint;
     let mut topics = std::collections::BTreeMap::new();
     topics.insert("joint_states", e.joint_states.clone());
@@ -742,6 +975,30 @@ fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummar
     topics.insert("diagnostics", e.diagnostics.clone());
     let zero = c.faults.total();
     let mut failures = Vec::new();
+    for (input, w) in writers {
+        let i = Input::ALL.iter().position(|x| x.as_str() == *input).unwrap_or(0);
+        let periods = c.faults.second_writer[i];
+        if w.others.is_empty() && periods == 0 {
+            continue;
+        }
+        let named: Vec<String> = w
+            .others
+            .iter()
+            .map(|o| {
+                format!(
+                    "{}{} ({} samples refused)",
+                    o.writer,
+                    o.node.as_ref().map_or_else(String::new, |n| format!(" of node {n}")),
+                    o.samples_refused
+                )
+            })
+            .collect();
+        failures.push(format!(
+            "{SECOND_WRITER} published on {} ({input}): {}; the robot got the zero command for {periods} periods",
+            w.topic,
+            if named.is_empty() { "listed by discovery".to_string() } else { named.join(", ") }
+        ));
+    }
     if c.steps > 0 && c.rejected as f64 > cfg.max_rejected * c.steps as f64 {
         failures.push(format!(
             "the law rejected {} of {} steps ({:.2} %), more than --max-rejected {}",
@@ -772,6 +1029,7 @@ fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummar
         domain_id: e.domain_id,
         topics,
         qos: e.qos.describe(),
+        security: cfg.security.clone(),
         period_s: cfg.period_ns as f64 * 1e-9,
         max_age_s: cfg.ages.max_age_ns as f64 * 1e-9,
         silence_s: cfg.ages.silence_ns as f64 * 1e-9,
@@ -781,12 +1039,14 @@ fn summary(cfg: &NodeConfig, c: &Counts, end: NodeEnd, t_end: f64) -> NodeSummar
         steps: c.steps,
         zero_commands: zero,
         input_faults: FaultCountsByInput::from(&c.faults),
+        writers: writers.clone(),
         rejections: c.rejections,
         late: c.late,
         skipped_releases: c.skipped,
         send_failures: c.send_failures,
         measurement_age_ns: c.age.percentiles(),
         work_ns: c.work.percentiles(),
+        command_delay: None,
         final_ep_norm: c.final_ep,
         max_ep_norm_last_5_s: c.max_ep_last_5_s(t_end),
         failures,

@@ -65,6 +65,10 @@ pub struct TuneReport {
     pub effort_weight: f64,
     /// The seed.
     pub seed: u64,
+    /// The starts each run ran from (one: the arm's home).
+    pub starts: crate::study::starts::Starts,
+    /// `‖e_p‖` below this was tracked.
+    pub tolerance: f64,
     /// Every candidate, in evaluation order.
     pub candidates: Vec<Candidate>,
     /// The best candidate's index (`None` if none was valid).
@@ -104,6 +108,8 @@ impl TuneReport {
             space: t.space.clone(),
             effort_weight: t.effort_weight,
             seed: t.seed,
+            starts: t.starts,
+            tolerance: t.settle.tolerance,
             best,
             pareto: pareto.iter().map(|c| c.index).collect(),
             candidates,
@@ -123,9 +129,13 @@ impl TuneReport {
     pub fn preset(&self, t: &Tuning) -> Result<String, ReportError> {
         let best = self.best().ok_or(ReportError::NoValidCandidate)?;
         let r = &t.runs[0];
-        let mut file = knobs::apply(&r.builder, &r.base, &best.values).current_config().clone();
-        if file.velocity_limits.is_none() {
-            file.velocity_limits = r.base.controller.limits;
+        let builder = knobs::apply(&r.builder, &r.base, &best.values);
+        let mut file = builder.current_config().clone();
+        // The limits that ran (the file's merged with --limits), so that the preset alone is
+        // the tuned robot as it ran.
+        if let Ok(s) = builder.build() {
+            file.velocity_limits = s.controller.limits;
+            file.acceleration_limits = s.controller.acceleration;
         }
         let mut text = format!(
             "# companion tune: the best of {} candidates on runs {} (seed {}):\n\
@@ -142,11 +152,18 @@ impl TuneReport {
                 "# runs of the spatial arm `{arm}`: use it with the same --arm and --config THIS_FILE"
             );
         }
+        if !self.starts.is_home() {
+            let _ = writeln!(
+                text,
+                "# each run from {} homes within ±{} of the arm's (seed {}); tracked: ‖e_p‖ < {:e} after 20 s",
+                self.starts.count, self.starts.perturbation, self.starts.seed, self.tolerance
+            );
+        }
         for s in &best.runs {
             let _ = writeln!(
                 text,
-                "# {}: tracked {:.3}, rms |v| {:.3} m/s, {} maneuvers",
-                s.run, s.tracked, s.rms_v, s.maneuvers
+                "# {}: tracked {:.3}, settled from {} of {} starts, rms |v| {:.3} m/s, {} maneuvers",
+                s.run, s.tracked, s.settled, s.starts, s.rms_v, s.maneuvers
             );
         }
         text.push_str(
@@ -169,25 +186,26 @@ impl TuneReport {
             let _ = write!(csv, ",{}", k.name());
         }
         for r in &self.runs {
-            let _ = write!(csv, ",tracked_{r},rms_v_{r},maneuvers_{r}");
+            let _ = write!(csv, ",tracked_{r},settled_{r},rms_v_{r},maneuvers_{r}");
         }
-        csv.push_str(",tracked,effort,cost,pareto,invalid\n");
+        csv.push_str(",tracked,settled,effort,cost,pareto,invalid\n");
         for c in &self.candidates {
             let _ = write!(csv, "{},{}", c.index, c.stage);
             for (_, v) in &c.values {
                 let _ = write!(csv, ",{v}");
             }
             for r in &c.runs {
-                let _ = write!(csv, ",{},{},{}", r.tracked, r.rms_v, r.maneuvers);
+                let _ = write!(csv, ",{},{},{},{}", r.tracked, r.settled, r.rms_v, r.maneuvers);
             }
             if c.runs.is_empty() {
-                csv.push_str(&",,,".repeat(self.runs.len()));
+                csv.push_str(&",,,,".repeat(self.runs.len()));
             }
             let why = c.invalid.as_deref().unwrap_or("").replace([',', '\n'], ";");
             let _ = writeln!(
                 csv,
-                ",{},{},{},{},{why}",
+                ",{},{},{},{},{},{why}",
                 c.tracked,
+                c.settled,
                 c.effort,
                 c.cost,
                 self.pareto.contains(&c.index)

@@ -6,6 +6,8 @@ use companion_plant::PaperTrajectory;
 
 use super::*;
 use crate::domain::observe::Silent;
+use crate::study::starts::{self, Settle, Starts};
+use crate::study::trial::Judge;
 
 fn set(platform: PlatformKind, duration: f64) -> Vec<SetRun> {
     [(PaperTrajectory::One, PaperRun::A, "1a"), (PaperTrajectory::One, PaperRun::C, "1c")]
@@ -117,4 +119,46 @@ fn a_spatial_arm_is_tuned_on_its_own_runs() {
         assert_eq!(c.runs[0].min_joint_margin, margin);
     }
     assert!(a.preset(&t).unwrap().contains("spatial arm `ur5`"));
+}
+
+/// `--starts N`: each run of a spatial arm's set from N perturbed homes — the candidate's
+/// figures are the runs from those homes (each equal to `settle`'s run from the same home);
+/// the planar arm refuses it; an `[objective] tolerance` is checked.
+#[test]
+fn each_run_from_perturbed_homes_scores_as_those_runs() {
+    use crate::domain::arm::SpatialArmSpec;
+    use crate::run::spatial::SpatialTargetChoice;
+    let e = Tuning::new(set(PlatformKind::Unicycle, 1.0), None, 10, 1)
+        .unwrap()
+        .with_starts(Starts::new(3, 0.1, 1).unwrap())
+        .unwrap_err();
+    assert!(e.to_string().contains("--starts 3 perturbs a spatial arm's home"), "{e}");
+    let bad = space("[parameters]\nk_bar_3 = [10.0, 1000.0]\n[objective]\ntolerance = 0.0");
+    let e = Tuning::new(set(PlatformKind::Unicycle, 1.0), Some(&bad), 10, 1).unwrap_err();
+    assert!(e.to_string().contains("objective.tolerance must be > 0"), "{e}");
+    let builder = Scenario::builder(PaperTrajectory::One, PaperRun::A, PlatformKind::Unicycle)
+        .duration(21.0)
+        .for_spatial_arm();
+    let base = builder.clone().build().unwrap();
+    let setup =
+        SpatialSetup { arm: SpatialArmSpec::Ur5, target: SpatialTargetChoice::Lifted(PaperTrajectory::One) };
+    let runs = vec![SetRun { name: "1a".into(), builder, base: base.clone(), spatial: Some(setup.clone()) }];
+    let file = space("[parameters]\nk_bar_3 = [50.0, 200.0]\n[objective]\ntolerance = 1e-2");
+    let starts = Starts::new(3, 0.1, 7).unwrap();
+    let t = Tuning::new(runs, Some(&file), 4, 1).unwrap().with_starts(starts).unwrap();
+    let c = t.evaluate(0, "baseline", vec![(Knob::KBar3, 100.0)]);
+    assert_eq!((c.runs[0].starts, c.runs.len()), (3, 1));
+    let sc = setup.scenario(base, &[]).unwrap();
+    let settle = Settle { tolerance: 1e-2, after: 20.0 };
+    let direct = starts::settle(&sc, &starts, &settle, &Silent).unwrap();
+    assert_eq!(c.runs[0].settled, direct.settled);
+    assert!((c.tracked - direct.tracked_mean).abs() < 1e-15, "{} {}", c.tracked, direct.tracked_mean);
+    let rms = direct.runs.iter().map(|r| r.rms_v).sum::<f64>() / 3.0;
+    assert_eq!(c.runs[0].rms_v, rms);
+    // The homes differ from each other and from the arm's, within ±0.1.
+    let home = SpatialArmSpec::Ur5.home().unwrap();
+    for r in &direct.runs {
+        assert_ne!(r.home, home);
+        assert!(r.home.iter().zip(&home).all(|(a, b)| (a - b).abs() <= 0.1), "{:?}", r.home);
+    }
 }
