@@ -330,10 +330,10 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
     ///
     /// # Errors
     /// `reach_joints` with [`Rule::Geometry`] when the joints do not suit the chain;
-    /// `reach_margin` when `fraction` is not in `(0, 0.5)`.
+    /// `reach_margin` when `fraction` is not in `(0, 1)` (at 1 the ramp would reach the home).
     pub fn reach_of(&self, joints: ReachJoints, fraction: T) -> Result<Reach<T>, ParamError> {
         joints.validate(N)?;
-        if !(fraction > T::zero() && fraction < T::of(0.5)) {
+        if !(fraction > T::zero() && fraction < T::one()) {
             return Err(ParamError::new("reach_margin", Rule::NotInUnitInterval));
         }
         Reach::search(self, &self.chain, joints, fraction)

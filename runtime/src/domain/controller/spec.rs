@@ -11,8 +11,8 @@
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
     AccelerationLimits, CarLike, Discretisation, HeadingFilter, PaperRun, ParamError, Params, PlatformKind,
-    Pose, Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, TermRule, Unicycle, VelocityLimits, Weight,
-    WeightMargins,
+    Pose, Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, TermRule, Unicycle, VelocityLimits,
+    Weight, WeightMargins,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -218,7 +218,8 @@ pub struct ControllerConfig {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reach_joints: Option<[String; 3]>,
     /// The fraction of the room from the arm's home to each limit of its reach at which the
-    /// weight's ramp starts, in `(0, 0.5)` (default: the paper's 0.2).
+    /// weight's ramp starts, in `(0, 1)`: below 1 the home is outside every ramp (default: the
+    /// paper's 0.2).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub reach_margin: Option<f64>,
     /// How the reach's terms enter `Ψ̃` with the joints': `"max"` (default: the largest of
