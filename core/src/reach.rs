@@ -7,7 +7,7 @@
 //! limit". A revolute arm runs out of reach at a singular configuration — the elbow
 //! straightens far from any limit — or at its inner edge, where the wrist passes over the
 //! first joint's axis or behind it; there `Ψ̃` stays 0, the platform never moves and the
-//! target drifts away (the TIAGo's lifted T1 (b)–(d) ended 1.77 m from the target). So the
+//! target drifts away (the PR2's lifted T1 (b)–(d) ended 1.33–1.37 m from the target). So the
 //! reach is made coordinates with limits, each treated as (52) treats a joint:
 //!
 //! ```text
