@@ -27,7 +27,7 @@
 //! be. The limits are read from the chain ([`SpatialArm::reach_of`](crate::SpatialArm::reach_of)):
 //! `r⁻`, `r⁺` the folded and stretched extension, the least and largest `r` over the joints
 //! between the two points, and `c⁻` the least clearance, by a bounded deterministic search
-//! ([`search`]); the bearing has the first joint's own limits. The margins follow the paper's
+//! (`search`, below); the bearing has the first joint's own limits. The margins follow the paper's
 //! rule from the home (`δ⁺ = 0.2 (r⁺ − r_home)`, `δ⁺⁺ = ⅔ δ⁺`, likewise below). A side with no
 //! room at home has no ramp.
 //!

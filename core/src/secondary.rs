@@ -9,7 +9,7 @@
 //! ```
 //!
 //! Beyond the paper, the target these see may be the target with its heading filtered
-//! ([`HeadingFilter`](crate::HeadingFilter), [`heading_rates`], [`heading_filtered`]).
+//! ([`HeadingFilter`], [`heading_rates`], [`heading_filtered`]).
 
 use nalgebra::{Matrix3, SVector, Vector3};
 

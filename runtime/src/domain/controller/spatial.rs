@@ -149,7 +149,7 @@ fn with_filter_of<T: Copy, const N: usize>(weight: Weight<T, N>, from: &Weight<T
 /// The arm of `chain` with the spec's singularity settings (`[controller]` `damping_below`,
 /// `damping_depth`, `singular_below`; the core's defaults where unset) and its reach
 /// (`reach`, `reach_margin`, `reach_rule`, and `joints`, the `reach_joints` found by
-/// [`reach_joints`]; the chain's own by default).
+/// `reach_joints` (below); the chain's own by default).
 ///
 /// # Errors
 /// An invalid chain, or a setting outside its range.
