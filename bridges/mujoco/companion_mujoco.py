@@ -499,7 +499,8 @@ def csv_header(n, names):
     header = ["t", "x_b", "y_b", "theta_b", "xi"] + [f"q{i}" for i in range(1, n + 1)]
     for p in ("e", "d"):
         header += [f"{c}_{p}" for c in ("x", "y", "z", "qx", "qy", "qz", "qw")]
-    header += ["ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "v", "v_lat", "omega", "v_xi"]
+    header += ["ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "psi", "v", "v_lat", "omega",
+               "v_xi"]
     header += [f"u_q{i}" for i in range(1, n + 1)] + ["joint_scale", "status"]
     extra = ["x_true", "y_true", "theta_true", "v_true", "v_lat_true", "omega_true", "ep_position", "ep_rotation",
              "ep_norm_law", "slip_left", "slip_right", "traction_left", "traction_right"] + [f"load_{x}" for x in names]
@@ -515,7 +516,7 @@ def csv_line(row):
     vals = [t, base[0], base[1], base[2], 0.0, *q]
     for (rot, pos) in (tool, target):
         vals += [*pos, *quat_xyzw(rot)]
-    vals += [*p, *phi, en, float("nan"), cmd[0], cmd[3], cmd[1], 0.0, *cmd[2], cmd[6]]
+    vals += [*p, *phi, en, float("nan"), float("nan"), cmd[0], cmd[3], cmd[1], 0.0, *cmd[2], cmd[6]]
     line = ",".join(repr(float(x)) for x in vals) + "," + status + ","
     tail = [*truth, *vel, pe, re, cmd[5], *slip, *sat.tolist()]
     return line + ",".join(repr(float(x)) for x in tail) + "\n", pe, re, en

@@ -34,15 +34,15 @@ use crate::command::{Command, Diagnostics, Output, Rejected};
 use crate::error::{Field, ParamError, StepError};
 use crate::hold::{self, advance_inside, Start};
 use crate::measurement::Measurement;
-use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight};
+use crate::params::{Discretisation, Params, TargetMotion, Warning, Weight, WeightMargins};
 use crate::platform::{Platform, PlatformKind};
 use crate::platform_law::{Hold, PlatformLaw, PlatformPoint, PlatformStep, Previous};
 use crate::primary::filter_rate;
 use crate::scalar::{wrap_angle, Real};
 use crate::se2::{Pose, PoseSc};
 use crate::secondary::{
-    bounded_filter_rate, heading_filtered, heading_rates, psi_tilde, psi_tilde_value, rest_cost,
-    sigma_tilde_joint, RestCost,
+    bounded_filter_rate, heading_filtered, heading_rates, psi_tilde, psi_tilde_value, psi_with_terms,
+    rest_cost, sigma_tilde_joint, sigma_tildes, RestCost,
 };
 use crate::space::{Space, Vector};
 use crate::state::{wrap_alpha, Sent, State, HISTORY};
@@ -128,6 +128,7 @@ struct WeightAt<T, const N: usize> {
 type Meas<T, A, const N: usize> = Measurement<T, N, <A as Manipulator<T, N>>::Space>;
 type St<T, A, const N: usize> = State<T, N, <A as Manipulator<T, N>>::Space>;
 type Out<T, A, const N: usize> = Output<T, N, <A as Manipulator<T, N>>::Space>;
+type Rel<T, A, const N: usize> = <<A as Manipulator<T, N>>::Space as Space<T>>::Relative;
 
 impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T, P, A, N> {
     /// Validates the parameters, the platform's transverse function and the arm.
@@ -497,16 +498,22 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         match &self.params.secondary.weight {
             Weight::Constant(psi) => s.psi = *psi,
             Weight::Filtered { margins, .. } | Weight::FromFilteredJoints { margins } => {
-                s.psi = psi_tilde_value(q, &lim.lower, &lim.upper, margins);
+                s.psi = self.psi_tilde_of(q, &self.target_seen(meas), margins);
             }
             Weight::PerJoint { margins, .. } => {
                 for i in 0..N {
                     s.sigma[i] = sigma_tilde_joint(q[i], lim.lower[i], lim.upper[i], margins, i).0;
                 }
-                s.psi = s.sigma.dot(&s.sigma) / T::of(N as f64);
+                s.psi = self.psi_of_sigma(&s.sigma, q);
             }
         }
         s.forget_commands();
+    }
+
+    /// The target seen from the measured base, `r_bd`.
+    #[inline(always)]
+    fn target_seen(&self, meas: &Meas<T, A, N>) -> Rel<T, A, N> {
+        A::Space::relative(&meas.base, meas.base.theta.sincos(), &meas.target)
     }
 
     /// How the target's body velocity is extrapolated from the measurement (`u̇_d`, `ü_d`
@@ -543,6 +550,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
     /// `Ψ` and its rate (or the `σᵢ` rates) for filter values `psi`/`sigma` at joints `q`,
     /// filtered joints `q̂` moving at `q̂̇`.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn weight_at(
         &self,
         psi: T,
@@ -550,6 +558,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         q: &SVector<T, N>,
         q_hat: &SVector<T, N>,
         q_hat_rate: &SVector<T, N>,
+        r_bd: &Rel<T, A, N>,
     ) -> WeightAt<T, N> {
         let lim = &self.params.joint_limits;
         let mut sigma_rate = SVector::<T, N>::zeros();
@@ -557,7 +566,7 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let (psi, psi_rate) = match &self.params.secondary.weight {
             Weight::Constant(c) => (*c, T::zero()),
             Weight::Filtered { margins, lambda, xi } => {
-                let target = psi_tilde_value(q, &lim.lower, &lim.upper, margins);
+                let target = self.psi_tilde_of(q, r_bd, margins);
                 (psi, bounded_filter_rate(psi, target, *lambda, *xi))
             }
             Weight::PerJoint { margins, lambda, xi } => {
@@ -567,14 +576,57 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
                     sigma_rate[i] = bounded_filter_rate(sigma[i], target, *lambda, *xi);
                     rate += T::of(2.0) * sigma[i] * sigma_rate[i] * inv_n;
                 }
-                (sigma.dot(sigma) * inv_n, rate)
+                match self.arm.weight_terms(&self.params.primary, q_hat, None, true) {
+                    None => (sigma.dot(sigma) * inv_n, rate),
+                    Some(terms) => {
+                        // The arm's terms have no filter of their own: at q̂, as in the third
+                        // variant.
+                        let (psi, d, g) = psi_with_terms(sigma, &terms);
+                        (psi, d.dot(&sigma_rate) + g.dot(q_hat_rate))
+                    }
+                }
             }
             Weight::FromFilteredJoints { margins } => {
-                let (p, grad) = psi_tilde(q_hat, &lim.lower, &lim.upper, margins);
+                let (p, grad) = self.psi_tilde_gradient_of(q_hat, margins);
                 (p, grad.dot(q_hat_rate))
             }
         };
         WeightAt { psi, psi_rate, sigma_rate }
+    }
+
+    /// `Ψ̃(q)` of (52) with the arm's own terms ([`Manipulator::weight_terms`], a spatial
+    /// arm's reach); exactly the paper's for an arm without any.
+    #[inline(always)]
+    fn psi_tilde_of(&self, q: &SVector<T, N>, r_bd: &Rel<T, A, N>, margins: &WeightMargins<T, N>) -> T {
+        let lim = &self.params.joint_limits;
+        match self.arm.weight_terms(&self.params.primary, q, Some(r_bd), false) {
+            None => psi_tilde_value(q, &lim.lower, &lim.upper, margins),
+            Some(terms) => psi_with_terms(&sigma_tildes(q, &lim.lower, &lim.upper, margins).0, &terms).0,
+        }
+    }
+
+    /// [`Self::psi_tilde_of`] with its gradient.
+    #[inline(always)]
+    fn psi_tilde_gradient_of(&self, q: &SVector<T, N>, margins: &WeightMargins<T, N>) -> (T, SVector<T, N>) {
+        let lim = &self.params.joint_limits;
+        match self.arm.weight_terms(&self.params.primary, q, None, true) {
+            None => psi_tilde(q, &lim.lower, &lim.upper, margins),
+            Some(terms) => {
+                let (sigma, ds) = sigma_tildes(q, &lim.lower, &lim.upper, margins);
+                let (psi, d, g) = psi_with_terms(&sigma, &terms);
+                (psi, d.component_mul(&ds) + g)
+            }
+        }
+    }
+
+    /// `Ψ = (1/N) Σ σᵢ²` of the filtered `σᵢ` (54), with the arm's terms at the filtered
+    /// joints `q̂` (they have no filter of their own).
+    #[inline(always)]
+    fn psi_of_sigma(&self, sigma: &SVector<T, N>, q_hat: &SVector<T, N>) -> T {
+        match self.arm.weight_terms(&self.params.primary, q_hat, None, false) {
+            None => sigma.dot(sigma) / T::of(N as f64),
+            Some(terms) => psi_with_terms(sigma, &terms).0,
+        }
     }
 
     /// One step from `state`, which is written only at the end, once everything is known to
@@ -718,14 +770,15 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let (q, half) = (&{ pred.start.q }, pred.hold.half);
         let q_hat_rate = filter_rate(&st.q_hat, q, p.filter_sigma, p.filter_xi);
         let q_hat = st.q_hat + q_hat_rate * half;
-        let w0 = self.weight_at(st.psi, &st.sigma, q, &st.q_hat, &q_hat_rate);
+        let r_bd = &{ pred.target.r_bd };
+        let w0 = self.weight_at(st.psi, &st.sigma, q, &st.q_hat, &q_hat_rate, r_bd);
         let (psi, sigma) = match &self.params.secondary.weight {
             Weight::FromFilteredJoints { .. } => {
-                (self.weight_at(T::zero(), &st.sigma, q, &q_hat, &q_hat_rate).psi, st.sigma)
+                (self.weight_at(T::zero(), &st.sigma, q, &q_hat, &q_hat_rate, r_bd).psi, st.sigma)
             }
             Weight::PerJoint { .. } => {
                 let sigma = (st.sigma + w0.sigma_rate * half).map(|x| clamp(x, T::zero(), T::one()));
-                (sigma.dot(&sigma) / T::of(N as f64), sigma)
+                (self.psi_of_sigma(&sigma, &q_hat), sigma)
             }
             _ => (clamp(w0.psi + w0.psi_rate * half, T::zero(), T::one()), st.sigma),
         };
@@ -1007,20 +1060,19 @@ impl<T: Real, P: Platform<T>, A: Manipulator<T, N>, const N: usize> ControlLaw<T
         let (h, half) = (pred.hold.period, pred.hold.half);
         let q_mid = pred.start.q + arm.command.joints * half;
         let q_hat = st.q_hat + arm.q_hat_rate * h;
-        let w_mid = self.weight_at(filters.psi, &filters.sigma, &q_mid, &{ filters.q_hat }, &arm.q_hat_rate);
+        let r_bd = &{ pred.target.r_bd };
+        let w_mid =
+            self.weight_at(filters.psi, &filters.sigma, &q_mid, &{ filters.q_hat }, &arm.q_hat_rate, r_bd);
+        let q_hat = SVector::from_fn(|i, _| clamp(q_hat[i], lim.lower[i], lim.upper[i]));
         let (psi, sigma) = match &self.params.secondary.weight {
             Weight::Filtered { .. } => (clamp(st.psi + w_mid.psi_rate * h, T::zero(), T::one()), st.sigma),
             Weight::PerJoint { .. } => {
                 let sigma = (st.sigma + w_mid.sigma_rate * h).map(|x| clamp(x, T::zero(), T::one()));
-                (sigma.dot(&sigma) / T::of(N as f64), sigma)
+                (self.psi_of_sigma(&sigma, &q_hat), sigma)
             }
             Weight::Constant(_) | Weight::FromFilteredJoints { .. } => (st.psi, st.sigma),
         };
-        FiltersAfter {
-            q_hat: SVector::from_fn(|i, _| clamp(q_hat[i], lim.lower[i], lim.upper[i])),
-            psi,
-            sigma,
-        }
+        FiltersAfter { q_hat, psi, sigma }
     }
 
     /// `r̃_b` after the period (phase 6): an explicit step of (28) with the rates at `t_e`

@@ -73,6 +73,7 @@ pub mod params;
 pub mod platform;
 mod platform_law;
 pub mod primary;
+pub mod reach;
 pub mod scalar;
 pub mod se2;
 pub mod se3;
@@ -99,9 +100,11 @@ pub use platform::{
     CarLike, CompanionFrame, Omnidirectional, Platform, PlatformCommand, PlatformKind, Unicycle,
     VelocityLimits,
 };
+pub use reach::{Reach, ReachBand, ReachJoints};
 pub use scalar::{wrap_angle, Real};
 pub use se2::{Pose, PoseSc};
 pub use se3::Pose3;
+pub use secondary::{ArmTerms, TermRule};
 pub use space::{Planar, Space, Spatial};
 pub use spatial::{
     SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms, DAMPING_BELOW, DAMPING_DEPTH, SINGULAR_BELOW,

@@ -9,7 +9,7 @@
 //! ```
 //!
 //! Beyond the paper, the target these see may be the target with its heading filtered
-//! ([`HeadingFilter`](crate::HeadingFilter), [`heading_rates`], [`heading_filtered`]).
+//! ([`HeadingFilter`], [`heading_rates`], [`heading_filtered`]).
 
 use nalgebra::{Matrix3, SVector, Vector3};
 
@@ -106,11 +106,13 @@ pub fn sigma_tilde_joint<T: Real, const N: usize>(
     m: &WeightMargins<T, N>,
     i: usize,
 ) -> (T, T) {
-    sigma_tilde_i(q, lower, upper, m.lower[i], m.lower_inner[i], m.upper[i], m.upper_inner[i])
+    sigma_tilde_band(q, lower, upper, m.lower[i], m.lower_inner[i], m.upper[i], m.upper_inner[i])
 }
 
+/// `σ̃` of (52) for a coordinate `q` with limits `[lo, hi]` and margins `δ⁻` (`dm`), `δ⁻⁻`
+/// (`dmm`), `δ⁺` (`dp`), `δ⁺⁺` (`dpp`), with its derivative.
 #[inline]
-fn sigma_tilde_i<T: Real>(q: T, lo: T, hi: T, dm: T, dmm: T, dp: T, dpp: T) -> (T, T) {
+pub(crate) fn sigma_tilde_band<T: Real>(q: T, lo: T, hi: T, dm: T, dmm: T, dp: T, dpp: T) -> (T, T) {
     let (z, o) = (T::zero(), T::one());
     if q <= lo + dmm || q >= hi - dpp {
         (o, z)
@@ -159,6 +161,93 @@ pub fn psi_tilde_value<T: Real, const N: usize>(
         psi += s * s;
     }
     psi / T::of(N as f64)
+}
+
+/// How many terms an arm may add to `Ψ̃` ([`ArmTerms`]).
+pub const ARM_TERMS: usize = 3;
+
+/// The terms an arm adds to `Ψ̃` beyond its joints' `σ̃ᵢ` — a spatial arm's reach
+/// ([`crate::reach`]): `σ̃ₖ ∈ [0, 1]` with their gradients in `q`, and how they enter.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ArmTerms<T, const N: usize> {
+    /// The `σ̃ₖ`.
+    pub sigma: [T; ARM_TERMS],
+    /// `∂σ̃ₖ/∂q` (zero where only the values were asked for).
+    pub gradient: [SVector<T, N>; ARM_TERMS],
+    /// How they enter `Ψ̃`.
+    pub rule: TermRule,
+}
+
+/// How an arm's terms enter `Ψ̃` with its joints' `σ̃ᵢ` (see [`psi_with_terms`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum TermRule {
+    /// The largest of all: `Ψ̃ = max(maxᵢ σ̃ᵢ², maxₖ σ̃ₖ²)`. The default.
+    Max,
+    /// Averaged, as (52) averages the joints: `Ψ̃ = (Σᵢ σ̃ᵢ² + Σₖ σ̃ₖ²)/(N + K)`.
+    Mean,
+}
+
+/// `Ψ̃` from the joints' `σ̃ᵢ` and an arm's terms, by their rule, with `∂Ψ̃/∂σ̃ᵢ` and the
+/// terms' part of its gradient in `q`: `∂Ψ̃/∂qᵢ = ∂Ψ̃/∂σ̃ᵢ ∂σ̃ᵢ/∂qᵢ + (the third)ᵢ`. At a tie
+/// the max takes the first (the joints in order, then the terms): its gradient is that
+/// term's.
+#[inline]
+pub fn psi_with_terms<T: Real, const N: usize>(
+    sigma: &SVector<T, N>,
+    terms: &ArmTerms<T, N>,
+) -> (T, SVector<T, N>, SVector<T, N>) {
+    let two = T::of(2.0);
+    match terms.rule {
+        TermRule::Mean => {
+            let inv = T::one() / T::of((N + ARM_TERMS) as f64);
+            let (mut sum, mut grad) = (sigma.dot(sigma), SVector::<T, N>::zeros());
+            for k in 0..ARM_TERMS {
+                let s = terms.sigma[k];
+                sum += s * s;
+                grad += terms.gradient[k] * (two * s);
+            }
+            (sum * inv, sigma * (two * inv), grad * inv)
+        }
+        TermRule::Max => {
+            let (mut best, mut joint) = (T::zero(), 0usize);
+            for i in 0..N {
+                if sigma[i] * sigma[i] > best {
+                    (best, joint) = (sigma[i] * sigma[i], i);
+                }
+            }
+            let mut term = None;
+            for k in 0..ARM_TERMS {
+                let s = terms.sigma[k];
+                if s * s > best {
+                    (best, term) = (s * s, Some(k));
+                }
+            }
+            let mut d = SVector::<T, N>::zeros();
+            match term {
+                Some(k) => (best, d, terms.gradient[k] * (two * terms.sigma[k])),
+                None => {
+                    d[joint] = two * sigma[joint];
+                    (best, d, SVector::zeros())
+                }
+            }
+        }
+    }
+}
+
+/// `σ̃ᵢ(qᵢ)` of (52) for every joint, with `dσ̃ᵢ/dqᵢ`.
+#[inline]
+pub fn sigma_tildes<T: Real, const N: usize>(
+    q: &SVector<T, N>,
+    lower: &SVector<T, N>,
+    upper: &SVector<T, N>,
+    m: &WeightMargins<T, N>,
+) -> (SVector<T, N>, SVector<T, N>) {
+    let mut s = SVector::<T, N>::zeros();
+    let mut ds = SVector::<T, N>::zeros();
+    for i in 0..N {
+        (s[i], ds[i]) = sigma_tilde_joint(q[i], lower[i], upper[i], m, i);
+    }
+    (s, ds)
 }
 
 /// The rate of the bounded filters (26), (53), (54): `−λ (x − x̃)/(ξ + |x − x̃|)`.

@@ -123,9 +123,11 @@ use crate::params::{
     range_fraction, JointLimits, PaperRun, Params, PrimaryTask, SecondaryTask, Weight, WeightMargins,
 };
 use crate::primary::{penalty, PrimaryPoint};
+use crate::reach::{Frames, Lag, Reach, ReachJoints, MARGIN_FRACTION};
 use crate::scalar::Real;
 use crate::se2::Pose;
 use crate::se3::{Matrix6, Pose3};
+use crate::secondary::{ArmTerms, ARM_TERMS};
 use crate::so3;
 use crate::space::Spatial;
 use crate::task::{Manipulator, TaskPoint, TaskStep};
@@ -183,6 +185,8 @@ pub struct SpatialArm<T, const N: usize> {
     damping_depth: T,
     /// `cᵢ` of the redundant solution's weights `wᵢ = cᵢ (1 + ∂²h_ℓ/∂qᵢ²)` (module docs).
     speed_weights: SVector<T, N>,
+    /// The reach terms of the weight `Ψ̃` ([`crate::reach`]); `None`: the joints' alone.
+    reach: Option<Reach<T>>,
 }
 
 /// The arm's frames at one configuration, in the platform's frame.
@@ -302,7 +306,51 @@ impl<T: Real, const N: usize> SpatialArm<T, N> {
             damping_below: T::of(DAMPING_BELOW),
             damping_depth: T::of(DAMPING_DEPTH),
             speed_weights: speed_weights(chain),
-        })
+            reach: None,
+        }
+        .with_default_reach())
+    }
+
+    /// The same arm with the reach of [`ReachJoints::of_chain`] searched over its chain
+    /// ([`Reach::search`], the paper's margins), or none if the chain has fewer than four
+    /// revolute joints.
+    fn with_default_reach(mut self) -> Self {
+        self.reach = ReachJoints::of_chain(&self.chain)
+            .and_then(|j| Reach::search(&self, &self.chain, j, T::of(MARGIN_FRACTION)));
+        self
+    }
+
+    /// The reach terms of the weight ([`crate::reach`]).
+    pub fn reach(&self) -> Option<&Reach<T>> {
+        self.reach.as_ref()
+    }
+
+    /// The reach of `joints` searched over the chain, its margins `fraction` of the room from
+    /// the home to each limit (the paper's 0.2: [`MARGIN_FRACTION`]).
+    ///
+    /// # Errors
+    /// `reach_joints` with [`Rule::Geometry`] when the joints do not suit the chain;
+    /// `reach_margin` when `fraction` is not in `(0, 1)` (at 1 the ramp would reach the home).
+    pub fn reach_of(&self, joints: ReachJoints, fraction: T) -> Result<Reach<T>, ParamError> {
+        joints.validate(N)?;
+        if !(fraction > T::zero() && fraction < T::one()) {
+            return Err(ParamError::new("reach_margin", Rule::NotInUnitInterval));
+        }
+        Reach::search(self, &self.chain, joints, fraction)
+            .ok_or(ParamError::new("reach_joints", Rule::Geometry))
+    }
+
+    /// The same arm with other reach terms (`None`: the weight sees the joints alone, as the
+    /// paper's (52)).
+    ///
+    /// # Errors
+    /// The reach's rule broken ([`Reach::validate`]).
+    pub fn with_reach(mut self, reach: Option<Reach<T>>) -> Result<Self, ParamError> {
+        if let Some(r) = &reach {
+            r.validate(N)?;
+        }
+        self.reach = reach;
+        Ok(self)
     }
 
     /// The weights `cᵢ` the redundant solution gives each joint (module docs): by default
@@ -715,6 +763,12 @@ fn manipulability<T: Real, const N: usize>(w: &SMatrix<T, 3, N>, z: &SMatrix<T, 
     }
 }
 
+impl<T: Real, const N: usize> Frames<T, N> for SpatialArm<T, N> {
+    fn frames_at(&self, q: &SVector<T, N>) -> SpatialKinematics<T, N> {
+        self.kinematics(q)
+    }
+}
+
 macro_rules! spatial_manipulator {
     ($t:ty) => {
         /// A spatial arm is a [`Manipulator`] of space (implemented for `f32` and `f64`:
@@ -724,13 +778,51 @@ macro_rules! spatial_manipulator {
             type Space = Spatial;
 
             fn validate_arm(&self) -> Result<(), ParamError> {
-                Self::new(&self.chain).map(|_| ())
+                self.chain.validate()?;
+                if N < 6 {
+                    return Err(ParamError::new("joints", Rule::TooFewJoints));
+                }
+                match &self.reach {
+                    Some(r) => r.validate(N),
+                    None => Ok(()),
+                }
             }
 
             #[inline]
             fn check_joints(&self, _q: &SVector<$t, N>) -> Result<(), StepError> {
                 // Checked where the law is evaluated, with the Jacobian it computes anyway.
                 Ok(())
+            }
+
+            #[inline(always)]
+            fn weight_terms(
+                &self,
+                task: &PrimaryTask<$t, N, Spatial>,
+                q: &SVector<$t, N>,
+                r_bd: Option<&Pose3<$t>>,
+                gradient: bool,
+            ) -> Option<ArmTerms<$t, N>> {
+                let reach = self.reach.as_ref()?;
+                let kin = self.kinematics(q);
+                if gradient {
+                    let (sigma, gradient) = reach.sigma_gradient(&kin, q);
+                    return Some(ArmTerms { sigma, gradient, rule: reach.rule });
+                }
+                let lag = match r_bd {
+                    Some(r_bd) => {
+                        let e = &kin.effector;
+                        Some(Lag {
+                            held: e.translation + e.rotation * task.target_in_effector.translation,
+                            target: r_bd.translation,
+                        })
+                    }
+                    None => None,
+                };
+                Some(ArmTerms {
+                    sigma: reach.sigma(&kin, q, lag.as_ref()),
+                    gradient: [SVector::zeros(); ARM_TERMS],
+                    rule: reach.rule,
+                })
             }
 
             #[inline(always)]

@@ -16,6 +16,7 @@ use nalgebra::{SMatrix, SVector, Vector3};
 use crate::error::{ParamError, StepError};
 use crate::params::{JointLimits, PrimaryTask};
 use crate::scalar::Real;
+use crate::secondary::ArmTerms;
 use crate::space::Space;
 
 /// Where the arm law is evaluated: the state predicted for the middle of the hold.
@@ -97,4 +98,21 @@ pub trait Manipulator<T: Real, const N: usize>: Copy + core::fmt::Debug {
         point: &TaskPoint<'_, T, N, Self::Space>,
         half: T,
     ) -> Result<TaskStep<T, N, Self::Space>, StepError>;
+
+    /// The terms the arm adds to the weight `Ψ̃` of (52) at `q` beyond its joints' `σ̃ᵢ` — a
+    /// spatial arm's reach ([`crate::reach`]): of where the target at `r_bd` asks the arm to
+    /// be, if given; else, and with their gradients in `q` when `gradient`, of the arm as it
+    /// is (gradients zero otherwise). `None` (the default): the planar arms, whose reach is a joint's
+    /// ([`crate::secondary::psi_with_terms`] says how the terms enter).
+    #[inline(always)]
+    fn weight_terms(
+        &self,
+        task: &PrimaryTask<T, N, Self::Space>,
+        q: &SVector<T, N>,
+        r_bd: Option<&<Self::Space as Space<T>>::Relative>,
+        gradient: bool,
+    ) -> Option<ArmTerms<T, N>> {
+        let _ = (task, q, r_bd, gradient);
+        None
+    }
 }

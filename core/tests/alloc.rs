@@ -18,7 +18,7 @@ use common::*;
 use companion_core::nalgebra::{Vector3, Vector6};
 use companion_core::{
     CarLike, Chain, ControlLaw, Manipulator, Measurement, Omnidirectional, PaperRun, Params, Platform, Pose,
-    Real, Rpr, Spatial, SpatialArm, State, Unicycle, VelocityLimits,
+    Real, Rpr, Spatial, SpatialArm, State, Unicycle, VelocityLimits, Weight,
 };
 
 struct Counting;
@@ -122,12 +122,20 @@ fn laws<T: Real>(run: PaperRun) -> Vec<(&'static str, usize, usize)> {
 
 /// A spatial arm's law for `STEPS` steps: the target held `0.2 m` below the flange at home
 /// and moving on a small circle, the joints and base advanced by the commands (Euler).
-fn count_spatial<T: Real, const N: usize>(chain: &Chain<T, N>) -> (usize, usize)
+fn count_spatial<T: Real, const N: usize>(chain: &Chain<T, N>, run: PaperRun, variant: u8) -> (usize, usize)
 where
     SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
 {
     let arm = SpatialArm::new(chain).expect("valid");
-    let params = Params::for_arm(&arm, PaperRun::A, arm.level_target(T::of(0.2))).expect("valid");
+    let mut params = Params::for_arm(&arm, run, arm.level_target(T::of(0.2))).expect("valid");
+    // The weight's other variants (54) and Ψ = Ψ̃(q̂), whose rate takes the reach's gradient.
+    if let Weight::Filtered { margins, lambda, xi } = params.secondary.weight {
+        params.secondary.weight = match variant {
+            1 => Weight::PerJoint { margins, lambda, xi },
+            2 => Weight::FromFilteredJoints { margins },
+            _ => params.secondary.weight,
+        };
+    }
     let law = ControlLaw::new(params, Unicycle::paper(), arm).expect("valid");
     let home = arm.kinematics(&chain.home()).effector.compose(&params.primary.target_in_effector);
     let mut q = chain.home();
@@ -182,11 +190,16 @@ where
 
 /// (Called from the one test: a second test in parallel would mix its counts into these.)
 fn spatial_steps_allocate_nothing() {
+    // Runs (b)-(d) weigh the arm's reach (its three weight variants), run (a) does not.
     for (name, (allocations, accepted)) in [
-        ("ur5 f64", count_spatial::<f64, 6>(&Chain::ur5())),
-        ("ur5 f32", count_spatial::<f32, 6>(&Chain::ur5())),
-        ("panda f64", count_spatial::<f64, 7>(&Chain::panda())),
-        ("panda f32", count_spatial::<f32, 7>(&Chain::panda())),
+        ("ur5 f64 (a)", count_spatial::<f64, 6>(&Chain::ur5(), PaperRun::A, 0)),
+        ("ur5 f32 (a)", count_spatial::<f32, 6>(&Chain::ur5(), PaperRun::A, 0)),
+        ("panda f64 (a)", count_spatial::<f64, 7>(&Chain::panda(), PaperRun::A, 0)),
+        ("panda f32 (a)", count_spatial::<f32, 7>(&Chain::panda(), PaperRun::A, 0)),
+        ("ur5 f64 (b)", count_spatial::<f64, 6>(&Chain::ur5(), PaperRun::B, 0)),
+        ("ur5 f32 (c), per joint", count_spatial::<f32, 6>(&Chain::ur5(), PaperRun::C, 1)),
+        ("panda f64 (d), of q̂", count_spatial::<f64, 7>(&Chain::panda(), PaperRun::D, 2)),
+        ("panda f32 (b)", count_spatial::<f32, 7>(&Chain::panda(), PaperRun::B, 0)),
     ] {
         assert_eq!(allocations, 0, "{name}: {allocations} allocations in {STEPS} steps");
         assert!(accepted >= STEPS - STEPS / 97 - 10, "{name}: only {accepted} steps accepted");

@@ -316,6 +316,7 @@ fn no_config_value_makes_the_program_panic() {
         ("controller", "damping_below", false),
         ("controller", "damping_depth", false),
         ("controller", "singular_below", false),
+        ("controller", "reach_margin", false),
         ("velocity_limits", "forward", false),
         ("velocity_limits", "angular", false),
         ("acceleration_limits", "forward", false),

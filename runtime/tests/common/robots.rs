@@ -19,6 +19,7 @@ pub fn robot(rel: &str) -> String {
 /// The TIAGo's arm with its torso, from `base_footprint` to `arm_tool_link`, at a
 /// well-conditioned home (the tool 0.64 m ahead and 0.54 m up; the smallest singular value of
 /// its Jacobian 0.22).
+#[allow(dead_code)] // not every test file that includes this module runs the TIAGo
 pub fn tiago() -> Vec<String> {
     [
         "--arm",

@@ -5,9 +5,10 @@
 //! platform keys of `[controller]`, `--limits`, `--discretisation` act as on planar runs), and
 //! one step on an `f64` measurement for a controller in `f64` or `f32`.
 
+use companion_core::reach::MARGIN_FRACTION;
 use companion_core::{
     Chain, Command, Controller, Manipulator, Measurement, Omnidirectional, ParamError, Params, Platform,
-    PlatformCommand, PlatformKind, Pose, Pose3, Real, Rule, Spatial, SpatialArm, Weight,
+    PlatformCommand, PlatformKind, Pose, Pose3, ReachJoints, Real, Rule, Spatial, SpatialArm, Weight,
 };
 
 use super::report::StepReport;
@@ -146,13 +147,16 @@ fn with_filter_of<T: Copy, const N: usize>(weight: Weight<T, N>, from: &Weight<T
 }
 
 /// The arm of `chain` with the spec's singularity settings (`[controller]` `damping_below`,
-/// `damping_depth`, `singular_below`; the core's defaults where unset).
+/// `damping_depth`, `singular_below`; the core's defaults where unset) and its reach
+/// (`reach`, `reach_margin`, `reach_rule`, and `joints`, the `reach_joints` found by
+/// `reach_joints` (below); the chain's own by default).
 ///
 /// # Errors
-/// An invalid chain, or a setting outside `[0, 1)`.
+/// An invalid chain, or a setting outside its range.
 pub fn spatial_arm<T: Real, const N: usize>(
     spec: &ControllerSpec,
     chain: &Chain<T, N>,
+    joints: Option<ReachJoints>,
 ) -> Result<SpatialArm<T, N>, ParamError>
 where
     SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
@@ -172,7 +176,40 @@ where
     if let Some(x) = o.singular_below {
         arm = arm.with_singular_below(T::of(x))?;
     }
+    if o.reach == Some(false) {
+        return arm.with_reach(None);
+    }
+    if joints.is_some() || o.reach_margin.is_some() || o.reach_rule.is_some() {
+        let joints = joints
+            .or_else(|| arm.reach().map(|r| r.joints))
+            .ok_or(ParamError::new("reach_joints", Rule::Geometry))?;
+        let mut reach = arm.reach_of(joints, T::of(o.reach_margin.unwrap_or(MARGIN_FRACTION)))?;
+        if let Some(rule) = o.reach_rule {
+            reach.rule = rule.into();
+        }
+        arm = arm.with_reach(Some(reach))?;
+    }
     Ok(arm)
+}
+
+/// `[controller] reach_joints` as indices into the arm's joints `names` (`None` if unset).
+///
+/// # Errors
+/// A name the arm has no joint of.
+pub fn reach_joints(
+    spec: &ControllerSpec,
+    names: &[String],
+) -> Result<Option<ReachJoints>, SpatialControllerError> {
+    let Some(given) = &spec.overrides.reach_joints else {
+        return Ok(None);
+    };
+    let index = |name: &String| {
+        names.iter().position(|n| n == name).ok_or_else(|| SpatialControllerError::ReachJoint {
+            name: name.clone(),
+            joints: names.join(", "),
+        })
+    };
+    Ok(Some(ReachJoints { shoulder: index(&given[0])?, wrist: index(&given[1])?, axis: index(&given[2])? }))
 }
 
 /// The `[controller]` keys of a spatial arm's law (its singularity settings): refused with
@@ -183,23 +220,29 @@ pub fn spatial_only_keys(spec: &ControllerSpec) -> Vec<&'static str> {
         (o.damping_below.is_some(), "controller.damping_below"),
         (o.damping_depth.is_some(), "controller.damping_depth"),
         (o.singular_below.is_some(), "controller.singular_below"),
+        (o.reach.is_some(), "controller.reach"),
+        (o.reach_joints.is_some(), "controller.reach_joints"),
+        (o.reach_margin.is_some(), "controller.reach_margin"),
+        (o.reach_rule.is_some(), "controller.reach_rule"),
         (o.joint_limits.is_some(), "controller.joint_limits"),
     ])
 }
 
-/// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`.
+/// A spatial controller: the law of `chain` on `platform`, starting from the spec's `α(0)`,
+/// its reach defined by `joints` (the chain's own if `None`).
 ///
 /// # Errors
 /// An invalid chain or parameter.
 pub fn spatial_controller<T: Real, P: Platform<T>, const N: usize>(
     spec: &ControllerSpec,
     chain: &Chain<T, N>,
+    joints: Option<ReachJoints>,
     platform: P,
 ) -> Result<Controller<T, P, SpatialArm<T, N>, N>, ParamError>
 where
     SpatialArm<T, N>: Manipulator<T, N, Space = Spatial>,
 {
-    let arm = spatial_arm(spec, chain)?;
+    let arm = spatial_arm(spec, chain, joints)?;
     let params = spatial_params(spec, &arm)?;
     let mut c = Controller::new(params, platform, arm)?;
     if !spec.initial_alpha.iter().all(|a| a.is_finite()) {
@@ -219,6 +262,14 @@ pub enum SpatialControllerError {
     /// A parameter of the spatial law breaks a rule.
     #[error("the spatial law's parameters")]
     Law(#[source] ParamError),
+    /// `[controller] reach_joints` names a joint the arm does not have.
+    #[error("controller.reach_joints: the arm has no joint named {name:?} (its joints: {joints})")]
+    ReachJoint {
+        /// The name given.
+        name: String,
+        /// The arm's joints, in order.
+        joints: String,
+    },
     /// `[acceleration_limits] joints` has another number of values than the arm has joints.
     #[error("acceleration_limits.joints has {given} values; the arm has {joints} joints")]
     JointCount {
@@ -290,27 +341,28 @@ where
             return Err(SpatialControllerError::JointCount { given, joints: N });
         }
     }
+    let joints = reach_joints(spec, &arm.joint_names())?;
     let names = arm.joint_names();
     let c64 = || law_limits(spec, &arm.chain::<f64, N>()?, &names);
     let c32 = || law_limits(spec, &arm.chain::<f32, N>()?, &names);
     Ok(match (spec.platform, spec.scalar) {
         (PlatformKind::Unicycle, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, spec.unicycle::<f64>()).map_err(law)?)
+            Box::new(spatial_controller(spec, &c64()?, joints, spec.unicycle::<f64>()).map_err(law)?)
         }
         (PlatformKind::Unicycle, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, spec.unicycle::<f32>()).map_err(law)?)
+            Box::new(spatial_controller(spec, &c32()?, joints, spec.unicycle::<f32>()).map_err(law)?)
         }
         (PlatformKind::Car, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, spec.car::<f64>()).map_err(law)?)
+            Box::new(spatial_controller(spec, &c64()?, joints, spec.car::<f64>()).map_err(law)?)
         }
         (PlatformKind::Car, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, spec.car::<f32>()).map_err(law)?)
+            Box::new(spatial_controller(spec, &c32()?, joints, spec.car::<f32>()).map_err(law)?)
         }
         (PlatformKind::Omni, Scalar::F64) => {
-            Box::new(spatial_controller(spec, &c64()?, Omnidirectional).map_err(law)?)
+            Box::new(spatial_controller(spec, &c64()?, joints, Omnidirectional).map_err(law)?)
         }
         (PlatformKind::Omni, Scalar::F32) => {
-            Box::new(spatial_controller(spec, &c32()?, Omnidirectional).map_err(law)?)
+            Box::new(spatial_controller(spec, &c32()?, joints, Omnidirectional).map_err(law)?)
         }
     })
 }
@@ -350,7 +402,7 @@ mod tests {
         let mut spec = ControllerSpec::paper(PlatformKind::Car, PaperRun::A, Scalar::F64);
         let chain = Chain::<f64, 6>::ur5();
         let core = SpatialArm::new(&chain).unwrap();
-        let arm = spatial_arm(&spec, &chain).unwrap();
+        let arm = spatial_arm(&spec, &chain, None).unwrap();
         // Unset, the onset is the core's rule from the arm's home (the UR5's: ρ_home / 50, under
         // the fixed 10⁻³), the depth and the singular bound the core's.
         let p = spatial_params::<f64, 6>(&spec, &core).unwrap();
@@ -359,7 +411,7 @@ mod tests {
         assert_eq!((arm.damping(), arm.singular_below()), ((onset, core.damping().1), core.singular_below()));
         spec.overrides.damping_below = Some(1e-2);
         spec.overrides.singular_below = Some(1e-12);
-        let arm = spatial_arm(&spec, &chain).unwrap();
+        let arm = spatial_arm(&spec, &chain, None).unwrap();
         assert_eq!((arm.damping(), arm.singular_below()), ((1e-2, core.damping().1), 1e-12));
         assert_eq!(spatial_only_keys(&spec), ["controller.damping_below", "controller.singular_below"]);
         for (key, bad) in [("damping_below", 1.5), ("damping_depth", f64::NAN), ("singular_below", -1.0)] {
@@ -369,7 +421,7 @@ mod tests {
                 "damping_depth" => s.overrides.damping_depth = Some(bad),
                 _ => s.overrides.singular_below = Some(bad),
             }
-            let e = spatial_arm(&s, &chain).unwrap_err();
+            let e = spatial_arm(&s, &chain, None).unwrap_err();
             assert_eq!(e.param, key, "{e:?}");
         }
     }

@@ -11,8 +11,8 @@
 use companion_core::nalgebra::{SVector, Vector3};
 use companion_core::{
     AccelerationLimits, CarLike, Discretisation, HeadingFilter, PaperRun, ParamError, Params, PlatformKind,
-    Pose, Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, Unicycle, VelocityLimits, Weight,
-    WeightMargins,
+    Pose, Precompensation, Real, RestFilter, Rpr, Rule, TargetMotion, TermRule, Unicycle, VelocityLimits,
+    Weight, WeightMargins,
 };
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
@@ -207,6 +207,45 @@ pub struct ControllerConfig {
     /// `10⁻¹⁰`). Spatial arms only (`companion_core::SpatialArm::with_singular_below`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub singular_below: Option<f64>,
+    /// Whether a spatial arm's weight `Ψ̃` (52) sees its reach — the wrist's extension, its
+    /// clearance from the first joint's axis, the first joint's bearing (default true; false:
+    /// the paper's (52), its joints alone). Spatial arms only (`companion_core::reach`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach: Option<bool>,
+    /// The joints whose origins and axis define a spatial arm's reach, by name: the shoulder,
+    /// the wrist and the joint whose axis the clearance is measured from (default: the
+    /// chain's second revolute joint, its wrist joint, its first revolute joint).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach_joints: Option<[String; 3]>,
+    /// The fraction of the room from the arm's home to each limit of its reach at which the
+    /// weight's ramp starts, in `(0, 1)`: below 1 the home is outside every ramp (default: the
+    /// paper's 0.2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach_margin: Option<f64>,
+    /// How the reach's terms enter `Ψ̃` with the joints': `"max"` (default: the largest of
+    /// all) or `"mean"` (averaged, as (52) averages the joints).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reach_rule: Option<ReachRuleConfig>,
+}
+
+/// How a spatial arm's reach enters its weight, as written in a config file
+/// (`companion-core`'s `TermRule`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReachRuleConfig {
+    /// The largest of the joints' and the reach's terms (the default).
+    Max,
+    /// Averaged with them.
+    Mean,
+}
+
+impl From<ReachRuleConfig> for TermRule {
+    fn from(r: ReachRuleConfig) -> Self {
+        match r {
+            ReachRuleConfig::Max => TermRule::Max,
+            ReachRuleConfig::Mean => TermRule::Mean,
+        }
+    }
 }
 
 /// The car's default `K̄ = diag(k̄_v, k̄_α₁, k̄_α₂)` for `w = (v, α̇₁, α̇₂)` (found with

@@ -220,8 +220,8 @@ impl Task for Spatial {
         }
         h.extend(
             [
-                "ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "v", "v_lat", "omega",
-                "v_xi",
+                "ep_x", "ep_y", "ep_z", "ep_rx", "ep_ry", "ep_rz", "ep_norm", "h_s", "psi", "v", "v_lat",
+                "omega", "v_xi",
             ]
             .map(String::from),
         );
@@ -252,7 +252,7 @@ impl Task for Spatial {
             out(*x);
         }
         let c = &r.command.platform;
-        for x in [p.ep_norm, r.h_s, c.v, c.v_lat, c.omega, c.v_xi] {
+        for x in [p.ep_norm, r.h_s, r.psi, c.v, c.v_lat, c.omega, c.v_xi] {
             out(x);
         }
         for u in r.command.joints.iter() {
