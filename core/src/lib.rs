@@ -65,6 +65,7 @@ pub mod command;
 pub mod error;
 mod fastmath;
 mod hold;
+pub mod kinematics;
 pub mod law;
 pub mod lie;
 mod linalg;
@@ -89,6 +90,7 @@ pub use arm::{Arm, ArmKinematics, PlanarArm, Rpr};
 pub use chain::{Chain, DhConvention, DhJoint, FrameData, Joint, JointData, JointKind};
 pub use command::{Command, Diagnostics, Output, Rejected};
 pub use error::{Bound, Field, ParamError, Rule, StepError};
+pub use kinematics::SpatialKinematics;
 pub use law::{ControlLaw, Controller};
 pub use lie::LieGroup;
 pub use measurement::Measurement;
@@ -106,9 +108,7 @@ pub use se2::{Pose, PoseSc};
 pub use se3::Pose3;
 pub use secondary::{ArmTerms, TermRule};
 pub use space::{Planar, Space, Spatial};
-pub use spatial::{
-    SpatialArm, SpatialKinematics, SpatialPoint, SpatialTerms, DAMPING_BELOW, DAMPING_DEPTH, SINGULAR_BELOW,
-};
+pub use spatial::{SpatialArm, SpatialPoint, SpatialTerms, DAMPING_BELOW, DAMPING_DEPTH, SINGULAR_BELOW};
 pub use state::{Sent, State, HISTORY};
 pub use task::Manipulator;
 

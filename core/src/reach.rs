@@ -50,9 +50,9 @@ use nalgebra::{SVector, Vector3};
 
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule};
+use crate::kinematics::SpatialKinematics;
 use crate::scalar::Real;
 use crate::secondary::{sigma_tilde_band, TermRule};
-use crate::spatial::SpatialKinematics;
 
 /// The joints whose origins and axis define the reach (indices from 0 in the chain).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -118,6 +118,7 @@ use crate::acceleration::AccelerationLimits;
 use crate::arm_law::{implicit_rhs, solve_redundant, solve_square_into, Linearised};
 use crate::chain::{Chain, JointKind};
 use crate::error::{ParamError, Rule, StepError};
+use crate::kinematics::SpatialKinematics;
 use crate::linalg;
 use crate::params::{
     range_fraction, JointLimits, PaperRun, Params, PrimaryTask, SecondaryTask, Weight, WeightMargins,
@@ -187,19 +188,6 @@ pub struct SpatialArm<T, const N: usize> {
     speed_weights: SVector<T, N>,
     /// The reach terms of the weight `Ψ̃` ([`crate::reach`]); `None`: the joints' alone.
     reach: Option<Reach<T>>,
-}
-
-/// The arm's frames at one configuration, in the platform's frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SpatialKinematics<T, const N: usize> {
-    /// The joint axes `zᵢ` (unit columns).
-    pub axes: SMatrix<T, 3, N>,
-    /// A point `oᵢ` on each axis (the joint frame's origin).
-    pub points: SMatrix<T, 3, N>,
-    /// Which joints are revolute.
-    pub revolute: [bool; N],
-    /// The end effector `r_be`.
-    pub effector: Pose3<T>,
 }
 
 /// The task's quantities at one `(q, r_bd, t)` (module docs).
