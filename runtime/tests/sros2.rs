@@ -5,8 +5,9 @@
 //! of their samples used and 0 commands read; a certified participant without a grant for a
 //! topic cannot make its writer or reader; `ROS_SECURITY_STRATEGY=Enforce` without the files,
 //! with files of another CA, or with permissions lacking one of the node's topics refuses to
-//! start (exit 2, one sentence, nothing written). The same rogues, against a node that is not
-//! secured, are heard: the check can fail.
+//! start (exit 2, one sentence, nothing written). The same rogue, against a node that is not
+//! secured, is heard (a second writer on its inputs, exit 10) and reads its commands: the check
+//! can fail.
 //!
 //! Encrypted, too: a capture of the machine's frames finds the robot's joint states in clear
 //! in the plain run and in none of the secured run's.
@@ -486,23 +487,45 @@ fn a_secured_node_hears_only_its_certified_robot_and_no_rogue_reads_its_commands
 }
 
 /// The check above can fail: the same rogue, against the node without security, is heard
-/// (its NaN joint states counted) and reads the commands.
+/// and reads the commands. Heard: once the loop runs (the robot has its commands), the rogue
+/// joins, and the node sees its writers as second writers on `joint_states` and `base_pose`
+/// (the one-writer rule: zero commands while they last, counted, exit 10) — with DDS-Security
+/// it could not even make them. It reads the commands the node sends, and the robot's joint
+/// states go in clear.
 #[test]
 fn without_security_the_same_rogue_is_heard_and_reads_the_commands() {
     let _s = serial();
     let d = dir("plain");
     let dom = domain(1);
     let robot = Peer::start(dom, None, false);
-    let rogue = Peer::start(dom, None, true);
     let capture = Capture::start(&robot_frame());
-    let (o, summary) = node(dom, None, &d.join("node"), 4.0);
+    let out = d.join("node");
+    let node_thread = std::thread::spawn(move || node(dom, None, &out, 6.0));
+    let waited = std::time::Instant::now();
+    while robot.counts.joint_commands.load(Ordering::Relaxed) < 20
+        && waited.elapsed() < Duration::from_secs(60)
+    {
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let rogue = Peer::start(dom, None, true);
+    let (o, summary) = node_thread.join().unwrap();
     let captured = capture.map(Capture::finish);
-    let (_, _) = robot.finish();
+    let (robot, _) = robot.finish();
     let (rogue, _) = rogue.finish();
     let log = text(&o);
     let s = summary.unwrap_or_else(|| panic!("no summary: {log}"));
     assert_eq!(s["security"]["enabled"], false, "{s}");
-    assert!(s["input_faults"]["non_finite"]["joint_states"].as_u64().unwrap() > 0, "{s}");
+    assert!(count(&robot).1 >= 20, "the loop ran before the rogue joined: {log}");
+    // Each input names the rogue's writer and counts its samples refused; the zero command's
+    // periods are counted under the first input that found it.
+    for input in ["joint_states", "base_pose"] {
+        let others = s["writers"][input]["others"].as_array().cloned().unwrap_or_default();
+        let seen =
+            others.iter().any(|w| w["node"] == "/rogue" && w["samples_refused"].as_u64().unwrap_or(0) > 0);
+        assert!(seen, "the rogue's {input} writer was not seen: {s}");
+    }
+    assert!(s["input_faults"]["second_writer"]["joint_states"].as_u64().unwrap_or(0) > 0, "{s}");
+    assert_eq!(o.status.code(), Some(10), "{log}");
     let (_, joint, base) = count(&rogue);
     assert!(joint > 0 && base > 0, "the rogue read {joint} and {base} commands");
     if let Some((hits, frames)) = captured {
