@@ -3,7 +3,6 @@
 //! robot file carries its base's limits, `summary.json` says when the limits shaped a run, and
 //! `companion settle` runs a setting from perturbed homes that `sim --home` replays.
 
-#[allow(dead_code)]
 #[path = "common/robots.rs"]
 mod robots;
 

@@ -254,7 +254,6 @@ fn panda_car() {
 }
 
 #[path = "common/robots.rs"]
-#[allow(dead_code)]
 mod robots;
 
 /// `sim --arm` the TIAGo from its URDF with its robot file (`examples/arms/tiago-unicycle.toml`:

@@ -96,23 +96,9 @@ fn the_tiago_reaches_the_lifted_circle_in_runs_b_to_d() {
 #[test]
 fn the_pr2_reaches_the_lifted_circle_in_runs_b_to_d() {
     let d = dir("pr2-files");
-    let (urdf, srdf) =
-        (robots::robot("pr2_description/urdf/pr2.urdf"), robots::robot("pr2_description/srdf/pr2.srdf"));
     let off = controller(&d, "reach = false");
-    let arm = [
-        "--arm",
-        &urdf,
-        "--tip-link",
-        "r_gripper_tool_frame",
-        "--srdf",
-        &srdf,
-        "--home-state",
-        "tuck_right_arm",
-        "--home",
-        "torso_lift_joint=0.1",
-        "--platform",
-        "omni",
-    ];
+    let arm = robots::pr2();
+    let arm: Vec<&str> = arm.iter().map(String::as_str).collect();
     let without = [&arm[..], &["--config", &off]].concat();
     reaches_in_b_to_d("pr2", &arm, &without, 1.0);
     let _ = std::fs::remove_dir_all(&d);

@@ -1,3 +1,4 @@
+#![allow(dead_code)] // each test file that includes this module uses some of its robots
 //! example-robot-data's URDFs, which scripts/setup installs into target/py (the tests read
 //! them from there: data of another project, never copied into this one).
 
@@ -30,6 +31,27 @@ pub fn tiago() -> Vec<String> {
         "arm_tool_link",
         "--home",
         "0.2,1.0,-0.5,-1.0,1.2,0.0,0.5,0.0",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// The PR2's right arm and torso on its omnidirectional base, from `base_footprint` to
+/// `r_gripper_tool_frame`, at the SRDF's `tuck_right_arm` with the torso at 0.1 m.
+pub fn pr2() -> Vec<String> {
+    [
+        "--arm",
+        &robot("pr2_description/urdf/pr2.urdf"),
+        "--tip-link",
+        "r_gripper_tool_frame",
+        "--srdf",
+        &robot("pr2_description/srdf/pr2.srdf"),
+        "--home-state",
+        "tuck_right_arm",
+        "--home",
+        "torso_lift_joint=0.1",
+        "--platform",
+        "omni",
     ]
     .map(String::from)
     .to_vec()

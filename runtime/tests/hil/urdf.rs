@@ -8,29 +8,15 @@ use super::*;
 
 #[path = "../common/robots.rs"]
 mod robots;
-use robots::{robot, tiago};
+use robots::{pr2, robot, tiago};
 
 #[test]
 fn a_urdf_arm_in_lockstep_is_byte_identical_to_sim() {
     let _g = serial();
     let t = tiago();
     let t: Vec<&str> = t.iter().map(String::as_str).collect();
-    let pr2 = robot("pr2_description/urdf/pr2.urdf");
-    let srdf = robot("pr2_description/srdf/pr2.srdf");
-    let pr2 = [
-        "--arm",
-        &pr2,
-        "--tip-link",
-        "r_gripper_tool_frame",
-        "--srdf",
-        &srdf,
-        "--home-state",
-        "tuck_right_arm",
-        "--home",
-        "torso_lift_joint=0.1",
-        "--platform",
-        "omni",
-    ];
+    let pr2 = pr2();
+    let pr2: Vec<&str> = pr2.iter().map(String::as_str).collect();
     for extra in [
         [&t[..], &["--platform", "unicycle"]].concat(),
         [&t[..], &["--platform", "omni"]].concat(),
