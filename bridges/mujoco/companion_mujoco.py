@@ -1233,4 +1233,4 @@ class Checked(Exception):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    wire.exit_with(main())

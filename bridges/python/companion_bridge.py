@@ -88,6 +88,17 @@ def install_signal_handlers():
         signal.signal(sig, on_signal)
 
 
+def exit_with(code):
+    """Exits with `code`, SIGINT and SIGTERM ignored from here on: the run has ended and said
+    so. Python's own shutdown puts the default handler back in place of a Python one (not of
+    SIG_IGN) before the process ends: a signal in that window killed the plant after its files
+    were written, and `hil` saw a peer that died (exit 3, not the run's 0). (Ignored, not
+    blocked: a mask is a thread's, and MuJoCo's and numpy's threads would take the signal.)"""
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, signal.SIG_IGN)
+    sys.exit(code)
+
+
 def stop_requested():
     """Whether SIGINT or SIGTERM came."""
     return SIGNALS["first"] is not None
@@ -1521,4 +1532,4 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    exit_with(main())

@@ -218,3 +218,31 @@ def test_bad_input_is_named_with_exit_2_and_nothing_written(tmp_path, flags, say
     assert says in r.stderr
     assert "Traceback" not in r.stderr
     assert not out.exists()
+
+
+@pytest.mark.parametrize("ignore", [True, False])
+def test_a_signal_while_python_shuts_down_cannot_kill_a_plant_that_ended(ignore):
+    """The plant's last step, `exit_with(code)`: SIGINT and SIGTERM ignored before Python's
+    shutdown, which puts SIG_DFL back in place of a Python handler (CPython's _PySignal_Fini;
+    not in place of SIG_IGN). CI once saw a signal to the group land there: the plant died after
+    writing its files, and `hil` reported a peer that died, exit 3. The shutdown is stood in for
+    by an exit hook doing what _PySignal_Fini does, then a thread signalling the process: with
+    `exit_with` the code stands; the control case (`sys.exit`) dies of the signal."""
+    finish = "wire.exit_with(0)" if ignore else "sys.exit(0)"
+    code = f"""
+import atexit, os, signal, sys, threading
+sys.path.insert(0, {os.path.join(REPO, "bridges", "python")!r})
+import companion_bridge as wire
+wire.install_signal_handlers()
+def shutdown():
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        if signal.getsignal(sig) not in (signal.SIG_DFL, signal.SIG_IGN):
+            signal.signal(sig, signal.SIG_DFL)
+    t = threading.Thread(target=os.kill, args=(os.getpid(), signal.SIGTERM))
+    t.start()
+    t.join()
+atexit.register(shutdown)
+{finish}
+"""
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert r.returncode == (0 if ignore else -15), r.stderr

@@ -660,6 +660,19 @@ fn code_of(st: Option<ExitStatus>, otherwise: u8) -> u8 {
         .unwrap_or(otherwise)
 }
 
+/// How a plant's end falls outside the exit-code table, for a person (None: inside it).
+fn outside_the_table(st: ExitStatus) -> Option<String> {
+    use std::os::unix::process::ExitStatusExt as _;
+    // The same code whatever the fallback: the code is in the table.
+    if code_of(Some(st), 0) == code_of(Some(st), 1) {
+        return None;
+    }
+    Some(match st.signal() {
+        Some(n) => format!("was killed by signal {n}"),
+        None => format!("ended with {st}, not one of companion's exit codes"),
+    })
+}
+
 /// The TLS material `companion hil --transport zenoh` makes for its two roles (hosts `plant`,
 /// valid for 127.0.0.1, and `control`), removed when dropped.
 struct Throwaway {
@@ -821,6 +834,9 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
         ParentOutcome::Finished { end, plant, chaos, failure } => {
             // A plant that ended outside the table after the run started died in it.
             let code = code_of(plant, EXIT_PEER_LOST);
+            if let Some(how) = plant.and_then(outside_the_table) {
+                eprintln!("error: the plant {how} after its run started: exit {EXIT_PEER_LOST}");
+            }
             let interrupted = end == ControlEnd::Interrupted || code == EXIT_INTERRUPTED;
             match chaos {
                 _ if interrupted => EXIT_INTERRUPTED,

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use companion_runtime::domain::spread::Spread;
-use companion_runtime::study::starts::{self, Settle, SettleReport, Starts};
+use companion_runtime::study::starts::{self, Perturbation, Settle, SettleReport, Starts};
 
 use super::args::ScenarioArgs;
 use super::terminal::Terminal;
@@ -28,14 +28,15 @@ pub struct SettleArgs {
     /// How many starts.
     #[arg(long, default_value_t = 30, value_name = "N")]
     pub starts: usize,
-    /// Each joint's home moved by up to ± this (rad or m).
+    /// Each joint moved up to ± A (rad or m), or anywhere.
     ///
     /// Each start's home: every joint moved from the arm's home by a uniform draw within ± this
     /// (rad for a revolute joint, m for a prismatic one), kept out of the law's penalty margins
-    /// near the limits; 0 with --starts 1: the home itself. Seeded by --seed: start k is the same
-    /// whatever --starts.
-    #[arg(long, default_value_t = 0.1, value_name = "A", allow_hyphen_values = true)]
-    pub perturb: f64,
+    /// near its limits (the robot's, or the narrower [controller.joint_limits]); 0 with --starts
+    /// 1: the home itself. `anywhere`: every joint drawn uniformly between those margins. Seeded
+    /// by --seed: start k is the same whatever --starts.
+    #[arg(long, default_value = "0.1", value_name = "A|anywhere", allow_hyphen_values = true)]
+    pub perturb: Perturbation,
     /// Settled: ‖e_p‖ below this from --settle-by on.
     #[arg(long, default_value_t = 1e-3, value_name = "TOL", allow_hyphen_values = true)]
     pub tolerance: f64,
@@ -105,7 +106,7 @@ fn print(r: &SettleReport) {
     let from = if st.is_home() {
         "the home itself".to_string()
     } else {
-        format!("homes within ±{} of the arm's (seed {})", st.perturbation, st.seed)
+        format!("homes {} (seed {})", st.perturbation, st.seed)
     };
     println!(
         "{}: {} start(s), {from}: {} of {} settled (‖e_p‖ < {:e} from {} s on)",

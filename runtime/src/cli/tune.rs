@@ -9,7 +9,7 @@ use companion_plant::PaperTrajectory;
 use companion_runtime::domain::controller::run_name;
 use companion_runtime::domain::scenario::Target;
 use companion_runtime::run::spatial::{self, SpatialTargetChoice};
-use companion_runtime::study::starts::Starts;
+use companion_runtime::study::starts::{Perturbation, Starts};
 use companion_runtime::study::trial::SpatialSetup;
 use companion_runtime::study::tune::{self, SetRun, TuneSpaceFile, Tuning};
 
@@ -62,9 +62,13 @@ pub struct TuneArgs {
     /// arm's home itself.
     #[arg(long, default_value_t = 1, value_name = "N")]
     pub starts: usize,
-    /// Each joint's home moved by up to ± this (rad or m).
-    #[arg(long, default_value_t = 0.1, value_name = "A", allow_hyphen_values = true)]
-    pub perturb: f64,
+    /// Each joint moved up to ± A (rad or m), or anywhere.
+    ///
+    /// As `companion settle --perturb` draws them: each joint moved from the arm's home by a
+    /// uniform draw within ± this, kept out of the law's penalty margins; `anywhere`: every joint
+    /// drawn uniformly between those margins.
+    #[arg(long, default_value = "0.1", value_name = "A|anywhere", allow_hyphen_values = true)]
+    pub perturb: Perturbation,
     /// No progress bar.
     #[arg(long)]
     pub quiet: bool,

@@ -1,18 +1,22 @@
 //! Perturbed starts: one setting run from many homes near the robot's own, seeded — how a
 //! setting is judged robust (`companion settle`, `companion tune --starts`).
 //!
-//! Start `k` (from 0) of an arm with home `q*`, joint limits `[q⁻, q⁺]` and the law's penalty
-//! margins `δ` (`PrimaryTask::penalty_margin`: 5 % of each joint's range, 20 % for an arm of
-//! more than six joints) has the home
+//! Start `k` (from 0) of an arm with home `q*`, the law's joint limits `[q⁻, q⁺]` (the robot's,
+//! or the narrower `[controller.joint_limits]`) and its penalty margins `δ`
+//! (`PrimaryTask::penalty_margin`: 5 % of each joint's range, 20 % for an arm of more than six
+//! joints) stays in the window `[lᵢ, hᵢ] = [min(q*ᵢ, q⁻ᵢ + δᵢ), max(q*ᵢ, q⁺ᵢ − δᵢ)]` and has the
+//! home
 //!
 //! ```text
-//! qᵢ(k) = clamp(q*ᵢ + a (2 uₖ,ᵢ − 1),  min(q*ᵢ, q⁻ᵢ + δᵢ),  max(q*ᵢ, q⁺ᵢ − δᵢ))
+//! within a:   qᵢ(k) = clamp(q*ᵢ + a (2 uₖ,ᵢ − 1),  lᵢ,  hᵢ)
+//! anywhere:   qᵢ(k) = lᵢ + uₖ,ᵢ (hᵢ − lᵢ)
 //! ```
 //!
 //! with `a` the perturbation (rad for a revolute joint, m for a prismatic one) and `uₖ,ᵢ`
 //! uniform on [0, 1), the i-th number of ChaCha12 stream `k` of the seed: start `k` is the
 //! same whatever the number of starts and whatever thread runs it. A continuous joint is not
-//! clamped. One start with `a = 0` is the home itself ([`Starts::HOME`]).
+//! clamped (anywhere: within ±π of its home). One start within `a = 0` is the home itself
+//! ([`Starts::HOME`]).
 //!
 //! A start's home is the run's home altogether, as `sim --arm … --home q(k)` makes it: the
 //! law's `q*` (its preferred pose, the weight's margins) and where the arm starts; the lifted
@@ -30,7 +34,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::domain::arm::{ArmError, SpatialArmSpec};
-use crate::domain::controller::{spatial_params, ControllerSpec};
+use crate::domain::controller::{law_limits, spatial_params, ControllerSpec, SpatialControllerError};
 use crate::domain::observe::Observer;
 use crate::domain::spread::Spread;
 use crate::run::spatial::SpatialScenario;
@@ -43,7 +47,7 @@ pub enum StartsError {
     #[error("--starts must be at least 1")]
     Count,
     /// The perturbation is negative or not a number.
-    #[error("--perturb must be a finite number >= 0 (rad or m), got {0}")]
+    #[error("--perturb must be a finite number >= 0 (rad or m) or `anywhere`, got {0}")]
     Perturbation(f64),
     /// The tolerance or the settling time is not usable.
     #[error("--tolerance must be > 0 and --settle-by >= 0 s and shorter than the run ({0})")]
@@ -51,9 +55,47 @@ pub enum StartsError {
     /// The arm cannot be built.
     #[error(transparent)]
     Arm(#[from] ArmError),
+    /// The law's own joint limits (`[controller.joint_limits]`) do not fit the arm.
+    #[error(transparent)]
+    Limits(#[from] SpatialControllerError),
     /// The law refuses the arm's parameters.
     #[error("the law's parameters: {0}")]
     Param(companion_core::ParamError),
+}
+
+/// How far a start's home is from the arm's (module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Perturbation {
+    /// `a`: each joint's home moved by up to `±a` (rad or m), kept in the window.
+    Within(f64),
+    /// Each joint drawn uniformly over its whole window: homes anywhere inside the law's
+    /// limits, out of its penalty margins.
+    Anywhere,
+}
+
+impl std::str::FromStr for Perturbation {
+    type Err = String;
+
+    /// `anywhere`, or a finite number ≥ 0 (rad or m).
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s == "anywhere" {
+            return Ok(Self::Anywhere);
+        }
+        match s.parse::<f64>() {
+            Ok(a) if a.is_finite() && a >= 0.0 => Ok(Self::Within(a)),
+            _ => Err(format!("`{s}`: give a finite number >= 0 (rad or m) or `anywhere`")),
+        }
+    }
+}
+
+impl std::fmt::Display for Perturbation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::Within(a) => write!(f, "within ±{a} of the arm's"),
+            Self::Anywhere => write!(f, "anywhere inside the law's joint limits, out of its penalty margins"),
+        }
+    }
 }
 
 /// How many starts, how far from the home, from which seed.
@@ -61,33 +103,35 @@ pub enum StartsError {
 pub struct Starts {
     /// Starts (≥ 1).
     pub count: usize,
-    /// `a`: each joint's home moved by up to `±a` (rad or m).
-    pub perturbation: f64,
+    /// How far each start's home is from the arm's.
+    pub perturbation: Perturbation,
     /// The seed of the draws.
     pub seed: u64,
 }
 
 impl Starts {
     /// One start, at the home itself.
-    pub const HOME: Self = Self { count: 1, perturbation: 0.0, seed: 0 };
+    pub const HOME: Self = Self { count: 1, perturbation: Perturbation::Within(0.0), seed: 0 };
 
-    /// `count` starts, each joint's home moved by up to `±perturbation`, drawn from `seed`.
+    /// `count` starts, each home drawn from `seed` as `perturbation` says.
     ///
     /// # Errors
     /// No start, or a negative or non-finite perturbation.
-    pub fn new(count: usize, perturbation: f64, seed: u64) -> Result<Self, StartsError> {
+    pub fn new(count: usize, perturbation: Perturbation, seed: u64) -> Result<Self, StartsError> {
         if count == 0 {
             return Err(StartsError::Count);
         }
-        if !(perturbation.is_finite() && perturbation >= 0.0) {
-            return Err(StartsError::Perturbation(perturbation));
+        if let Perturbation::Within(a) = perturbation {
+            if !(a.is_finite() && a >= 0.0) {
+                return Err(StartsError::Perturbation(a));
+            }
         }
         Ok(Self { count, perturbation, seed })
     }
 
     /// Whether the one start is the home itself.
     pub fn is_home(&self) -> bool {
-        self.count == 1 && self.perturbation == 0.0
+        self.count == 1 && self.perturbation == Perturbation::Within(0.0)
     }
 
     /// `n` uniform numbers on [0, 1): ChaCha12 stream `k` of the seed.
@@ -113,11 +157,14 @@ impl Starts {
                 let u = self.draws(k, home.len());
                 (0..home.len())
                     .map(|i| {
-                        let q = home[i] + self.perturbation * (2.0 * u[i] - 1.0);
-                        if lo[i].is_finite() && hi[i].is_finite() {
-                            q.clamp(lo[i], hi[i])
-                        } else {
-                            q
+                        let bounded = lo[i].is_finite() && hi[i].is_finite();
+                        match self.perturbation {
+                            Perturbation::Within(a) if bounded => {
+                                (home[i] + a * (2.0 * u[i] - 1.0)).clamp(lo[i], hi[i])
+                            }
+                            Perturbation::Within(a) => home[i] + a * (2.0 * u[i] - 1.0),
+                            Perturbation::Anywhere if bounded => lo[i] + u[i] * (hi[i] - lo[i]),
+                            Perturbation::Anywhere => home[i] + std::f64::consts::PI * (2.0 * u[i] - 1.0),
                         }
                     })
                     .collect()
@@ -127,7 +174,7 @@ impl Starts {
 }
 
 /// The home and the window a perturbed home stays in: `[min(q*, q⁻ + δ), max(q*, q⁺ − δ)]`
-/// per joint (infinite for a continuous joint).
+/// per joint, of the law's limits (infinite for a continuous joint).
 #[allow(clippy::type_complexity)]
 fn window<const N: usize>(
     arm: &SpatialArmSpec,
@@ -136,7 +183,7 @@ fn window<const N: usize>(
 where
     SpatialArm<f64, N>: Manipulator<f64, N, Space = Spatial>,
 {
-    let chain = arm.chain::<f64, N>()?;
+    let chain = law_limits(spec, &arm.chain::<f64, N>()?, &arm.joint_names())?;
     let law = SpatialArm::new(&chain).map_err(StartsError::Param)?;
     let p = spatial_params(spec, &law).map_err(StartsError::Param)?;
     let (home, limits, delta) = (chain.home(), chain.limits(), p.primary.penalty_margin);
@@ -400,10 +447,10 @@ mod tests {
     fn homes_are_seeded_per_start_and_stay_within_the_margins() {
         let arm = SpatialArmSpec::Ur5;
         let home = arm.home().unwrap();
-        let ten = Starts::new(10, 0.1, 3).unwrap().homes(&arm, &spec()).unwrap();
-        let four = Starts::new(4, 0.1, 3).unwrap().homes(&arm, &spec()).unwrap();
+        let ten = Starts::new(10, Perturbation::Within(0.1), 3).unwrap().homes(&arm, &spec()).unwrap();
+        let four = Starts::new(4, Perturbation::Within(0.1), 3).unwrap().homes(&arm, &spec()).unwrap();
         assert_eq!(ten[..4], four[..]);
-        assert_ne!(ten, Starts::new(10, 0.1, 4).unwrap().homes(&arm, &spec()).unwrap());
+        assert_ne!(ten, Starts::new(10, Perturbation::Within(0.1), 4).unwrap().homes(&arm, &spec()).unwrap());
         let moves: Vec<f64> = ten.iter().flat_map(|h| h.iter().zip(&home).map(|(a, b)| a - b)).collect();
         assert!(moves.iter().all(|m| m.abs() <= 0.1), "{moves:?}");
         assert!(moves.iter().any(|m| *m > 0.07) && moves.iter().any(|m| *m < -0.07), "{moves:?}");
@@ -413,13 +460,51 @@ mod tests {
         let delta = 0.05 * (up - lo);
         let mut near = home.clone();
         near[1] = lo + delta + 0.01;
-        let wide = Starts::new(40, 0.5, 1).unwrap().homes(&arm.clone().rehomed(near), &spec()).unwrap();
+        let wide = Starts::new(40, Perturbation::Within(0.5), 1)
+            .unwrap()
+            .homes(&arm.clone().rehomed(near), &spec())
+            .unwrap();
         let q1: Vec<f64> = wide.iter().map(|h| h[1]).collect();
         assert!(q1.iter().all(|q| *q >= lo + delta - 1e-12), "{q1:?}");
         assert!(q1.iter().any(|q| (*q - (lo + delta)).abs() < 1e-12), "some clamped: {q1:?}");
-        assert!(Starts::new(0, 0.1, 1).is_err() && Starts::new(2, -0.1, 1).is_err());
-        assert!(Starts::new(2, f64::NAN, 1).is_err());
-        assert!(Starts::HOME.is_home() && !Starts::new(2, 0.0, 1).unwrap().is_home());
+        assert!(
+            Starts::new(0, Perturbation::Within(0.1), 1).is_err()
+                && Starts::new(2, Perturbation::Within(-0.1), 1).is_err()
+        );
+        assert!(Starts::new(2, Perturbation::Within(f64::NAN), 1).is_err());
+        assert!(Starts::HOME.is_home() && !Starts::new(2, Perturbation::Within(0.0), 1).unwrap().is_home());
+    }
+
+    /// `anywhere`: every joint drawn over its whole window, inside the law's own limits
+    /// (`[controller.joint_limits]`, narrower than the robot's for one joint here) and out of
+    /// their penalty margins (5 % of each range); `--perturb` parses a number or `anywhere`.
+    #[test]
+    fn anywhere_spreads_over_the_laws_window() {
+        let arm = SpatialArmSpec::Ur5;
+        let (chain, home, names) = (arm.chain::<f64, 6>().unwrap(), arm.home().unwrap(), arm.joint_names());
+        let mut spec = spec();
+        let (lo2, hi2) = (home[2] - 0.4, home[2] + 0.6);
+        spec.overrides.joint_limits = Some([(names[2].clone(), [lo2, hi2])].into());
+        let homes = Starts::new(200, Perturbation::Anywhere, 5).unwrap().homes(&arm, &spec).unwrap();
+        for i in 0..6 {
+            let (lo, hi) = if i == 2 { (lo2, hi2) } else { (chain.joints[i].lower, chain.joints[i].upper) };
+            let (l, h) = (lo + 0.05 * (hi - lo), hi - 0.05 * (hi - lo));
+            let q: Vec<f64> = homes.iter().map(|h| h[i]).collect();
+            let (min, max) =
+                q.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(*x), b.max(*x)));
+            assert!(min >= l - 1e-12 && max <= h + 1e-12, "joint {i}: {min}..{max} outside [{l}, {h}]");
+            assert!(
+                min < l + 0.05 * (h - l) && max > h - 0.05 * (h - l),
+                "joint {i}: {min}..{max} in [{l}, {h}]"
+            );
+        }
+        assert_eq!("anywhere".parse::<Perturbation>(), Ok(Perturbation::Anywhere));
+        assert_eq!("0.3".parse::<Perturbation>(), Ok(Perturbation::Within(0.3)));
+        assert!("-0.1".parse::<Perturbation>().is_err() && "inf".parse::<Perturbation>().is_err());
+        // The law's limits must hold the home: a narrower range that does not is refused.
+        spec.overrides.joint_limits = Some([(names[2].clone(), [home[2] + 0.1, home[2] + 0.6])].into());
+        let e = Starts::new(2, Perturbation::Anywhere, 5).unwrap().homes(&arm, &spec).unwrap_err();
+        assert!(e.to_string().contains("does not hold the home"), "{e}");
     }
 
     /// A start's run is the run of the arm at that home: the same summary as a scenario built
@@ -434,7 +519,7 @@ mod tests {
         let target = SpatialTargetChoice::Lifted(PaperTrajectory::One);
         let s = SpatialScenario::new(base.clone(), SpatialArmSpec::Ur5, target.clone()).unwrap();
         let settle = Settle::default();
-        let starts = Starts::new(2, 0.1, 1).unwrap();
+        let starts = Starts::new(2, Perturbation::Within(0.1), 1).unwrap();
         let r = super::settle(&s, &starts, &settle, &Silent).unwrap();
         assert_eq!(r.runs.len(), 2);
         let homes = starts.homes(&s.arm, &s.base.controller).unwrap();

@@ -10,7 +10,7 @@ mod spec;
 
 pub use report::{StepReport, JOINTS};
 pub use spatial::{
-    boxed_spatial_controller, command_f64, planar_only_keys, spatial_arm, spatial_controller,
+    boxed_spatial_controller, command_f64, law_limits, planar_only_keys, spatial_arm, spatial_controller,
     spatial_only_keys, spatial_params, SpatialControllerError, SpatialStep, TARGET_DISTANCE,
 };
 pub use spec::{

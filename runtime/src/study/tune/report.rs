@@ -155,7 +155,7 @@ impl TuneReport {
         if !self.starts.is_home() {
             let _ = writeln!(
                 text,
-                "# each run from {} homes within ±{} of the arm's (seed {}); tracked: ‖e_p‖ < {:e} after 20 s",
+                "# each run from {} homes {} (seed {}); tracked: ‖e_p‖ < {:e} after 20 s",
                 self.starts.count, self.starts.perturbation, self.starts.seed, self.tolerance
             );
         }

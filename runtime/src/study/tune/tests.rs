@@ -6,7 +6,7 @@ use companion_plant::PaperTrajectory;
 
 use super::*;
 use crate::domain::observe::Silent;
-use crate::study::starts::{self, Settle, Starts};
+use crate::study::starts::{self, Perturbation, Settle, Starts};
 use crate::study::trial::Judge;
 
 fn set(platform: PlatformKind, duration: f64) -> Vec<SetRun> {
@@ -130,7 +130,7 @@ fn each_run_from_perturbed_homes_scores_as_those_runs() {
     use crate::run::spatial::SpatialTargetChoice;
     let e = Tuning::new(set(PlatformKind::Unicycle, 1.0), None, 10, 1)
         .unwrap()
-        .with_starts(Starts::new(3, 0.1, 1).unwrap())
+        .with_starts(Starts::new(3, Perturbation::Within(0.1), 1).unwrap())
         .unwrap_err();
     assert!(e.to_string().contains("--starts 3 perturbs a spatial arm's home"), "{e}");
     let bad = space("[parameters]\nk_bar_3 = [10.0, 1000.0]\n[objective]\ntolerance = 0.0");
@@ -144,7 +144,7 @@ fn each_run_from_perturbed_homes_scores_as_those_runs() {
         SpatialSetup { arm: SpatialArmSpec::Ur5, target: SpatialTargetChoice::Lifted(PaperTrajectory::One) };
     let runs = vec![SetRun { name: "1a".into(), builder, base: base.clone(), spatial: Some(setup.clone()) }];
     let file = space("[parameters]\nk_bar_3 = [50.0, 200.0]\n[objective]\ntolerance = 1e-2");
-    let starts = Starts::new(3, 0.1, 7).unwrap();
+    let starts = Starts::new(3, Perturbation::Within(0.1), 7).unwrap();
     let t = Tuning::new(runs, Some(&file), 4, 1).unwrap().with_starts(starts).unwrap();
     let c = t.evaluate(0, "baseline", vec![(Knob::KBar3, 100.0)]);
     assert_eq!((c.runs[0].starts, c.runs.len()), (3, 1));
