@@ -835,7 +835,7 @@ pub fn run_hil(a: &HilArgs) -> Result<ExitCode> {
             // A plant that ended outside the table after the run started died in it.
             let code = code_of(plant, EXIT_PEER_LOST);
             if let Some(how) = plant.and_then(outside_the_table) {
-                eprintln!("error: the plant {how} after its run started: exit {EXIT_PEER_LOST}");
+                eprintln!("error: the plant {how} after its run started");
             }
             let interrupted = end == ControlEnd::Interrupted || code == EXIT_INTERRUPTED;
             match chaos {
