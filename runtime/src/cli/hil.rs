@@ -654,17 +654,20 @@ fn out_is_a_folder(out: &std::path::Path) -> Result<()> {
 /// the table does not have (a plant that crashed: a Python traceback exits 1) or a signal is
 /// `otherwise`.
 fn code_of(st: Option<ExitStatus>, otherwise: u8) -> u8 {
-    st.and_then(|s| s.code())
+    st.and_then(table_code).unwrap_or(otherwise)
+}
+
+/// The process's exit code if it is one of the exit-code table's.
+fn table_code(st: ExitStatus) -> Option<u8> {
+    st.code()
         .and_then(|c| u8::try_from(c).ok())
         .filter(|c| super::exit::EXIT_CODES.iter().any(|e| e.code == *c))
-        .unwrap_or(otherwise)
 }
 
 /// How a plant's end falls outside the exit-code table, for a person (None: inside it).
 fn outside_the_table(st: ExitStatus) -> Option<String> {
     use std::os::unix::process::ExitStatusExt as _;
-    // The same code whatever the fallback: the code is in the table.
-    if code_of(Some(st), 0) == code_of(Some(st), 1) {
+    if table_code(st).is_some() {
         return None;
     }
     Some(match st.signal() {

@@ -159,12 +159,16 @@ impl Starts {
                     .map(|i| {
                         let bounded = lo[i].is_finite() && hi[i].is_finite();
                         match self.perturbation {
-                            Perturbation::Within(a) if bounded => {
-                                (home[i] + a * (2.0 * u[i] - 1.0)).clamp(lo[i], hi[i])
-                            }
-                            Perturbation::Within(a) => home[i] + a * (2.0 * u[i] - 1.0),
                             Perturbation::Anywhere if bounded => lo[i] + u[i] * (hi[i] - lo[i]),
                             Perturbation::Anywhere => home[i] + std::f64::consts::PI * (2.0 * u[i] - 1.0),
+                            Perturbation::Within(a) => {
+                                let q = home[i] + a * (2.0 * u[i] - 1.0);
+                                if bounded {
+                                    q.clamp(lo[i], hi[i])
+                                } else {
+                                    q
+                                }
+                            }
                         }
                     })
                     .collect()
